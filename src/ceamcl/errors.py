@@ -1,0 +1,24 @@
+"""The project's own error types.
+
+Every error raised on bad input derives from :class:`CeamclError`, names where the problem is
+(file and line, or field) and says what was expected. The CLI turns these into a one-line
+message and a non-zero exit, without a traceback.
+"""
+
+from __future__ import annotations
+
+
+class CeamclError(Exception):
+    """Base class of every error this package raises on bad input."""
+
+
+class MapFormatError(CeamclError, ValueError):
+    """A map file (YAML or image) is malformed or inconsistent."""
+
+
+class LogFormatError(CeamclError, ValueError):
+    """A robot log is malformed."""
+
+
+class ConfigError(CeamclError, ValueError):
+    """A configuration value or command-line argument is out of range or unknown."""

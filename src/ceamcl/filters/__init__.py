@@ -1,0 +1,73 @@
+"""Localisation filters behind one interface (:class:`LocalisationFilter`), built by name."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ceamcl.errors import ConfigError
+from ceamcl.filters.base import (
+    Hypothesis,
+    LocalisationFilter,
+    ParticleSnapshot,
+    PoseEstimate,
+    SpeciesDiagnostics,
+    StepDiagnostics,
+)
+from ceamcl.filters.mcl import MCL, MCLConfig
+from ceamcl.maps.grid import OccupancyGrid
+from ceamcl.motion.odometry import OdometryMotionModel, OdometryNoise
+from ceamcl.sensors.base import SensorModel
+from ceamcl.sensors.beam_model import BeamModel
+from ceamcl.sensors.likelihood_field import LikelihoodFieldModel
+
+ALGORITHMS: tuple[str, ...] = ("mcl",)
+SENSOR_MODELS: tuple[str, ...] = ("likelihood-field", "beam")
+
+
+def make_sensor(name: str, grid: OccupancyGrid) -> SensorModel:
+    """A sensor model by name, with its default (ROS amcl) parameters."""
+    if name == "likelihood-field":
+        return LikelihoodFieldModel(grid)
+    if name == "beam":
+        return BeamModel(grid)
+    raise ConfigError(
+        f"sensor: unknown sensor model {name!r}; expected one of {', '.join(SENSOR_MODELS)}"
+    )
+
+
+def make_filter(
+    algorithm: str,
+    grid: OccupancyGrid,
+    rng: np.random.Generator,
+    *,
+    sensor: str | SensorModel = "likelihood-field",
+    odometry_noise: OdometryNoise | None = None,
+    n_particles: int | None = None,
+) -> LocalisationFilter:
+    """A filter by name (see :data:`ALGORITHMS`) with default settings."""
+    sensor_model = make_sensor(sensor, grid) if isinstance(sensor, str) else sensor
+    motion = OdometryMotionModel(odometry_noise or OdometryNoise())
+    if n_particles is not None and n_particles < 1:
+        raise ConfigError(f"particles: expected a positive count, got {n_particles}")
+    if algorithm == "mcl":
+        cfg = MCLConfig() if n_particles is None else MCLConfig(n_particles=n_particles)
+        return MCL(grid, motion, sensor_model, cfg, rng=rng)
+    raise ConfigError(
+        f"algorithm: unknown algorithm {algorithm!r}; expected one of {', '.join(ALGORITHMS)}"
+    )
+
+
+__all__ = [
+    "ALGORITHMS",
+    "MCL",
+    "SENSOR_MODELS",
+    "Hypothesis",
+    "LocalisationFilter",
+    "MCLConfig",
+    "ParticleSnapshot",
+    "PoseEstimate",
+    "SpeciesDiagnostics",
+    "StepDiagnostics",
+    "make_filter",
+    "make_sensor",
+]

@@ -1,0 +1,199 @@
+"""MCL: the standard particle filter (Dellaert et al. 1999; Probabilistic Robotics Table 8.2).
+
+One step: move every particle with the motion model (predict), multiply its weight by the
+scan's likelihood (weight), and resample with the low-variance sampler when the effective
+sample size falls below ``resample_ess_fraction * N`` (resample). Global localisation starts
+from particles uniform over free space, weighted by the first scan.
+
+The estimate is the weighted mean of all particles with a circular mean heading; in a
+symmetric world it can fall between modes, which is why :meth:`MCL.hypotheses` also reports
+the particle clusters (as ROS amcl does), heaviest first.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ceamcl.filters.base import (
+    Hypothesis,
+    ParticleSnapshot,
+    PoseEstimate,
+    StepDiagnostics,
+)
+from ceamcl.filters.clustering import cluster_labels
+from ceamcl.filters.resampling import effective_sample_size, normalise_log_weights, systematic
+from ceamcl.maps.grid import OccupancyGrid
+from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel
+from ceamcl.pose import pose_covariance, pose_mean
+from ceamcl.sensors.base import SensorModel, fitness
+from ceamcl.sensors.scan import LaserScan
+
+
+@dataclass(frozen=True)
+class MCLConfig:
+    """MCL settings.
+
+    n_particles: fixed sample size.
+    resample_ess_fraction: resample when ESS < fraction x N (1.0 resamples every step).
+    cluster_cell_m: cell size of the x-y grid whose connected regions are the hypotheses.
+    """
+
+    n_particles: int = 5000
+    resample_ess_fraction: float = 0.5
+    cluster_cell_m: float = 0.5
+
+    def __post_init__(self) -> None:
+        if self.n_particles < 1:
+            raise ValueError(f"n_particles: expected >= 1, got {self.n_particles}")
+        if not 0.0 <= self.resample_ess_fraction <= 1.0:
+            raise ValueError(
+                f"resample_ess_fraction: expected in [0, 1], got {self.resample_ess_fraction}"
+            )
+        if not self.cluster_cell_m > 0:
+            raise ValueError(f"cluster_cell_m: expected > 0, got {self.cluster_cell_m}")
+
+
+class MCL:
+    """Monte Carlo localisation with a fixed number of particles."""
+
+    name = "mcl"
+
+    def __init__(
+        self,
+        grid: OccupancyGrid,
+        motion: OdometryMotionModel,
+        sensor: SensorModel,
+        config: MCLConfig | None = None,
+        *,
+        rng: np.random.Generator,
+    ) -> None:
+        self.grid = grid
+        self.motion = motion
+        self.sensor = sensor
+        self.config = config or MCLConfig()
+        self.rng = rng
+        n = self.config.n_particles
+        self.poses: NDArray[np.float64] = np.zeros((n, 3))
+        self.log_weights: NDArray[np.float64] = np.full(n, -np.log(n))
+        self.fitness: NDArray[np.float64] = np.ones(n)
+        self.t = 0
+        self._evaluations = 0
+
+    # ------------------------------------------------------------------ initialisation
+    def initialise_global(self, scan: LaserScan) -> StepDiagnostics:
+        start = time.perf_counter()
+        self.t = 0
+        self.poses = self.grid.sample_free_poses(self.config.n_particles, self.rng)
+        self.log_weights = np.full(self.poses.shape[0], -np.log(self.poses.shape[0]))
+        self._evaluations = 0
+        reinit = self._weight(scan)
+        self._after_weighting()
+        return self._diagnostics(start, reinit)
+
+    def initialise_pose(self, pose: ArrayLike, covariance: ArrayLike) -> None:
+        self.t = 0
+        n = self.config.n_particles
+        mean = np.asarray(pose, dtype=np.float64)
+        cov = np.asarray(covariance, dtype=np.float64)
+        self.poses = self.rng.multivariate_normal(mean, cov, size=n, method="cholesky")
+        self.poses[:, 2] = np.angle(np.exp(1j * self.poses[:, 2]))
+        self.log_weights = np.full(n, -np.log(n))
+        self.fitness = np.ones(n)
+
+    # ------------------------------------------------------------------ one step
+    def step(self, increment: OdometryIncrement, scan: LaserScan | None) -> StepDiagnostics:
+        start = time.perf_counter()
+        self.t += 1
+        self._evaluations = 0
+        self.poses = self.motion.sample(self.poses, increment, self.rng)
+        reinit = self._weight(scan) if scan is not None else False
+        self._after_weighting()
+        return self._diagnostics(start, reinit)
+
+    def _weight(self, scan: LaserScan) -> bool:
+        """Importance weighting; returns True when the filter had to re-initialise."""
+        prepared = self.sensor.prepare(scan)
+        ll = self.sensor.log_likelihood(self.poses, prepared)
+        self._evaluations += self.poses.shape[0]
+        self.fitness = fitness(ll, prepared, self.sensor)
+        log_w, _, ok = normalise_log_weights(self.log_weights + ll)
+        if not ok:
+            # Every particle impossible (or the model returned NaN): start again from scratch.
+            self.poses = self.grid.sample_free_poses(self.config.n_particles, self.rng)
+            self.log_weights = np.full(self.poses.shape[0], -np.log(self.poses.shape[0]))
+            self.fitness = np.ones(self.poses.shape[0])
+            return True
+        self.log_weights = log_w
+        return False
+
+    def _after_weighting(self) -> None:
+        """Hook for GMCL's genetic operators; then resample when the weights degenerate."""
+        self._evolve()
+        w = self.weights
+        if effective_sample_size(w) < self.config.resample_ess_fraction * w.size:
+            self._resample(w)
+
+    def _evolve(self) -> None:
+        """No evolution in plain MCL."""
+
+    def _resample(self, w: NDArray[np.float64]) -> None:
+        idx = systematic(w, self.config.n_particles, self.rng)
+        self.poses = self.poses[idx]
+        self.fitness = self.fitness[idx]
+        self.log_weights = np.full(idx.size, -np.log(idx.size))
+        self._resampled = True
+
+    def _diagnostics(self, start: float, reinitialised: bool) -> StepDiagnostics:
+        resampled = getattr(self, "_resampled", False)
+        self._resampled = False
+        return StepDiagnostics(
+            step=self.t,
+            n_particles=int(self.poses.shape[0]),
+            ess=effective_sample_size(self.weights),
+            resampled=resampled,
+            likelihood_evaluations=self._evaluations,
+            step_ms=(time.perf_counter() - start) * 1e3,
+            reinitialised=reinitialised,
+        )
+
+    # ------------------------------------------------------------------ queries
+    @property
+    def weights(self) -> NDArray[np.float64]:
+        return normalise_log_weights(self.log_weights)[1]
+
+    def estimate(self) -> PoseEstimate:
+        w = self.weights
+        mean = pose_mean(self.poses, w)
+        return PoseEstimate(mean, pose_covariance(self.poses, w, mean))
+
+    def _labels(self) -> tuple[NDArray[np.int64], int]:
+        return cluster_labels(self.poses[:, :2], self.config.cluster_cell_m)
+
+    def hypotheses(self) -> list[Hypothesis]:
+        labels, count = self._labels()
+        w = self.weights
+        mass = np.bincount(labels, weights=w, minlength=count)
+        out = []
+        for k in np.argsort(-mass):
+            members = labels == k
+            wk = w[members]
+            mean = pose_mean(self.poses[members], wk)
+            out.append(
+                Hypothesis(
+                    pose=mean,
+                    covariance=pose_covariance(self.poses[members], wk, mean),
+                    n_particles=int(members.sum()),
+                    weight=float(mass[k]),
+                    fitness=float(np.average(self.fitness[members], weights=None)),
+                    label=int(k),
+                )
+            )
+        return out
+
+    def particles(self) -> ParticleSnapshot:
+        labels, _ = self._labels()
+        return ParticleSnapshot(self.poses.copy(), self.weights, labels)

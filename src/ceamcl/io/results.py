@@ -1,0 +1,80 @@
+"""Writing a run's results: ``summary.json``, ``diagnostics.csv``, TUM trajectories."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from ceamcl.errors import ConfigError
+from ceamcl.filters.base import StepDiagnostics
+
+
+def ensure_output_dir(path: str | os.PathLike[str]) -> Path:
+    """Create the output folder (and parents); a clear error when it cannot be written."""
+    out = Path(path)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError(
+            f"out: cannot create output folder {str(out)!r}: {exc.strerror}"
+        ) from None
+    if not os.access(out, os.W_OK):
+        raise ConfigError(f"out: output folder {str(out)!r} is not writable")
+    return out
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, Mapping):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_jsonable(v) for v in value]
+    if hasattr(value, "tolist"):
+        return _jsonable(value.tolist())
+    return value
+
+
+def write_json(path: str | os.PathLike[str], data: Mapping[str, Any]) -> Path:
+    out = Path(path)
+    tmp = out.with_name(out.name + ".tmp")
+    tmp.write_text(json.dumps(_jsonable(data), indent=2) + "\n")
+    os.replace(tmp, out)
+    return out
+
+
+def write_diagnostics_csv(
+    path: str | os.PathLike[str], records: list[StepDiagnostics], times: list[float] | None = None
+) -> Path:
+    """One row per step: the common fields, the filter's extra scalars, and per-species
+    columns ``species_<id>_<field>`` for CEAMCL (blank while a species does not exist)."""
+    rows = [r.row() for r in records]
+    species_ids = sorted({s.species_id for r in records for s in r.species})
+    fields: list[str] = ["time_s"] if times is not None else []
+    for row in rows:
+        for key in row:
+            if key not in fields:
+                fields.append(key)
+    species_fields = ("n", "dn", "fitness", "area_m2", "resources", "capacity", "x", "y", "theta")
+    for sid in species_ids:
+        fields.extend(f"species_{sid}_{f}" for f in species_fields)
+    out = Path(path)
+    tmp = out.with_name(out.name + ".tmp")
+    with tmp.open("w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=fields, restval="")
+        writer.writeheader()
+        for k, (rec, row) in enumerate(zip(records, rows, strict=True)):
+            full: dict[str, Any] = dict(row)
+            if times is not None:
+                full["time_s"] = times[k]
+            for s in rec.species:
+                for f in species_fields:
+                    full[f"species_{s.species_id}_{f}"] = getattr(s, f)
+            writer.writerow(full)
+    os.replace(tmp, out)
+    return out

@@ -1,0 +1,227 @@
+"""Occupancy grid: cells, world <-> cell transforms, free space, distance field, sampling.
+
+Conventions follow ROS ``nav_msgs/OccupancyGrid``: ``data[iy, ix]`` holds 0 (free), 100
+(occupied) or -1 (unknown); row 0 is the row at the map origin (lowest y), so an image on disk
+is flipped vertically relative to this array. The origin is the pose ``(x, y, yaw)`` of the
+corner of cell (0, 0) in the world frame; a non-zero yaw is honoured everywhere (ROS amcl
+ignores it, we do not).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy import ndimage
+
+from ceamcl.angles import wrap
+from ceamcl.errors import MapFormatError
+
+FREE = 0
+OCCUPIED = 100
+UNKNOWN = -1
+
+
+@dataclass(frozen=True, eq=False)
+class OccupancyGrid:
+    """A 2D occupancy grid map.
+
+    Attributes:
+        data: ``(height, width)`` int8 array of 0 (free), 100 (occupied), -1 (unknown);
+            intermediate values 1..99 (probabilities from ``scale`` mode) count as occupied
+            when >= 65 and free when <= 19, like ROS amcl, and unknown otherwise.
+        resolution: cell side in metres.
+        origin: ``(x, y, yaw)`` of the corner of cell (0, 0) in the world frame.
+    """
+
+    data: NDArray[np.int8]
+    resolution: float
+    origin: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    name: str = field(default="map", compare=False)
+
+    def __post_init__(self) -> None:
+        data = np.asarray(self.data)
+        if data.ndim != 2 or data.shape[0] < 1 or data.shape[1] < 1:
+            raise MapFormatError(f"map data: expected a non-empty 2D array, got shape {data.shape}")
+        if not np.isfinite(self.resolution) or self.resolution <= 0:
+            raise MapFormatError(f"resolution: expected a positive number, got {self.resolution}")
+        if len(self.origin) != 3 or not all(np.isfinite(v) for v in self.origin):
+            raise MapFormatError(
+                f"origin: expected three finite numbers [x, y, yaw], got {self.origin}"
+            )
+        data = np.ascontiguousarray(data, dtype=np.int8)
+        data.setflags(write=False)
+        object.__setattr__(self, "data", data)
+        object.__setattr__(self, "resolution", float(self.resolution))
+        object.__setattr__(self, "origin", tuple(float(v) for v in self.origin))
+
+    # ------------------------------------------------------------------ shape and equality
+    @property
+    def height(self) -> int:
+        return int(self.data.shape[0])
+
+    @property
+    def width(self) -> int:
+        return int(self.data.shape[1])
+
+    @property
+    def size_m(self) -> tuple[float, float]:
+        """Width and height of the map in metres."""
+        return self.width * self.resolution, self.height * self.resolution
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, OccupancyGrid):
+            return NotImplemented
+        return (
+            self.data.shape == other.data.shape
+            and bool(np.array_equal(self.data, other.data))
+            and bool(np.isclose(self.resolution, other.resolution, rtol=1e-9, atol=0))
+            and bool(np.allclose(self.origin, other.origin, rtol=0, atol=1e-9))
+        )
+
+    __hash__ = None  # type: ignore[assignment]
+
+    # ------------------------------------------------------------------ cell classes
+    @cached_property
+    def occupied_mask(self) -> NDArray[np.bool_]:
+        """Cells that are obstacles (value >= 65, as ROS amcl's ``occupied_thresh``)."""
+        return self.data >= 65
+
+    @cached_property
+    def free_mask(self) -> NDArray[np.bool_]:
+        """Cells known to be free (0 <= value <= 19)."""
+        return (self.data >= 0) & (self.data <= 19)
+
+    @cached_property
+    def unknown_mask(self) -> NDArray[np.bool_]:
+        return ~(self.occupied_mask | self.free_mask)
+
+    @cached_property
+    def blocking_mask(self) -> NDArray[np.bool_]:
+        """Cells that stop a laser beam: occupied or unknown (as ROS amcl's ray caster)."""
+        return ~self.free_mask
+
+    @cached_property
+    def free_cells(self) -> NDArray[np.intp]:
+        """Flat indices of the free cells, for uniform sampling over free space."""
+        return np.flatnonzero(self.free_mask)
+
+    @property
+    def free_area_m2(self) -> float:
+        return float(self.free_cells.size) * self.resolution**2
+
+    # ------------------------------------------------------------------ distance fields
+    @cached_property
+    def distance_to_occupied(self) -> NDArray[np.float64]:
+        """Euclidean distance in metres from each cell centre to the nearest occupied cell centre.
+
+        Computed once per map (exact EDT). A map without obstacles gets +inf everywhere.
+        """
+        return _edt_metres(self.occupied_mask, self.resolution)
+
+    @cached_property
+    def distance_to_blocking(self) -> NDArray[np.float64]:
+        """Distance to the nearest occupied or unknown cell; the ray caster marches on it."""
+        return _edt_metres(self.blocking_mask, self.resolution)
+
+    # ------------------------------------------------------------------ transforms
+    def world_to_map(
+        self, x: ArrayLike, y: ArrayLike
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """World coordinates to metric coordinates in the grid frame (corner of cell (0,0) at 0)."""
+        ox, oy, oyaw = self.origin
+        dx = np.asarray(x, dtype=np.float64) - ox
+        dy = np.asarray(y, dtype=np.float64) - oy
+        if oyaw == 0.0:
+            return dx, dy
+        c, s = np.cos(oyaw), np.sin(oyaw)
+        return c * dx + s * dy, -s * dx + c * dy
+
+    def map_to_world(
+        self, mx: ArrayLike, my: ArrayLike
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        ox, oy, oyaw = self.origin
+        mx_ = np.asarray(mx, dtype=np.float64)
+        my_ = np.asarray(my, dtype=np.float64)
+        if oyaw == 0.0:
+            return mx_ + ox, my_ + oy
+        c, s = np.cos(oyaw), np.sin(oyaw)
+        return ox + c * mx_ - s * my_, oy + s * mx_ + c * my_
+
+    def poses_to_map(self, poses: ArrayLike) -> NDArray[np.float64]:
+        """``(N, 3)`` world poses to the grid frame (heading relative to the grid's x axis)."""
+        p = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
+        mx, my = self.world_to_map(p[:, 0], p[:, 1])
+        return np.column_stack([mx, my, wrap(p[:, 2] - self.origin[2])])
+
+    def world_to_cell(
+        self, x: ArrayLike, y: ArrayLike
+    ) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+        """Cell indices ``(ix, iy)`` containing the world points (may lie outside the grid)."""
+        mx, my = self.world_to_map(x, y)
+        return (
+            np.floor(mx / self.resolution).astype(np.intp),
+            np.floor(my / self.resolution).astype(np.intp),
+        )
+
+    def cell_to_world(
+        self, ix: ArrayLike, iy: ArrayLike
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """World coordinates of cell centres."""
+        mx = (np.asarray(ix, dtype=np.float64) + 0.5) * self.resolution
+        my = (np.asarray(iy, dtype=np.float64) + 0.5) * self.resolution
+        return self.map_to_world(mx, my)
+
+    def in_bounds(self, ix: ArrayLike, iy: ArrayLike) -> NDArray[np.bool_]:
+        ix_ = np.asarray(ix)
+        iy_ = np.asarray(iy)
+        return (ix_ >= 0) & (ix_ < self.width) & (iy_ >= 0) & (iy_ < self.height)
+
+    def is_free(self, x: ArrayLike, y: ArrayLike) -> NDArray[np.bool_]:
+        """Whether world points fall in known-free cells (points off the map are not free)."""
+        ix, iy = self.world_to_cell(x, y)
+        inside = self.in_bounds(ix, iy)
+        out = np.zeros(np.shape(ix), dtype=bool)
+        out[inside] = self.free_mask[iy[inside], ix[inside]]
+        return out
+
+    @property
+    def bounds(self) -> tuple[float, float, float, float]:
+        """``(xmin, xmax, ymin, ymax)`` of the map's corners in the world frame."""
+        w, h = self.size_m
+        xs, ys = self.map_to_world(np.array([0.0, w, w, 0.0]), np.array([0.0, 0.0, h, h]))
+        return float(xs.min()), float(xs.max()), float(ys.min()), float(ys.max())
+
+    # ------------------------------------------------------------------ sampling
+    def sample_free_poses(self, n: int, rng: np.random.Generator) -> NDArray[np.float64]:
+        """``n`` poses uniform over free space (uniform in area) with uniform headings."""
+        if n < 0:
+            raise ValueError(f"n: expected a non-negative count, got {n}")
+        cells = self.free_cells
+        if cells.size == 0:
+            raise MapFormatError(f"map {self.name!r} has no free cell to sample poses from")
+        pick = cells[rng.integers(0, cells.size, size=n)]
+        iy, ix = np.divmod(pick, self.width)
+        mx = (ix + rng.random(n)) * self.resolution
+        my = (iy + rng.random(n)) * self.resolution
+        x, y = self.map_to_world(mx, my)
+        theta = wrap(rng.uniform(-np.pi, np.pi, size=n))
+        return np.column_stack([x, y, theta])
+
+    def with_data(self, data: ArrayLike, name: str | None = None) -> OccupancyGrid:
+        """A copy with other cell values (same geometry)."""
+        return OccupancyGrid(
+            np.asarray(data, dtype=np.int8),
+            self.resolution,
+            self.origin,
+            name=self.name if name is None else name,
+        )
+
+
+def _edt_metres(obstacles: NDArray[np.bool_], resolution: float) -> NDArray[np.float64]:
+    if not obstacles.any():
+        return np.full(obstacles.shape, np.inf)
+    dist: NDArray[np.float64] = ndimage.distance_transform_edt(~obstacles)
+    return dist * resolution

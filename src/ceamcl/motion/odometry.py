@@ -1,0 +1,124 @@
+"""The odometry motion model of Probabilistic Robotics (Thrun, Burgard, Fox 2005, sec. 5.4).
+
+The motion between two odometry poses is decomposed into a first rotation ``rot1``, a
+translation ``trans`` and a second rotation ``rot2`` (eq. 5.34-5.36). ``sample`` implements
+``sample_motion_model_odometry`` (Table 5.6) for a whole array of poses at once: each
+component is perturbed by zero-mean Gaussian noise whose *variance* is
+
+    rot1:  alpha1 * rot1^2 + alpha2 * trans^2
+    trans: alpha3 * trans^2 + alpha4 * (rot1^2 + rot2^2)
+    rot2:  alpha1 * rot2^2 + alpha2 * trans^2
+
+As in ROS amcl's differential model, the rotation noise uses the smaller of ``rot1`` and
+``rot1 - pi`` (a robot driving backwards has not really turned by pi), and ``rot1`` is taken
+as 0 for translations under 1 cm, where the direction of travel is meaningless.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ceamcl.angles import diff, wrap
+
+MIN_TRANSLATION_FOR_ROT1_M = 0.01
+
+
+@dataclass(frozen=True)
+class OdometryNoise:
+    """Noise parameters alpha1..alpha4 of the odometry model (ROS amcl's odom_alpha1..4).
+
+    alpha1: rotation noise from rotation; alpha2: rotation noise from translation (rad^2/m^2);
+    alpha3: translation noise from translation; alpha4: translation noise from rotation
+    (m^2/rad^2). Defaults are ROS amcl's (0.2 each).
+    """
+
+    alpha1: float = 0.2
+    alpha2: float = 0.2
+    alpha3: float = 0.2
+    alpha4: float = 0.2
+
+    def __post_init__(self) -> None:
+        for name in ("alpha1", "alpha2", "alpha3", "alpha4"):
+            v = getattr(self, name)
+            if not np.isfinite(v) or v < 0:
+                raise ValueError(f"{name}: expected a non-negative number, got {v}")
+
+
+@dataclass(frozen=True)
+class OdometryIncrement:
+    """Motion between two odometry poses: rotate ``rot1``, drive ``trans``, rotate ``rot2``."""
+
+    rot1: float
+    trans: float
+    rot2: float
+
+    @property
+    def is_zero(self) -> bool:
+        return self.rot1 == 0.0 and self.trans == 0.0 and self.rot2 == 0.0
+
+    def variances(self, noise: OdometryNoise) -> tuple[float, float, float]:
+        """Variances of the three components under ``noise`` (Table 5.6)."""
+        r1 = min(abs(float(diff(self.rot1, 0.0))), abs(float(diff(self.rot1, np.pi))))
+        r2 = min(abs(float(diff(self.rot2, 0.0))), abs(float(diff(self.rot2, np.pi))))
+        t = self.trans
+        return (
+            noise.alpha1 * r1**2 + noise.alpha2 * t**2,
+            noise.alpha3 * t**2 + noise.alpha4 * (r1**2 + r2**2),
+            noise.alpha1 * r2**2 + noise.alpha2 * t**2,
+        )
+
+
+def increment_between(previous: ArrayLike, current: ArrayLike) -> OdometryIncrement:
+    """Decompose the motion between two odometry poses ``(x, y, theta)`` (eq. 5.34-5.36)."""
+    p = np.asarray(previous, dtype=np.float64)
+    c = np.asarray(current, dtype=np.float64)
+    dx, dy = c[0] - p[0], c[1] - p[1]
+    trans = float(np.hypot(dx, dy))
+    rot1 = 0.0 if trans < MIN_TRANSLATION_FOR_ROT1_M else float(diff(np.arctan2(dy, dx), p[2]))
+    rot2 = float(diff(c[2] - p[2], rot1))
+    return OdometryIncrement(rot1, trans, rot2)
+
+
+def apply_increment(
+    poses: ArrayLike,
+    rot1: ArrayLike,
+    trans: ArrayLike,
+    rot2: ArrayLike,
+) -> NDArray[np.float64]:
+    """Move poses ``(N, 3)`` by (possibly per-pose) increments; headings wrapped."""
+    p = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
+    heading = p[:, 2] + np.asarray(rot1, dtype=np.float64)
+    t = np.asarray(trans, dtype=np.float64)
+    return np.column_stack(
+        [
+            p[:, 0] + t * np.cos(heading),
+            p[:, 1] + t * np.sin(heading),
+            wrap(heading + np.asarray(rot2, dtype=np.float64)),
+        ]
+    )
+
+
+@dataclass(frozen=True)
+class OdometryMotionModel:
+    """Samples ``p(x_t | x_{t-1}, u)`` for arrays of poses (sample_motion_model_odometry)."""
+
+    noise: OdometryNoise = OdometryNoise()
+
+    def sample(
+        self,
+        poses: ArrayLike,
+        increment: OdometryIncrement,
+        rng: np.random.Generator,
+    ) -> NDArray[np.float64]:
+        """New poses ``(N, 3)``: each input pose moved by a noisy copy of ``increment``."""
+        p = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
+        n = p.shape[0]
+        v_rot1, v_trans, v_rot2 = increment.variances(self.noise)
+        noise = rng.standard_normal((n, 3))
+        rot1 = increment.rot1 - noise[:, 0] * np.sqrt(v_rot1)
+        trans = increment.trans - noise[:, 1] * np.sqrt(v_trans)
+        rot2 = increment.rot2 - noise[:, 2] * np.sqrt(v_rot2)
+        return apply_increment(p, rot1, trans, rot2)

@@ -1,0 +1,55 @@
+"""Statistics of weighted pose sets ``(N, 3)``: mean with a circular mean heading, covariance."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ceamcl.angles import circular_mean, diff
+
+
+def normalised(weights: ArrayLike | None, n: int) -> NDArray[np.float64]:
+    """Weights summing to 1; uniform when absent, empty, or not positive/finite in total."""
+    if weights is None:
+        return np.full(n, 1.0 / max(n, 1))
+    w = np.asarray(weights, dtype=np.float64)
+    w = np.where(np.isfinite(w) & (w > 0), w, 0.0)
+    total = float(w.sum())
+    if total <= 0.0:
+        return np.full(n, 1.0 / max(n, 1))
+    return w / total
+
+
+def pose_mean(poses: ArrayLike, weights: ArrayLike | None = None) -> NDArray[np.float64]:
+    """Weighted mean ``(x, y, theta)``; the heading is the circular mean."""
+    p = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
+    if p.shape[0] == 0:
+        raise ValueError("pose_mean: no poses")
+    w = normalised(weights, p.shape[0])
+    return np.array([w @ p[:, 0], w @ p[:, 1], circular_mean(p[:, 2], w)])
+
+
+def pose_covariance(
+    poses: ArrayLike, weights: ArrayLike | None = None, mean: ArrayLike | None = None
+) -> NDArray[np.float64]:
+    """Weighted ``3 x 3`` covariance; heading deviations are wrapped differences from the mean."""
+    p = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
+    w = normalised(weights, p.shape[0])
+    m = pose_mean(p, w) if mean is None else np.asarray(mean, dtype=np.float64)
+    d = np.column_stack([p[:, 0] - m[0], p[:, 1] - m[1], diff(p[:, 2], m[2])])
+    cov = (d * w[:, None]).T @ d
+    return 0.5 * (cov + cov.T)
+
+
+def position_error(a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
+    """Euclidean distance between the x-y parts of poses."""
+    a_ = np.asarray(a, dtype=np.float64)
+    b_ = np.asarray(b, dtype=np.float64)
+    return np.hypot(a_[..., 0] - b_[..., 0], a_[..., 1] - b_[..., 1])
+
+
+def heading_error(a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
+    """Absolute wrapped heading difference."""
+    return np.abs(
+        diff(np.asarray(a, dtype=np.float64)[..., 2], np.asarray(b, dtype=np.float64)[..., 2])
+    )

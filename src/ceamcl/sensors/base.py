@@ -1,0 +1,50 @@
+"""The sensor-model protocol and the fitness scale shared by every filter.
+
+A sensor model scores poses against a scan in log space: ``log_likelihood`` returns, per
+pose, the sum over the evaluated beams of ``log p(z_k | x)``. Filters use that sum as the
+importance weight (Bayes' rule, independent beams).
+
+CEAMCL also needs a *fitness* ``w`` in (0, 1] that is comparable between species and between
+scans (NOTES.md, "the scale of the fitness"). :func:`fitness` is the geometric mean of the
+per-beam likelihoods divided by the largest value one beam can take, so a perfect match scores
+1 whatever the number of beams.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ceamcl.sensors.scan import LaserScan, PreparedScan
+
+
+class SensorModel(Protocol):
+    """What a filter needs from a laser model."""
+
+    def prepare(self, scan: LaserScan) -> PreparedScan:
+        """Select and classify the beams once per scan."""
+        ...
+
+    def log_likelihood(self, poses: ArrayLike, prepared: PreparedScan) -> NDArray[np.float64]:
+        """Per pose, ``sum_k log p(z_k | x)`` over the prepared beams; shape ``(N,)``."""
+        ...
+
+    def max_log_beam_likelihood(self, prepared: PreparedScan) -> float:
+        """``log`` of the largest value one beam's likelihood can take for this scan."""
+        ...
+
+
+def fitness(
+    log_likelihood: ArrayLike, prepared: PreparedScan, model: SensorModel
+) -> NDArray[np.float64]:
+    """Fitness in (0, 1]: geometric mean of per-beam likelihoods over their maximum.
+
+    With no usable beam the scan says nothing and every pose scores 1.
+    """
+    ll = np.asarray(log_likelihood, dtype=np.float64)
+    if prepared.n_beams == 0:
+        return np.ones_like(ll)
+    per_beam = ll / prepared.n_beams - model.max_log_beam_likelihood(prepared)
+    return np.exp(np.minimum(per_beam, 0.0))

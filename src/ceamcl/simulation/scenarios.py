@@ -1,0 +1,110 @@
+"""Scenarios: a world, a route and the simulator settings, reproducible from a seed.
+
+``paper`` (section 4 of the paper): start at the centre of one room of the hall, drive through
+a doorway into the neighbouring room clockwise and on to a corner of it. Written for room 0
+(south-west), which drives north through the doorway into room 3 (north-west) and on to that
+room's north-east corner; the routes from the other rooms are the same route rotated about the
+hall's centre, so every start sees the same geometry.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ceamcl.errors import ConfigError
+from ceamcl.maps.grid import OccupancyGrid
+from ceamcl.maps.worlds import (
+    HALL_SIZE_M,
+    WORLD_NAMES,
+    get_world,
+    rotate_about_centre,
+    rotate_poses_about_centre,
+)
+from ceamcl.simulation.simulator import SimulatedLog, SimulationConfig, Simulator, drive_waypoints
+
+HALL_WORLDS = ("symmetric-hall", "marked-hall")
+
+# Route from room 0: centre (3.75, 3.75) facing north, through the doorway at (3.75, 7.5),
+# to the north-east corner of room 3 (0.9 m from both walls).
+_ROUTE_ROOM0 = np.array([[3.75, 6.6], [3.75, 8.4], [HALL_SIZE_M / 2 - 0.9, HALL_SIZE_M - 0.9]])
+_START_ROOM0 = np.array([3.75, 3.75, np.pi / 2])
+
+_OFFICE_START = np.array([1.5, 4.25, 0.0])
+_OFFICE_ROUTE = np.array([[3.8, 4.25], [3.8, 2.2], [7.5, 2.3], [8.5, 1.2]])
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A world and a route: ``start`` pose and the waypoints driven after it."""
+
+    name: str
+    world: str
+    start: NDArray[np.float64]
+    waypoints: NDArray[np.float64]
+    start_room: int | None = None
+    goal_room: int | None = None
+    config: SimulationConfig = field(default_factory=SimulationConfig)
+
+    def grid(self) -> OccupancyGrid:
+        return get_world(self.world)
+
+    def true_path(self) -> NDArray[np.float64]:
+        return drive_waypoints(self.start, list(self.waypoints), self.config)
+
+    def simulate(self, rng: np.random.Generator, grid: OccupancyGrid | None = None) -> SimulatedLog:
+        """Run the simulator along the route (truth is deterministic; noise comes from ``rng``)."""
+        g = grid if grid is not None else self.grid()
+        return Simulator(g, self.config).run(self.true_path(), rng)
+
+
+def paper_scenario(
+    start_room: int = 0,
+    world: str = "symmetric-hall",
+    config: SimulationConfig | None = None,
+) -> Scenario:
+    """The paper's run: centre of room ``start_room`` to a corner of the next room clockwise."""
+    if world not in HALL_WORLDS:
+        raise ConfigError(f"world: the paper scenario needs one of {HALL_WORLDS}, got {world!r}")
+    if start_room not in range(4):
+        raise ConfigError(f"start_room: expected 0, 1, 2 or 3, got {start_room}")
+    start = rotate_poses_about_centre(_START_ROOM0, start_room)[0]
+    route = rotate_about_centre(_ROUTE_ROOM0, start_room)
+    return Scenario(
+        name="paper",
+        world=world,
+        start=start,
+        waypoints=route,
+        start_room=start_room,
+        goal_room=(start_room + 3) % 4,
+        config=config or SimulationConfig(),
+    )
+
+
+def office_scenario(config: SimulationConfig | None = None) -> Scenario:
+    """A tour of ``small-office`` from the corridor into the south rooms."""
+    return Scenario(
+        "office", "small-office", _OFFICE_START, _OFFICE_ROUTE, config=config or SimulationConfig()
+    )
+
+
+SCENARIO_NAMES = ("paper", "office")
+
+
+def get_scenario(name: str, world: str | None = None, start_room: int = 0) -> Scenario:
+    """A scenario by name; ``world`` overrides the default world where the route allows."""
+    if world is not None and world not in WORLD_NAMES:
+        raise ConfigError(
+            f"world: unknown world {world!r}; expected one of {', '.join(WORLD_NAMES)}"
+        )
+    if name == "paper":
+        return paper_scenario(start_room, world or "symmetric-hall")
+    if name == "office":
+        if world not in (None, "small-office"):
+            raise ConfigError(f"world: the office scenario runs on small-office, got {world!r}")
+        return office_scenario()
+    raise ConfigError(
+        f"scenario: unknown scenario {name!r}; expected one of {', '.join(SCENARIO_NAMES)}"
+    )

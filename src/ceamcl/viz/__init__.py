@@ -1,0 +1,1 @@
+"""Figures (Matplotlib, drawn off-screen)."""

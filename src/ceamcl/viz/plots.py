@@ -1,0 +1,97 @@
+"""Figures of runs: the map with paths and particles, and per-step series."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.axes import Axes
+
+from ceamcl.maps.grid import OccupancyGrid
+from ceamcl.runner import RunResult
+
+
+def draw_map(ax: Axes, grid: OccupancyGrid) -> None:
+    """The grid in world coordinates: occupied black, unknown grey, free white."""
+    img = np.full(grid.data.shape, 1.0)
+    img[grid.unknown_mask] = 0.75
+    img[grid.occupied_mask] = 0.0
+    x0, x1, y0, y1 = grid.bounds
+    if grid.origin[2] == 0.0:
+        ax.imshow(
+            img,
+            origin="lower",
+            cmap="gray",
+            vmin=0,
+            vmax=1,
+            interpolation="nearest",
+            extent=(x0, x1, y0, y1),
+        )
+    else:
+        iy, ix = np.nonzero(grid.occupied_mask)
+        x, y = grid.cell_to_world(ix, iy)
+        ax.scatter(x, y, s=0.5, c="k", marker="s")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+
+
+def plot_run(
+    result: RunResult, grid: OccupancyGrid, path: str | os.PathLike[str], title: str = ""
+) -> Path:
+    """``run.png``: map, true and estimated paths, final particles coloured by label."""
+    fig, ax = plt.subplots(figsize=(8, 8))
+    draw_map(ax, grid)
+    parts = result.final_particles
+    if parts.poses.shape[0]:
+        labels = parts.labels
+        ax.scatter(
+            parts.poses[:, 0],
+            parts.poses[:, 1],
+            s=3,
+            c=labels % 10,
+            cmap="tab10",
+            vmin=0,
+            vmax=9,
+            alpha=0.6,
+            label="particles (final)",
+            zorder=2,
+        )
+    if result.truth is not None:
+        ax.plot(result.truth[:, 0], result.truth[:, 1], "g-", lw=2, label="ground truth", zorder=3)
+        ax.plot(*result.truth[-1, :2], "go", ms=8, zorder=4)
+    ax.plot(
+        result.estimates[:, 0],
+        result.estimates[:, 1],
+        "r-",
+        lw=1,
+        alpha=0.8,
+        label="estimate",
+        zorder=3,
+    )
+    ax.plot(*result.estimates[-1, :2], "rx", ms=10, mew=2, zorder=4)
+    hyps = result.hypotheses[-1]
+    if hyps.shape[0]:
+        ax.quiver(
+            hyps[:, 0],
+            hyps[:, 1],
+            np.cos(hyps[:, 2]),
+            np.sin(hyps[:, 2]),
+            color="b",
+            scale=25,
+            width=0.004,
+            label="hypotheses (final)",
+            zorder=5,
+        )
+    ax.legend(loc="upper right", fontsize=8, framealpha=0.9)
+    ax.set_title(title or f"{result.algorithm}: {result.steps} steps")
+    fig.tight_layout()
+    out = Path(path)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out
