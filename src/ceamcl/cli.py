@@ -15,7 +15,7 @@ from ceamcl.errors import CeamclError, ConfigError
 from ceamcl.filters import ALGORITHMS, SENSOR_MODELS
 from ceamcl.maps.worlds import WORLD_NAMES, describe_worlds, get_world
 
-DEFAULT_ALGORITHM = "mcl"
+DEFAULT_ALGORITHM = "ceamcl"
 
 
 def _non_negative_int(text: str) -> int:

@@ -55,11 +55,16 @@ def summarise(result: RunResult, log: SimulatedLog, **context: Any) -> dict[str,
         "mean_step_ms": float(step_ms.mean()),
         "particles_initial": int(result.diagnostics[0].n_particles),
         "particles_final": int(result.diagnostics[-1].n_particles),
+        "samples_initial": int(result.diagnostics[0].n_particles),
+        "samples_final": int(result.diagnostics[-1].n_particles),
         "hypotheses_final": [
             {"x": h[0], "y": h[1], "theta": h[2], "weight": h[3], "fitness": h[4]}
             for h in final_h[:16]
         ],
     }
+    if result.diagnostics[-1].species or result.diagnostics[0].species:
+        summary["species_initial"] = len(result.diagnostics[0].species)
+        summary["species_final"] = len(result.diagnostics[-1].species)
     if result.truth is not None and log.world in HALL_WORLDS and final_h.shape[0]:
         images = symmetric_images(result.truth[-1])
         d = np.hypot(
@@ -101,7 +106,7 @@ def run_demo(
         result, log, seed=seed, scenario=scenario, start_room=start_room, sensor=sensor
     )
     if out_dir is not None:
-        from ceamcl.viz.plots import plot_run
+        from ceamcl.viz.plots import plot_run, plot_species
 
         write_tum(out_dir / "trajectory.tum", result.times, result.estimates)
         write_tum(out_dir / "groundtruth.tum", log.times, log.true_poses)
@@ -109,5 +114,12 @@ def run_demo(
         plot_run(
             result, grid, out_dir / "run.png", title=f"{algorithm} on {grid.name}, seed {seed}"
         )
+        if any(d.species for d in result.diagnostics):
+            plot_species(
+                result,
+                out_dir / "species.png",
+                title=f"{algorithm} on {grid.name}, "
+                f"seed {seed}: sample size and resources (Fig. 6)",
+            )
         write_json(out_dir / "summary.json", summary)
     return DemoOutcome(result, log, summary, out_dir)

@@ -13,6 +13,8 @@ from ceamcl.filters.base import (
     SpeciesDiagnostics,
     StepDiagnostics,
 )
+from ceamcl.filters.ceamcl import CEAMCL, CEAMCLConfig
+from ceamcl.filters.gmcl import GMCL, GMCLConfig
 from ceamcl.filters.mcl import MCL, MCLConfig
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryMotionModel, OdometryNoise
@@ -20,7 +22,7 @@ from ceamcl.sensors.base import SensorModel
 from ceamcl.sensors.beam_model import BeamModel
 from ceamcl.sensors.likelihood_field import LikelihoodFieldModel
 
-ALGORITHMS: tuple[str, ...] = ("mcl",)
+ALGORITHMS: tuple[str, ...] = ("ceamcl", "gmcl", "mcl")
 SENSOR_MODELS: tuple[str, ...] = ("likelihood-field", "beam")
 
 
@@ -44,7 +46,11 @@ def make_filter(
     odometry_noise: OdometryNoise | None = None,
     n_particles: int | None = None,
 ) -> LocalisationFilter:
-    """A filter by name (see :data:`ALGORITHMS`) with default settings."""
+    """A filter by name (see :data:`ALGORITHMS`) with default settings.
+
+    ``n_particles`` sets the sample size of fixed-size filters (MCL, GMCL); CEAMCL chooses its
+    own (eq. 5) and ignores it.
+    """
     sensor_model = make_sensor(sensor, grid) if isinstance(sensor, str) else sensor
     motion = OdometryMotionModel(odometry_noise or OdometryNoise())
     if n_particles is not None and n_particles < 1:
@@ -52,6 +58,11 @@ def make_filter(
     if algorithm == "mcl":
         cfg = MCLConfig() if n_particles is None else MCLConfig(n_particles=n_particles)
         return MCL(grid, motion, sensor_model, cfg, rng=rng)
+    if algorithm == "gmcl":
+        gcfg = GMCLConfig() if n_particles is None else GMCLConfig(n_particles=n_particles)
+        return GMCL(grid, motion, sensor_model, gcfg, rng=rng)
+    if algorithm == "ceamcl":
+        return CEAMCL(grid, motion, sensor_model, CEAMCLConfig(), rng=rng)
     raise ConfigError(
         f"algorithm: unknown algorithm {algorithm!r}; expected one of {', '.join(ALGORITHMS)}"
     )
@@ -59,8 +70,12 @@ def make_filter(
 
 __all__ = [
     "ALGORITHMS",
+    "CEAMCL",
+    "GMCL",
     "MCL",
     "SENSOR_MODELS",
+    "CEAMCLConfig",
+    "GMCLConfig",
     "Hypothesis",
     "LocalisationFilter",
     "MCLConfig",

@@ -32,3 +32,52 @@ def cluster_labels(xy: ArrayLike, cell_m: float) -> tuple[NDArray[np.int64], int
     occ[cells[:, 0], cells[:, 1]] = True
     lab, count = ndimage.label(occ, structure=_EIGHT)
     return (lab[cells[:, 0], cells[:, 1]] - 1).astype(np.int64), int(count)
+
+
+_TWENTY_SIX = np.ones((3, 3, 3), dtype=bool)
+
+
+def pose_cluster_labels(
+    poses: ArrayLike, cell_m: float, cell_rad: float
+) -> tuple[NDArray[np.int64], int]:
+    """Label poses ``(N, 3)`` by the connected region (26-neighbourhood) of occupied
+    ``cell_m x cell_m x cell_rad`` cells, with the heading axis wrapping around at +-pi.
+
+    Two groups at the same place but with headings far apart get different labels: this is
+    how a species holding two heading modes (a pose and its mirror image) splits.
+    """
+    p = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
+    if p.shape[0] == 0:
+        return np.zeros(0, dtype=np.int64), 0
+    n_theta = max(1, int(np.floor(2.0 * np.pi / cell_rad)))
+    xy = np.floor(p[:, :2] / cell_m).astype(np.int64)
+    xy -= xy.min(axis=0)
+    th = np.floor((p[:, 2] + np.pi) / (2.0 * np.pi) * n_theta).astype(np.int64) % n_theta
+    shape = (int(xy[:, 0].max()) + 1, int(xy[:, 1].max()) + 1, n_theta)
+    if shape[0] * shape[1] * shape[2] > 50_000_000:
+        raise ValueError("pose_cluster_labels: poses spread too far for the cell size")
+    occ = np.zeros(shape, dtype=bool)
+    occ[xy[:, 0], xy[:, 1], th] = True
+    lab, count = ndimage.label(occ, structure=_TWENTY_SIX)
+    if n_theta > 2 and count > 1:
+        # Join regions that touch across the heading wrap (last slice next to the first).
+        parent = np.arange(count + 1)
+
+        def find(i: int) -> int:
+            while parent[i] != i:
+                parent[i] = parent[parent[i]]
+                i = int(parent[i])
+            return i
+
+        first = ndimage.maximum_filter(lab[:, :, 0], size=3, mode="constant")
+        last = lab[:, :, -1]
+        for a, b in zip(last[last > 0], first[last > 0], strict=True):
+            if b > 0:
+                ra, rb = find(int(a)), find(int(b))
+                if ra != rb:
+                    parent[max(ra, rb)] = min(ra, rb)
+        roots = np.array([find(i) for i in range(count + 1)])
+        _, lab_compact = np.unique(roots, return_inverse=True)
+        lab = lab_compact[lab]
+        count = int(lab_compact.max())
+    return (lab[xy[:, 0], xy[:, 1], th] - 1).astype(np.int64), int(count)

@@ -30,7 +30,7 @@ from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel
 from ceamcl.pose import pose_covariance, pose_mean
 from ceamcl.sensors.base import SensorModel, fitness
-from ceamcl.sensors.scan import LaserScan
+from ceamcl.sensors.scan import LaserScan, PreparedScan
 
 
 @dataclass(frozen=True)
@@ -80,8 +80,11 @@ class MCL:
         self.poses: NDArray[np.float64] = np.zeros((n, 3))
         self.log_weights: NDArray[np.float64] = np.full(n, -np.log(n))
         self.fitness: NDArray[np.float64] = np.ones(n)
+        self.loglik: NDArray[np.float64] = np.zeros(n)
         self.t = 0
         self._evaluations = 0
+        self._prior_log_weights: NDArray[np.float64] = self.log_weights.copy()
+        self._prepared: PreparedScan | None = None
 
     # ------------------------------------------------------------------ initialisation
     def initialise_global(self, scan: LaserScan) -> StepDiagnostics:
@@ -117,9 +120,12 @@ class MCL:
     def _weight(self, scan: LaserScan) -> bool:
         """Importance weighting; returns True when the filter had to re-initialise."""
         prepared = self.sensor.prepare(scan)
+        self._prepared = prepared
         ll = self.sensor.log_likelihood(self.poses, prepared)
         self._evaluations += self.poses.shape[0]
+        self.loglik = ll
         self.fitness = fitness(ll, prepared, self.sensor)
+        self._prior_log_weights = self.log_weights.copy()
         log_w, _, ok = normalise_log_weights(self.log_weights + ll)
         if not ok:
             # Every particle impossible (or the model returned NaN): start again from scratch.
@@ -132,7 +138,8 @@ class MCL:
 
     def _after_weighting(self) -> None:
         """Hook for GMCL's genetic operators; then resample when the weights degenerate."""
-        self._evolve()
+        if self._prepared is not None:
+            self._evolve()
         w = self.weights
         if effective_sample_size(w) < self.config.resample_ess_fraction * w.size:
             self._resample(w)

@@ -11,9 +11,9 @@
     ``np.rot90(data)`` equals ``data`` cell for cell.
 
 ``marked-hall``
-    The same hall with one small box (0.4 x 0.4 m) against the north wall of the north-west
-    room. It is visible only from inside that room, so a run that ends there breaks the
-    symmetry late.
+    The same hall with one box (0.6 x 0.6 m) standing out from the board on the east side of
+    the north-west room (room 3). Boards hide it from the other rooms, so only a robot inside
+    room 3 sees it: a run that ends there breaks the symmetry late.
 
 ``small-office``
     A 10 x 8 m asymmetric floor (three rooms of different sizes, a corridor, a pillar) where
@@ -42,8 +42,9 @@ DOOR_CENTRE_FROM_HALL_CENTRE_M = 3.75
 DOOR_WIDTH_M = 1.2
 # Cabinet in room 0 (south-west), against the south wall, off the room's diagonal.
 CABINET_SW = (1.2, 2.6, WALL_M, 0.7)  # x0, x1, y0, y1
-# The mark of marked-hall: a box against the north wall of room 3 (north-west).
-MARK_BOX = (4.0, 4.4, HALL_SIZE_M - WALL_M - 0.4, HALL_SIZE_M - WALL_M)
+# The mark of marked-hall: a box against the east board of room 3 (north-west), north of the
+# board's doorway.
+MARK_BOX = (HALL_SIZE_M / 2 - BOARD_M / 2 - 0.6, HALL_SIZE_M / 2 - BOARD_M / 2, 12.6, 13.2)
 
 
 @dataclass(frozen=True)

@@ -47,7 +47,18 @@ def _march(
             return max_range
         ix = int(fx)
         iy = int(fy)
-        if ix >= w or iy >= h:
+        # A point on a cell boundary (up to round-off between px / res and ix * res) belongs to
+        # the cell the ray is entering. Otherwise the DDA step below is <= 0 and a ray running
+        # (nearly) along that boundary advances by only _EPS_M per iteration.
+        if dx > 0.0 and (ix + 1) * res <= px:
+            ix += 1
+        elif dx < 0.0 and ix * res >= px:
+            ix -= 1
+        if dy > 0.0 and (iy + 1) * res <= py:
+            iy += 1
+        elif dy < 0.0 and iy * res >= py:
+            iy -= 1
+        if ix < 0 or iy < 0 or ix >= w or iy >= h:
             return max_range
         if blocking[iy, ix]:
             return t

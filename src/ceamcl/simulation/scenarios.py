@@ -1,10 +1,11 @@
 """Scenarios: a world, a route and the simulator settings, reproducible from a seed.
 
 ``paper`` (section 4 of the paper): start at the centre of one room of the hall, drive through
-a doorway into the neighbouring room clockwise and on to a corner of it. Written for room 0
-(south-west), which drives north through the doorway into room 3 (north-west) and on to that
-room's north-east corner; the routes from the other rooms are the same route rotated about the
-hall's centre, so every start sees the same geometry.
+a doorway into the neighbouring room clockwise and on to a corner of it, where it turns to face
+the room, as a robot parking there would. Written for room 0 (south-west), which drives north
+through the doorway into room 3 (north-west) and on to that room's north-east corner; the
+routes from the other rooms are the same route rotated about the hall's centre, so every start
+sees the same geometry. Only the route from room 0 ends in room 3, where marked-hall's mark is.
 """
 
 from __future__ import annotations
@@ -28,12 +29,17 @@ from ceamcl.simulation.simulator import SimulatedLog, SimulationConfig, Simulato
 HALL_WORLDS = ("symmetric-hall", "marked-hall")
 
 # Route from room 0: centre (3.75, 3.75) facing north, through the doorway at (3.75, 7.5),
-# to the north-east corner of room 3 (0.9 m from both walls).
-_ROUTE_ROOM0 = np.array([[3.75, 6.6], [3.75, 8.4], [HALL_SIZE_M / 2 - 0.9, HALL_SIZE_M - 0.9]])
+# to the north-east corner of room 3 (0.9 m from both walls), then turn to face room 3's centre.
+_GOAL_ROOM0 = (HALL_SIZE_M / 2 - 0.9, HALL_SIZE_M - 0.9)
+_ROUTE_ROOM0 = [
+    np.array([3.75, 6.6]),
+    np.array([3.75, 8.4]),
+    np.array([*_GOAL_ROOM0, np.arctan2(11.25 - _GOAL_ROOM0[1], 3.75 - _GOAL_ROOM0[0])]),
+]
 _START_ROOM0 = np.array([3.75, 3.75, np.pi / 2])
 
 _OFFICE_START = np.array([1.5, 4.25, 0.0])
-_OFFICE_ROUTE = np.array([[3.8, 4.25], [3.8, 2.2], [7.5, 2.3], [8.5, 1.2]])
+_OFFICE_ROUTE = [np.array(p) for p in ([3.8, 4.25], [3.8, 2.2], [7.5, 2.3], [8.5, 1.2])]
 
 
 @dataclass(frozen=True)
@@ -43,7 +49,7 @@ class Scenario:
     name: str
     world: str
     start: NDArray[np.float64]
-    waypoints: NDArray[np.float64]
+    waypoints: list[NDArray[np.float64]]
     start_room: int | None = None
     goal_room: int | None = None
     config: SimulationConfig = field(default_factory=SimulationConfig)
@@ -52,7 +58,7 @@ class Scenario:
         return get_world(self.world)
 
     def true_path(self) -> NDArray[np.float64]:
-        return drive_waypoints(self.start, list(self.waypoints), self.config)
+        return drive_waypoints(self.start, self.waypoints, self.config)
 
     def simulate(self, rng: np.random.Generator, grid: OccupancyGrid | None = None) -> SimulatedLog:
         """Run the simulator along the route (truth is deterministic; noise comes from ``rng``)."""
@@ -71,7 +77,12 @@ def paper_scenario(
     if start_room not in range(4):
         raise ConfigError(f"start_room: expected 0, 1, 2 or 3, got {start_room}")
     start = rotate_poses_about_centre(_START_ROOM0, start_room)[0]
-    route = rotate_about_centre(_ROUTE_ROOM0, start_room)
+    route = [
+        rotate_poses_about_centre(w, start_room)[0]
+        if w.size == 3
+        else rotate_about_centre(w, start_room)[0]
+        for w in _ROUTE_ROOM0
+    ]
     return Scenario(
         name="paper",
         world=world,

@@ -1,0 +1,82 @@
+"""CEAMCL settings: the paper's defaults (section 4) and the choices it leaves open."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ceamcl.filters.evolution import EvolutionConfig
+
+
+@dataclass(frozen=True)
+class CEAMCLConfig:
+    """Parameters of CEAMCL. Paper defaults first; docs/ceamcl.md explains the others.
+
+    Paper (section 4):
+        n_test: test poses for initial species generation (N_test).
+        cell_m: side of the x-y cells of section 3.1 (150 x 150 over 15 m).
+        mu: threshold on scaled cell weights that defines V.
+        eta: eq. 5 factor of the initial sample size.
+        growth_rate: r, the maximum growth rate of every species (per filter step).
+        epsilon_m2: minimum living domain a species keeps (eq. 15).
+        delta_per_m2: resources per square metre of living domain (eq. 15).
+        evolution: p_c = 0.85, p_m = 0.15 and the mutation's Sigma.
+
+    Left open by the paper (NOTES.md):
+        cell_top_k, cell_fitness_exponent, cell_smoothing: how a cell's weight is formed.
+        min_species_size: a species whose size falls below this dies out.
+        split_cell_m, split_cell_rad: cells of the x-y-heading grid whose connected regions
+            decide a split (heading included, so a pose and its mirror image part ways).
+        merge_valley_ratio: two overlapping species merge unless the fitness along the segment
+            between their means falls below this fraction of the smaller end value.
+        merge_probe_points: interior points probed on that segment.
+        max_samples: safety cap on the total sample size.
+        tracking_samples: sample size of the single species of ``initialise_pose``.
+        test_batch: test poses weighted per likelihood call (bounds memory).
+    """
+
+    n_test: int = 1_000_000
+    cell_m: float = 0.1
+    mu: float = 0.85
+    eta: float = 2.0
+    growth_rate: float = 0.2
+    epsilon_m2: float = 0.5
+    delta_per_m2: float = 80.0
+    evolution: EvolutionConfig = field(default_factory=EvolutionConfig)
+    cell_top_k: int = 3
+    cell_fitness_exponent: float = 0.16
+    cell_smoothing: int = 3
+    min_species_size: int = 3
+    split_cell_m: float = 0.5
+    split_cell_rad: float = np.deg2rad(30.0)
+    merge_valley_ratio: float = 0.75
+    merge_probe_points: int = 3
+    max_samples: int = 20_000
+    tracking_samples: int = 300
+    test_batch: int = 250_000
+
+    def __post_init__(self) -> None:
+        checks = {
+            "n_test": self.n_test >= 1,
+            "cell_m": self.cell_m > 0,
+            "mu": 0 < self.mu < 1,
+            "eta": self.eta > 0,
+            "growth_rate": self.growth_rate >= 0,
+            "epsilon_m2": self.epsilon_m2 > 0,
+            "delta_per_m2": self.delta_per_m2 > 0,
+            "cell_top_k": self.cell_top_k >= 1,
+            "cell_fitness_exponent": self.cell_fitness_exponent > 0,
+            "cell_smoothing": self.cell_smoothing >= 1,
+            "min_species_size": self.min_species_size >= 1,
+            "split_cell_m": self.split_cell_m > 0,
+            "split_cell_rad": 0 < self.split_cell_rad <= np.pi,
+            "merge_valley_ratio": 0 <= self.merge_valley_ratio <= 1,
+            "merge_probe_points": self.merge_probe_points >= 1,
+            "max_samples": self.max_samples >= self.min_species_size,
+            "tracking_samples": self.tracking_samples >= self.min_species_size,
+            "test_batch": self.test_batch >= 1,
+        }
+        for name, ok in checks.items():
+            if not ok:
+                raise ValueError(f"{name}: value {getattr(self, name)!r} is out of range")

@@ -1,0 +1,192 @@
+"""Initial species generation (paper section 3.1).
+
+1. ``N_test`` poses uniform over free space, each weighted by the first scan (fitness in
+   (0, 1], see ``sensors.base.fitness``).
+2. The x-y plane is cut into square cells (0.1 m in the paper). A cell's weight is the mean
+   tempered fitness ``w^beta`` of its best ``cell_top_k`` test poses (NOTES.md: the plain mean
+   over random headings dilutes a sharp likelihood), averaged over the 3 x 3 cells around it
+   (NaN-aware), and scaled so the best cell scores 1. Why the tempering and the smoothing:
+   with 10^6 test poses each 0.1 m cell holds ~47 random headings, 7.7 degrees apart, which
+   moves beam end points at 4 m by ~0.5 m; a likelihood sharper than that makes a cell's best
+   sample a matter of luck, so ``V`` comes out tiny and broken into islands (one image of the
+   pose split into several species). ``beta = 0.16 = (0.2 / 0.5)^2`` gives the landscape a
+   likelihood field with sigma 0.5 m would give; docs/ceamcl.md has the measurements.
+3. ``V``: cells whose weight exceeds ``mu``. ``N_0 = eta |V| / mean weight of V`` (eq. 5).
+4. The connected regions of ``V`` (4-neighbourhood, the city-block network) seed a partition of
+   the grid into influence zones by city-block distance (SKIZ).
+5. Part ``i`` receives ``N_0^(i) = N_0 * wbar(i) / sum_k wbar(k)`` samples (eq. 6), the test
+   poses of the part with the largest weights; ``wbar(i)`` is the mean weight of the part's
+   cells in ``V``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import ndimage
+
+from ceamcl.maps.grid import OccupancyGrid
+
+_FOUR = ndimage.generate_binary_structure(2, 1)
+
+
+@dataclass(frozen=True, eq=False)
+class CellGrid:
+    """The x-y grid of section 3.1 laid over a map's bounding box."""
+
+    x0: float
+    y0: float
+    cell_m: float
+    nx: int
+    ny: int
+
+    @classmethod
+    def over(cls, grid: OccupancyGrid, cell_m: float) -> CellGrid:
+        xmin, xmax, ymin, ymax = grid.bounds
+        nx = max(1, int(np.ceil((xmax - xmin) / cell_m)))
+        ny = max(1, int(np.ceil((ymax - ymin) / cell_m)))
+        return cls(xmin, ymin, cell_m, nx, ny)
+
+    def index(self, xy: NDArray[np.float64]) -> NDArray[np.intp]:
+        """Flat cell index ``iy * nx + ix`` of points ``(N, 2)`` (clipped into the grid)."""
+        ix = np.clip(np.floor((xy[:, 0] - self.x0) / self.cell_m).astype(np.intp), 0, self.nx - 1)
+        iy = np.clip(np.floor((xy[:, 1] - self.y0) / self.cell_m).astype(np.intp), 0, self.ny - 1)
+        return iy * self.nx + ix
+
+
+@dataclass(frozen=True, eq=False)
+class InitialSpecies:
+    """What section 3.1 produces, with its intermediate results for plots and tests.
+
+    ``poses``/``loglik``/``fitness``/``labels`` are the selected samples and their species
+    (``0..n_species-1``). ``cell_weight`` is the scaled grid (NaN where no test pose fell),
+    ``in_v`` the set ``V``, ``seeds`` the connected regions of ``V`` and ``partition`` the SKIZ
+    label of every cell (both ``(ny, nx)``, labels from 1).
+    """
+
+    poses: NDArray[np.float64]
+    loglik: NDArray[np.float64]
+    fitness: NDArray[np.float64]
+    labels: NDArray[np.int64]
+    n_species: int
+    n0: int
+    v_size: int
+    v_mean_weight: float
+    cells: CellGrid
+    cell_weight: NDArray[np.float64]
+    in_v: NDArray[np.bool_]
+    seeds: NDArray[np.int32]
+    partition: NDArray[np.int32]
+
+
+def top_k_mean_per_cell(
+    cell: NDArray[np.intp], value: NDArray[np.float64], n_cells: int, k: int
+) -> NDArray[np.float64]:
+    """Mean of the ``k`` largest values in each cell (fewer where a cell has fewer); NaN where
+    a cell is empty."""
+    order = np.lexsort((-value, cell))
+    c_sorted = cell[order]
+    v_sorted = value[order]
+    starts = np.searchsorted(c_sorted, np.arange(n_cells))
+    rank = np.arange(c_sorted.size) - starts[c_sorted]
+    keep = rank < k
+    sums = np.bincount(c_sorted[keep], weights=v_sorted[keep], minlength=n_cells)
+    counts = np.bincount(c_sorted[keep], minlength=n_cells)
+    out = np.full(n_cells, np.nan)
+    nz = counts > 0
+    out[nz] = sums[nz] / counts[nz]
+    return out
+
+
+def smooth_cells(weight: NDArray[np.float64], size: int) -> NDArray[np.float64]:
+    """Mean over the ``size x size`` neighbourhood of each non-empty cell, ignoring empty (NaN)
+    cells; empty cells stay NaN. ``size <= 1`` returns the input."""
+    if size <= 1:
+        return weight
+    valid = np.isfinite(weight)
+    num = ndimage.uniform_filter(np.where(valid, weight, 0.0), size, mode="constant")
+    den = ndimage.uniform_filter(valid.astype(np.float64), size, mode="constant")
+    return np.where(valid, num / np.maximum(den, 1e-12), np.nan)
+
+
+def skiz_partition(seeds: NDArray[np.int32]) -> NDArray[np.int32]:
+    """Influence zones of labelled seed regions under the city-block distance: every cell gets
+    the label of its nearest seed cell (ties go to the seed found first by the transform)."""
+    if seeds.max(initial=0) == 0:
+        return np.zeros_like(seeds)
+    _, (iy, ix) = ndimage.distance_transform_cdt(seeds == 0, metric="taxicab", return_indices=True)
+    return seeds[iy, ix].astype(np.int32)
+
+
+def generate_initial_species(
+    grid: OccupancyGrid,
+    test_poses: NDArray[np.float64],
+    test_loglik: NDArray[np.float64],
+    test_fitness: NDArray[np.float64],
+    *,
+    cell_m: float,
+    mu: float,
+    eta: float,
+    cell_top_k: int,
+    fitness_exponent: float,
+    smoothing_cells: int,
+    min_species_size: int,
+    max_samples: int,
+) -> InitialSpecies:
+    """Steps 2-5 of section 3.1 on weighted test poses (step 1 is the caller's)."""
+    cells = CellGrid.over(grid, cell_m)
+    n_cells = cells.nx * cells.ny
+    idx = cells.index(test_poses[:, :2])
+    tempered = np.power(np.clip(test_fitness, 0.0, 1.0), fitness_exponent)
+    weight = top_k_mean_per_cell(idx, tempered, n_cells, cell_top_k)
+    weight = smooth_cells(weight.reshape(cells.ny, cells.nx), smoothing_cells).reshape(-1)
+    best = np.nanmax(weight) if np.any(np.isfinite(weight)) else 0.0
+    if not best > 0:
+        weight = np.where(np.isnan(weight), np.nan, 1.0)
+        best = 1.0
+    scaled = weight / best
+    in_v = np.nan_to_num(scaled, nan=0.0) > mu
+    v_size = int(in_v.sum())
+    v_mean = float(np.mean(scaled[in_v])) if v_size else 1.0
+    n0 = int(np.clip(round(eta * v_size / v_mean), 1, max_samples))  # eq. 5
+
+    grid2d_v = in_v.reshape(cells.ny, cells.nx)
+    seeds, n_regions = ndimage.label(grid2d_v, structure=_FOUR)
+    partition = skiz_partition(seeds.astype(np.int32))
+    part_of_test = partition.reshape(-1)[idx]
+
+    region_weight = np.asarray(
+        ndimage.mean(
+            scaled.reshape(cells.ny, cells.nx), labels=seeds, index=np.arange(1, n_regions + 1)
+        ),
+        dtype=np.float64,
+    ).reshape(-1)
+    share = region_weight / region_weight.sum()  # eq. 6
+    sizes = np.maximum(np.round(n0 * share).astype(np.int64), min_species_size)
+
+    chosen, labels = [], []
+    order = np.argsort(-test_loglik, kind="stable")
+    part_sorted = part_of_test[order]
+    for s in range(n_regions):
+        members = order[part_sorted == s + 1]
+        take = members[: sizes[s]]
+        chosen.append(take)
+        labels.append(np.full(take.size, s, dtype=np.int64))
+    sel = np.concatenate(chosen) if chosen else np.zeros(0, dtype=np.intp)
+    return InitialSpecies(
+        poses=test_poses[sel].copy(),
+        loglik=test_loglik[sel].copy(),
+        fitness=test_fitness[sel].copy(),
+        labels=np.concatenate(labels) if labels else np.zeros(0, dtype=np.int64),
+        n_species=n_regions,
+        n0=n0,
+        v_size=v_size,
+        v_mean_weight=v_mean,
+        cells=cells,
+        cell_weight=scaled.reshape(cells.ny, cells.nx),
+        in_v=grid2d_v,
+        seeds=seeds.astype(np.int32),
+        partition=partition,
+    )

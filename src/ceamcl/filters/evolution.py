@@ -1,0 +1,142 @@
+"""Genetic operators of GMCL and CEAMCL (paper section 3.4), vectorised over pairs.
+
+Fitness is the observation likelihood ``p(y_t | x)``; the operators compare log-likelihoods,
+which orders poses exactly as the likelihood does.
+
+* Crossover (eq. 17): parents ``p1, p2`` and ``xi ~ U[0, 1]`` give
+  ``c1 = xi p1 + (1 - xi) p2`` and ``c2 = (1 - xi) p1 + xi p2`` (headings along the shorter arc);
+  the best two of the four take the parents' places.
+* Mutation (eq. 18, corrected as in NOTES.md: the child's weight is the child's likelihood):
+  ``c = p + tau``, ``tau ~ N(0, Sigma)``; the better of parent and child stays.
+
+Both operators therefore never lower the best likelihood of the set they act on.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ceamcl.angles import interpolate, wrap
+
+Evaluator = Callable[[NDArray[np.float64]], NDArray[np.float64]]
+
+
+@dataclass(frozen=True)
+class EvolutionConfig:
+    """Crossover probability ``p_c``, mutation probability ``p_m`` (paper: 0.85 and 0.15) and
+    the standard deviations of the mutation's Gaussian ``Sigma = diag(sx^2, sy^2, stheta^2)``
+    (the paper leaves Sigma open; docs/ceamcl.md explains the default)."""
+
+    p_crossover: float = 0.85
+    p_mutation: float = 0.15
+    mutation_sigma_xy_m: float = 0.05
+    mutation_sigma_theta_rad: float = 0.03
+
+    def __post_init__(self) -> None:
+        for name in ("p_crossover", "p_mutation"):
+            v = getattr(self, name)
+            if not 0.0 <= v <= 1.0:
+                raise ValueError(f"{name}: expected a probability in [0, 1], got {v}")
+        if self.mutation_sigma_xy_m < 0 or self.mutation_sigma_theta_rad < 0:
+            raise ValueError("mutation sigmas must be >= 0")
+
+
+def crossover(
+    poses: NDArray[np.float64],
+    loglik: NDArray[np.float64],
+    first: NDArray[np.intp],
+    second: NDArray[np.intp],
+    p_crossover: float,
+    evaluate: Evaluator,
+    rng: np.random.Generator,
+) -> int:
+    """Eq. 17 on the disjoint pairs ``(first[k], second[k])``, in place; returns how many poses
+    were evaluated."""
+    mate = rng.random(first.size) < p_crossover
+    xi = rng.random(first.size)
+    a, b, xi = first[mate], second[mate], xi[mate]
+    if a.size == 0:
+        return 0
+    pa, pb = poses[a], poses[b]
+    c1 = np.empty_like(pa)
+    c2 = np.empty_like(pa)
+    c1[:, :2] = xi[:, None] * pa[:, :2] + (1.0 - xi[:, None]) * pb[:, :2]
+    c2[:, :2] = (1.0 - xi[:, None]) * pa[:, :2] + xi[:, None] * pb[:, :2]
+    c1[:, 2] = interpolate(pb[:, 2], pa[:, 2], xi)
+    c2[:, 2] = interpolate(pa[:, 2], pb[:, 2], xi)
+    ll_children = evaluate(np.vstack([c1, c2]))
+    m = a.size
+    cand_poses = np.stack([pa, pb, c1, c2], axis=1)  # (m, 4, 3)
+    cand_ll = np.column_stack([loglik[a], loglik[b], ll_children[:m], ll_children[m:]])
+    cand_ll = np.where(np.isnan(cand_ll), -np.inf, cand_ll)
+    order = np.argsort(-cand_ll, axis=1, kind="stable")[:, :2]
+    rows = np.arange(m)
+    poses[a] = cand_poses[rows, order[:, 0]]
+    poses[b] = cand_poses[rows, order[:, 1]]
+    loglik[a] = cand_ll[rows, order[:, 0]]
+    loglik[b] = cand_ll[rows, order[:, 1]]
+    return 2 * m
+
+
+def mutation(
+    poses: NDArray[np.float64],
+    loglik: NDArray[np.float64],
+    candidates: NDArray[np.intp],
+    p_mutation: float,
+    sigma: NDArray[np.float64],
+    evaluate: Evaluator,
+    rng: np.random.Generator,
+) -> int:
+    """Eq. 18 (corrected) on each index of ``candidates`` with probability ``p_mutation``, in
+    place; returns how many poses were evaluated."""
+    chosen = candidates[rng.random(candidates.size) < p_mutation]
+    noise = rng.standard_normal((chosen.size, 3)) * sigma
+    if chosen.size == 0:
+        return 0
+    child = poses[chosen] + noise
+    child[:, 2] = wrap(child[:, 2])
+    ll_child = evaluate(child)
+    better = ll_child > loglik[chosen]
+    poses[chosen[better]] = child[better]
+    loglik[chosen[better]] = ll_child[better]
+    return int(chosen.size)
+
+
+def random_pairs(
+    groups: list[NDArray[np.intp]], rng: np.random.Generator
+) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """Disjoint random pairs inside each group (``floor(n/2)`` pairs from a group of ``n``)."""
+    firsts, seconds = [], []
+    for g in groups:
+        perm = rng.permutation(g)
+        half = perm.size // 2
+        firsts.append(perm[:half])
+        seconds.append(perm[half : 2 * half])
+    if not firsts:
+        empty = np.zeros(0, dtype=np.intp)
+        return empty, empty
+    return np.concatenate(firsts).astype(np.intp), np.concatenate(seconds).astype(np.intp)
+
+
+def evolve(
+    poses: NDArray[np.float64],
+    loglik: NDArray[np.float64],
+    groups: list[NDArray[np.intp]],
+    config: EvolutionConfig,
+    evaluate: Evaluator,
+    rng: np.random.Generator,
+) -> int:
+    """Crossover then mutation inside each group of indices (a species, or everything for
+    GMCL); one likelihood call per operator for all groups together. Returns evaluations."""
+    first, second = random_pairs(groups, rng)
+    evals = crossover(poses, loglik, first, second, config.p_crossover, evaluate, rng)
+    everyone = np.concatenate(groups).astype(np.intp) if groups else np.zeros(0, np.intp)
+    sigma = np.array(
+        [config.mutation_sigma_xy_m, config.mutation_sigma_xy_m, config.mutation_sigma_theta_rad]
+    )
+    evals += mutation(poses, loglik, everyone, config.p_mutation, sigma, evaluate, rng)
+    return evals
