@@ -115,9 +115,11 @@ def _cmd_demo(args: argparse.Namespace, console: Console) -> int:
             "steps",
             "final_position_error_m",
             "final_heading_error_rad",
+            "closest_hypothesis_error_m",
             "mean_step_ms",
-            "particles_initial",
-            "particles_final",
+            "samples_initial",
+            "samples_final",
+            "species_final",
             "symmetric_images_covered",
         ):
             if key in s and s[key] is not None:

@@ -62,6 +62,11 @@ def summarise(result: RunResult, log: SimulatedLog, **context: Any) -> dict[str,
             for h in final_h[:16]
         ],
     }
+    if result.truth is not None and final_h.shape[0]:
+        # In a symmetric world the estimate is one of several equally fit hypotheses; the
+        # distance of the closest hypothesis tells whether the truth is still tracked.
+        d_truth = np.hypot(final_h[:, 0] - result.truth[-1, 0], final_h[:, 1] - result.truth[-1, 1])
+        summary["closest_hypothesis_error_m"] = float(d_truth.min())
     if result.diagnostics[-1].species or result.diagnostics[0].species:
         summary["species_initial"] = len(result.diagnostics[0].species)
         summary["species_final"] = len(result.diagnostics[-1].species)

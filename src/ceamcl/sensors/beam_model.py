@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ceamcl.maps.grid import OccupancyGrid
+from ceamcl.sensors.likelihood_field import PARALLEL_MIN_POSES
 from ceamcl.sensors.raycast import _march, cast_fan
 from ceamcl.sensors.scan import LaserScan, PreparedScan, laser_poses, prepare_scan
 
@@ -77,8 +78,7 @@ def _beam_log_p(
     return math.log(p)
 
 
-@numba.njit(cache=True, parallel=True, fastmath=True)
-def _beam_kernel(
+def _beam_kernel_py(
     poses: NDArray[np.float64],
     ranges: NDArray[np.float64],
     bearings: NDArray[np.float64],
@@ -125,6 +125,10 @@ def _beam_kernel(
     return out
 
 
+_beam_kernel_parallel = numba.njit(cache=True, parallel=True, fastmath=True)(_beam_kernel_py)
+_beam_kernel_serial = numba.njit(cache=True, fastmath=True)(_beam_kernel_py)
+
+
 class BeamModel:
     """Beam model over an occupancy grid (implements :class:`SensorModel`)."""
 
@@ -150,7 +154,8 @@ class BeamModel:
             return np.zeros(mp.shape[0])
         cfg = self.config
         lx, ly, lyaw = prepared.laser_pose
-        return _beam_kernel(
+        kernel = _beam_kernel_parallel if mp.shape[0] >= PARALLEL_MIN_POSES else _beam_kernel_serial
+        return kernel(  # type: ignore[no-any-return,unused-ignore]
             np.ascontiguousarray(mp),
             prepared.ranges,
             prepared.bearings,
