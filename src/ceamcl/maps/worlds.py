@@ -12,8 +12,9 @@
 
 ``marked-hall``
     The same hall with one box (0.6 x 0.6 m) standing out from the board on the east side of
-    the north-west room (room 3). Boards hide it from the other rooms, so only a robot inside
-    room 3 sees it: a run that ends there breaks the symmetry late.
+    the north-west room (room 3). Boards hide it from almost everywhere else (it can be glimpsed
+    from about 5% of the free space outside room 3, through doorways), so in practice a robot
+    sees it from inside room 3: a run that ends there breaks the symmetry late.
 
 ``small-office``
     A 10 x 8 m asymmetric floor (three rooms of different sizes, a corridor, a pillar) where

@@ -1,0 +1,102 @@
+"""Tests of resampling and weight normalisation (``ceamcl.filters.resampling``)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ceamcl.filters.resampling import effective_sample_size, normalise_log_weights, systematic
+
+
+@pytest.mark.parametrize("n", [1, 7, 100, 1000])
+def test_systematic_gives_floor_or_ceil_copies(n: int) -> None:
+    rng = np.random.default_rng(40)
+    for _ in range(200):
+        w = rng.dirichlet(np.full(50, 0.3))
+        idx = systematic(w, n, rng)
+        assert idx.shape == (n,)
+        assert np.all(np.diff(idx) >= 0)  # ancestors come out in order
+        counts = np.bincount(idx, minlength=w.size)
+        # n w_i may land a hair off an integer by round-off; a copy count must still be one of
+        # the two integers around it.
+        nw = n * w
+        assert np.all((counts >= np.floor(nw - 1e-9)) & (counts <= np.ceil(nw + 1e-9)))
+        assert np.all(counts[w == 0] == 0)
+
+
+def test_systematic_is_unbiased() -> None:
+    # E[copies of i] = n w_i. Each count takes only floor/ceil values, so its variance is at
+    # most 1/4; the mean over R draws has SE <= 0.5 / sqrt(R). Allow 5 SE.
+    rng = np.random.default_rng(41)
+    w = rng.dirichlet(np.ones(30))
+    n, draws = 100, 4000
+    total = np.zeros(w.size)
+    for _ in range(draws):
+        total += np.bincount(systematic(w, n, rng), minlength=w.size)
+    mean = total / draws
+    assert np.all(np.abs(mean - n * w) < 5 * 0.5 / np.sqrt(draws))
+
+
+def test_systematic_edge_cases() -> None:
+    rng = np.random.default_rng(42)
+    assert systematic([0.2, 0.8], 0, rng).size == 0
+    assert systematic([], 5, rng).size == 0
+    one_hot = np.zeros(10)
+    one_hot[6] = 1.0
+    assert np.all(systematic(one_hot, 25, rng) == 6)
+    # Unnormalised weights are normalised first.
+    idx = systematic([2.0, 6.0], 8, rng)
+    assert np.bincount(idx, minlength=2).tolist() == [2, 6]
+    # Changing the sample size: 3 particles to 12.
+    idx = systematic([1 / 3, 1 / 3, 1 / 3], 12, rng)
+    assert np.bincount(idx, minlength=3).tolist() == [4, 4, 4]
+
+
+def test_effective_sample_size() -> None:
+    for n in (1, 10, 5000):
+        assert effective_sample_size(np.full(n, 1.0 / n)) == pytest.approx(n)
+    one_hot = np.zeros(100)
+    one_hot[3] = 1.0
+    assert effective_sample_size(one_hot) == pytest.approx(1.0)
+    # Two equal particles out of many: ESS 2.
+    w = np.zeros(100)
+    w[[1, 50]] = 0.5
+    assert effective_sample_size(w) == pytest.approx(2.0)
+    assert effective_sample_size(np.zeros(5)) == 0.0
+
+
+def test_normalise_log_weights_regular_and_extreme() -> None:
+    lw, w, ok = normalise_log_weights([np.log(1.0), np.log(3.0)])
+    assert ok
+    np.testing.assert_allclose(w, [0.25, 0.75])
+    np.testing.assert_allclose(np.exp(lw), w)
+    # Huge magnitudes (sums of thousands of log-likelihoods) neither overflow nor underflow.
+    lw, w, ok = normalise_log_weights([-1e5, -1e5 + np.log(2.0), -2e5])
+    assert ok
+    np.testing.assert_allclose(w, [1 / 3, 2 / 3, 0.0], atol=1e-15)
+    lw, w, ok = normalise_log_weights([800.0, 800.0])
+    assert ok
+    np.testing.assert_allclose(w, [0.5, 0.5])
+    assert np.all(np.isfinite(lw))
+
+
+def test_normalise_log_weights_all_impossible_or_nan() -> None:
+    for bad in (
+        np.full(4, -np.inf),
+        np.full(4, np.nan),
+        np.array([np.nan, -np.inf, np.nan, -np.inf]),
+    ):
+        lw, w, ok = normalise_log_weights(bad)
+        assert not ok
+        np.testing.assert_allclose(w, 0.25)
+        assert not np.any(np.isnan(lw)) and not np.any(np.isnan(w))
+    lw, w, ok = normalise_log_weights(np.zeros(0))
+    assert not ok and w.size == 0
+
+
+def test_normalise_log_weights_treats_nan_as_impossible() -> None:
+    lw, w, ok = normalise_log_weights([np.nan, 0.0, -np.inf, 0.0])
+    assert ok
+    np.testing.assert_allclose(w, [0.0, 0.5, 0.0, 0.5])
+    assert not np.any(np.isnan(lw))
+    assert lw[0] == -np.inf and lw[2] == -np.inf

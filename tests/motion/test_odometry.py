@@ -1,0 +1,176 @@
+"""Tests of the odometry motion model (``ceamcl.motion.odometry``)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ceamcl.angles import wrap
+from ceamcl.motion.odometry import (
+    MIN_TRANSLATION_FOR_ROT1_M,
+    OdometryIncrement,
+    OdometryMotionModel,
+    OdometryNoise,
+    apply_increment,
+    increment_between,
+)
+
+# Small enough that the sampled translation stays positive (0.5 m is > 6 standard deviations
+# of the translation noise below), so the decomposition of every moved pose is unambiguous.
+NOISE = OdometryNoise(alpha1=0.05, alpha2=0.02, alpha3=0.02, alpha4=0.01)
+N_SAMPLES = 200_000
+START = np.array([1.0, -2.0, 0.4])
+
+
+def recover_components(start: np.ndarray, moved: np.ndarray) -> np.ndarray:
+    """(rot1, trans, rot2) of each moved pose relative to ``start``: inverse of apply_increment
+    for positive translations."""
+    dx = moved[:, 0] - start[0]
+    dy = moved[:, 1] - start[1]
+    trans = np.hypot(dx, dy)
+    rot1 = wrap(np.arctan2(dy, dx) - start[2])
+    rot2 = wrap(moved[:, 2] - start[2] - rot1)
+    return np.column_stack([rot1, trans, rot2])
+
+
+def check_moments(
+    components: np.ndarray, expected_mean: np.ndarray, expected_var: np.ndarray
+) -> None:
+    """Sample means and variances within 5 standard errors of the model's.
+
+    SE(mean) = sqrt(v / n); for Gaussian samples SE(variance) = v * sqrt(2 / (n - 1)).
+    """
+    n = components.shape[0]
+    mean = components.mean(axis=0)
+    var = components.var(axis=0, ddof=1)
+    se_mean = np.sqrt(expected_var / n)
+    se_var = expected_var * np.sqrt(2.0 / (n - 1))
+    np.testing.assert_array_less(np.abs(mean - expected_mean), 5 * se_mean)
+    np.testing.assert_array_less(np.abs(var - expected_var), 5 * se_var)
+    # The three noise terms are independent: sample correlations within 5 / sqrt(n) of 0.
+    corr = np.corrcoef(components.T)
+    off_diagonal = corr[~np.eye(3, dtype=bool)]
+    assert np.all(np.abs(off_diagonal) < 5 / np.sqrt(n))
+
+
+def test_sample_has_the_increment_mean_and_the_model_variances() -> None:
+    inc = OdometryIncrement(rot1=0.3, trans=0.5, rot2=-0.2)
+    v = np.array(inc.variances(NOISE))
+    # Table 5.6 by hand: variances, not standard deviations.
+    np.testing.assert_allclose(
+        v,
+        [
+            0.05 * 0.3**2 + 0.02 * 0.5**2,
+            0.02 * 0.5**2 + 0.01 * (0.3**2 + 0.2**2),
+            0.05 * 0.2**2 + 0.02 * 0.5**2,
+        ],
+        rtol=1e-12,
+    )
+    assert 0.5 / np.sqrt(v[1]) > 6.0  # translation never flips sign in practice
+    rng = np.random.default_rng(0)
+    moved = OdometryMotionModel(NOISE).sample(np.tile(START, (N_SAMPLES, 1)), inc, rng)
+    assert moved.shape == (N_SAMPLES, 3)
+    assert np.all((moved[:, 2] > -np.pi) & (moved[:, 2] <= np.pi))
+    check_moments(recover_components(START, moved), np.array([0.3, 0.5, -0.2]), v)
+
+
+def test_backwards_motion_does_not_count_as_a_half_turn() -> None:
+    # Driving 0.4 m straight backwards: rot1 = pi, rot2 = pi (wrap of -pi) in the
+    # decomposition, but the rotation noise must use min(|rot1|, |rot1 - pi|) = 0, leaving only
+    # the translation-induced term alpha2 * trans^2.
+    prev = np.array([2.0, 1.0, 0.3])
+    cur = np.array([2.0 - 0.4 * np.cos(0.3), 1.0 - 0.4 * np.sin(0.3), 0.3])
+    inc = increment_between(prev, cur)
+    assert inc.trans == pytest.approx(0.4)
+    assert abs(float(wrap(inc.rot1 - np.pi))) < 1e-9
+    v = np.array(inc.variances(NOISE))
+    np.testing.assert_allclose(v, [0.02 * 0.16, 0.02 * 0.16, 0.02 * 0.16], rtol=1e-9, atol=1e-15)
+    rng = np.random.default_rng(1)
+    moved = OdometryMotionModel(NOISE).sample(np.tile(prev, (N_SAMPLES, 1)), inc, rng)
+    comp = recover_components(prev, moved)
+    # Recovered rot1 and rot2 sit around +-pi: measure them relative to the increment's values
+    # to stay clear of the seam.
+    comp[:, 0] = wrap(comp[:, 0] - inc.rot1)
+    comp[:, 2] = wrap(comp[:, 2] - inc.rot2)
+    check_moments(comp, np.array([0.0, 0.4, 0.0]), v)
+    # The mean moved pose is 0.4 m behind the start, heading unchanged.
+    assert np.hypot(*(moved[:, :2].mean(axis=0) - cur[:2])) < 5e-3
+
+
+def test_zero_noise_gives_exactly_apply_increment() -> None:
+    rng = np.random.default_rng(2)
+    poses = np.column_stack(
+        [rng.uniform(-5, 5, 500), rng.uniform(-5, 5, 500), rng.uniform(-np.pi, np.pi, 500)]
+    )
+    inc = OdometryIncrement(0.3, 0.5, -0.2)
+    model = OdometryMotionModel(OdometryNoise(0.0, 0.0, 0.0, 0.0))
+    out = model.sample(poses, inc, rng)
+    assert np.array_equal(out, apply_increment(poses, 0.3, 0.5, -0.2))
+
+
+def test_apply_increment_geometry() -> None:
+    out = apply_increment(np.array([[1.0, 2.0, np.pi / 2]]), np.pi / 2, 2.0, np.pi)
+    # Heading pi after rot1, drive 2 m along -x, then turn by pi more: heading 0 (wrapped 2 pi).
+    np.testing.assert_allclose(out[0], [-1.0, 2.0, 0.0], atol=1e-12)
+
+
+def test_increment_between_round_trips_through_apply_increment() -> None:
+    rng = np.random.default_rng(3)
+    n = 2000
+    a = np.column_stack(
+        [rng.uniform(-5, 5, n), rng.uniform(-5, 5, n), rng.uniform(-np.pi, np.pi, n)]
+    )
+    step = rng.uniform(-1.0, 1.0, (n, 2))
+    step[: n // 4] *= 0.05  # many short steps, down to well under a centimetre
+    b = np.column_stack([a[:, :2] + step, rng.uniform(-np.pi, np.pi, n)])
+    for i in range(n):
+        inc = increment_between(a[i], b[i])
+        assert inc.trans >= 0.0
+        assert -np.pi < inc.rot1 <= np.pi
+        assert -np.pi < inc.rot2 <= np.pi
+        back = apply_increment(a[i], inc.rot1, inc.trans, inc.rot2)[0]
+        assert abs(float(wrap(back[2] - b[i, 2]))) < 1e-9
+        if inc.trans >= MIN_TRANSLATION_FOR_ROT1_M:
+            np.testing.assert_allclose(back[:2], b[i, :2], atol=1e-9)
+        else:
+            # Under 1 cm rot1 is taken as 0: position lands within the translation length.
+            assert inc.rot1 == 0.0
+            assert np.hypot(*(back[:2] - b[i, :2])) <= 2 * inc.trans + 1e-12
+
+
+def test_zero_motion_is_zero_increment_and_adds_no_noise() -> None:
+    p = np.array([3.0, 4.0, -2.0])
+    inc = increment_between(p, p)
+    assert inc.is_zero
+    assert inc.variances(OdometryNoise()) == (0.0, 0.0, 0.0)
+    out = OdometryMotionModel().sample(np.tile(p, (10, 1)), inc, np.random.default_rng(4))
+    np.testing.assert_allclose(out, np.tile(p, (10, 1)), atol=1e-15)
+
+
+def test_pure_rotation_has_rotation_noise_only() -> None:
+    # Turning on the spot by 0.6 rad: rot1 = 0, trans = 0, rot2 = 0.6. Heading noise variance
+    # alpha1 * 0.36, position noise from trans only: alpha4 * 0.36.
+    p = np.array([0.0, 0.0, 1.0])
+    inc = increment_between(p, p + np.array([0.0, 0.0, 0.6]))
+    assert (inc.rot1, inc.trans) == (0.0, 0.0)
+    assert inc.rot2 == pytest.approx(0.6)
+    v = inc.variances(NOISE)
+    assert v[0] == 0.0
+    rng = np.random.default_rng(5)
+    moved = OdometryMotionModel(NOISE).sample(np.tile(p, (N_SAMPLES, 1)), inc, rng)
+    dtheta = wrap(moved[:, 2] - p[2])
+    expected_var = v[0] + v[2]
+    assert abs(dtheta.mean() - 0.6) < 5 * np.sqrt(expected_var / N_SAMPLES)
+    se_var = expected_var * np.sqrt(2.0 / (N_SAMPLES - 1))
+    assert abs(dtheta.var(ddof=1) - expected_var) < 5 * se_var
+    # Signed displacement along the start heading has variance v_trans.
+    along = moved[:, 0] * np.cos(1.0) + moved[:, 1] * np.sin(1.0)
+    se_var_t = v[1] * np.sqrt(2.0 / (N_SAMPLES - 1))
+    assert abs(along.var(ddof=1) - v[1]) < 5 * se_var_t
+
+
+def test_noise_parameters_are_validated() -> None:
+    with pytest.raises(ValueError, match="alpha3"):
+        OdometryNoise(0.1, 0.1, -0.1, 0.1)
+    with pytest.raises(ValueError, match="alpha1"):
+        OdometryNoise(float("nan"), 0.1, 0.1, 0.1)

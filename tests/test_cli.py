@@ -1,0 +1,189 @@
+"""Tests of the ``ceamcl`` command line (``ceamcl.cli``), in-process and as a subprocess."""
+
+from __future__ import annotations
+
+import csv
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from ceamcl.cli import main
+from ceamcl.maps.worlds import get_world
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+SUMMARY_KEYS = {
+    "algorithm",
+    "world",
+    "seed",
+    "steps",
+    "final_position_error_m",
+    "final_heading_error_rad",
+    "mean_step_ms",
+    "particles_final",
+}
+
+
+def run_demo_cli(out: Path) -> int:
+    return main(["demo", "--algorithm", "mcl", "--seed", "3", "--out", str(out), "--quiet"])
+
+
+@pytest.fixture(scope="module")
+def demo_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("demo") / "D"
+    assert run_demo_cli(out) == 0
+    return out
+
+
+def test_demo_writes_summary(demo_dir: Path) -> None:
+    summary = json.loads((demo_dir / "summary.json").read_text())
+    assert SUMMARY_KEYS <= set(summary)
+    assert summary["algorithm"] == "mcl"
+    assert summary["world"] == "symmetric-hall"
+    assert summary["seed"] == 3
+    assert isinstance(summary["steps"], int) and summary["steps"] > 100
+    assert summary["final_position_error_m"] >= 0.0
+    assert 0.0 <= summary["final_heading_error_rad"] <= np.pi
+    assert summary["mean_step_ms"] > 0.0
+    assert summary["particles_final"] >= 1
+
+
+def test_demo_writes_tum_trajectories(demo_dir: Path) -> None:
+    steps = json.loads((demo_dir / "summary.json").read_text())["steps"]
+    for name in ("trajectory.tum", "groundtruth.tum"):
+        rows = np.loadtxt(demo_dir / name, comments="#", ndmin=2)
+        assert rows.shape == (steps, 8), name
+        np.testing.assert_allclose(np.diff(rows[:, 0]), 0.1, atol=1e-6)
+        np.testing.assert_allclose(np.hypot(rows[:, 6], rows[:, 7]), 1.0, atol=1e-6)
+        assert np.all(rows[:, 3:6] == 0.0)
+    # The last row of the truth is where the summary's final error is measured from.
+    summary = json.loads((demo_dir / "summary.json").read_text())
+    est = np.loadtxt(demo_dir / "trajectory.tum", ndmin=2)[-1]
+    truth = np.loadtxt(demo_dir / "groundtruth.tum", ndmin=2)[-1]
+    assert np.hypot(est[1] - truth[1], est[2] - truth[2]) == pytest.approx(
+        summary["final_position_error_m"], abs=1e-6
+    )
+
+
+def test_demo_writes_png_and_diagnostics(demo_dir: Path) -> None:
+    png = demo_dir / "run.png"
+    assert png.read_bytes()[:8] == PNG_SIGNATURE
+    with Image.open(png) as img:
+        img.verify()
+    with Image.open(png) as img:
+        assert img.format == "PNG" and min(img.size) > 100
+    steps = json.loads((demo_dir / "summary.json").read_text())["steps"]
+    with (demo_dir / "diagnostics.csv").open(newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == steps
+    assert {"step", "n_particles", "ess", "step_ms"} <= set(rows[0])
+    assert [int(r["step"]) for r in rows] == list(range(steps))
+
+
+def test_demo_is_reproducible(demo_dir: Path, tmp_path: Path) -> None:
+    again = tmp_path / "again"
+    assert run_demo_cli(again) == 0
+    for name in ("trajectory.tum", "groundtruth.tum"):
+        assert (again / name).read_bytes() == (demo_dir / name).read_bytes(), name
+
+
+@pytest.mark.parametrize("fmt", ["pgm", "png"])
+def test_world_export_loads_back_equal(tmp_path: Path, fmt: str) -> None:
+    from ceamcl.maps.ros_io import load_map
+
+    target = tmp_path / "maps" / "m.yaml"
+    assert main(["world", "symmetric-hall", "-o", str(target), "--format", fmt]) == 0
+    assert target.is_file()
+    assert (tmp_path / "maps" / f"m.{fmt}").is_file()
+    assert load_map(target) == get_world("symmetric-hall")
+
+
+def test_world_list(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["world", "--list"]) == 0
+    out = capsys.readouterr().out
+    for name in ("symmetric-hall", "marked-hall", "small-office"):
+        assert name in out
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["demo", "--algorithm", "mcl", "--world", "no-such-world"],
+        ["demo", "--algorithm", "no-such-algorithm"],
+        ["demo", "--algorithm", "mcl", "--particles", "-3"],
+        ["demo", "--algorithm", "mcl", "--particles", "0"],
+        ["demo", "--algorithm", "mcl", "--particles", "many"],
+        ["demo", "--algorithm", "mcl", "--seed", "-1"],
+        ["world", "no-such-world", "-o", "m.yaml"],
+        [],
+    ],
+)
+def test_bad_arguments_exit_2_without_traceback(
+    argv: list[str], capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    with pytest.raises(SystemExit) as info:
+        main([*argv, "--out", str(tmp_path / "x")] if argv[:1] == ["demo"] else argv)
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert "usage:" in err
+    assert "Traceback" not in err
+    assert not (tmp_path / "x").exists()  # nothing ran
+
+
+def test_particles_message_names_the_problem(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit):
+        main(["demo", "--algorithm", "mcl", "--particles", "-3"])
+    err = capsys.readouterr().err
+    assert "--particles" in err and "-3" in err
+
+
+def test_world_without_output_is_a_clean_error(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["world", "symmetric-hall"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("ceamcl: error:")
+    assert "Traceback" not in err
+
+
+def test_subprocess_unknown_world_exits_2_without_traceback(tmp_path: Path) -> None:
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "ceamcl.cli",
+            "demo",
+            "--algorithm",
+            "mcl",
+            "--world",
+            "atlantis",
+            "--out",
+            str(tmp_path / "x"),
+            "--quiet",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert proc.returncode == 2
+    assert "Traceback" not in proc.stderr
+    assert "atlantis" in proc.stderr and "symmetric-hall" in proc.stderr
+    assert not (tmp_path / "x").exists()
+
+
+def test_subprocess_world_export(tmp_path: Path) -> None:
+    from ceamcl.maps.ros_io import load_map
+
+    target = tmp_path / "office.yaml"
+    proc = subprocess.run(
+        [sys.executable, "-m", "ceamcl.cli", "world", "small-office", "-o", str(target)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert load_map(target) == get_world("small-office")
