@@ -117,6 +117,7 @@ def _cmd_demo(args: argparse.Namespace, console: Console) -> int:
             "final_heading_error_rad",
             "closest_hypothesis_error_m",
             "mean_step_ms",
+            "median_step_ms",
             "samples_initial",
             "samples_final",
             "species_final",
