@@ -151,6 +151,7 @@ class MCL:
         idx = systematic(w, self.config.n_particles, self.rng)
         self.poses = self.poses[idx]
         self.fitness = self.fitness[idx]
+        self.loglik = self.loglik[idx]
         self.log_weights = np.full(idx.size, -np.log(idx.size))
         self._resampled = True
 

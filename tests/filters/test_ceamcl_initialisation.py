@@ -1,0 +1,160 @@
+"""Initial species generation (paper section 3.1): SKIZ, cell weights, and the species that
+the first scan of the paper's run produces in the symmetric hall."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ceamcl.filters import make_filter
+from ceamcl.filters.ceamcl import CEAMCL
+from ceamcl.filters.ceamcl.initialisation import skiz_partition, top_k_mean_per_cell
+from ceamcl.maps.worlds import symmetric_images
+from ceamcl.simulation import Simulator, paper_scenario
+
+
+# ---------------------------------------------------------------- SKIZ
+def test_skiz_partition_city_block_influence_zones() -> None:
+    seeds = np.zeros((9, 9), dtype=np.int32)
+    seeds[0:2, 0:2] = 1  # a 2 x 2 block in the top-left corner
+    seeds[6, 5:8] = 2  # a bar of three cells, lower right
+    # Written by hand: a cell belongs to the seed at the smaller city-block distance; 0 marks
+    # ties (equal distance), where either label is right. E.g. row 0, column 6: 5 steps to
+    # seed 1's cell (0, 1), 6 steps to seed 2's (6, 6): seed 1; row 2, column 5: 5 to (1, 1),
+    # 4 to (6, 5): seed 2; row 6, column 0: 5 to (1, 0) and 5 to (6, 5): a tie.
+    expected = np.array(
+        [
+            [1, 1, 1, 1, 1, 1, 1, 0, 0],
+            [1, 1, 1, 1, 1, 1, 0, 2, 2],
+            [1, 1, 1, 1, 1, 2, 2, 2, 2],
+            [1, 1, 1, 1, 2, 2, 2, 2, 2],
+            [1, 1, 1, 2, 2, 2, 2, 2, 2],
+            [1, 1, 2, 2, 2, 2, 2, 2, 2],
+            [0, 2, 2, 2, 2, 2, 2, 2, 2],
+            [0, 2, 2, 2, 2, 2, 2, 2, 2],
+            [0, 2, 2, 2, 2, 2, 2, 2, 2],
+        ]
+    )
+    part = skiz_partition(seeds)
+    assert part.shape == seeds.shape
+    decided = expected > 0
+    np.testing.assert_array_equal(part[decided], expected[decided])
+    assert set(np.unique(part[~decided])) <= {1, 2}
+    # Seeds keep their own labels.
+    np.testing.assert_array_equal(part[seeds > 0], seeds[seeds > 0])
+
+
+def test_skiz_partition_matches_brute_force_on_random_seeds() -> None:
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        seeds = np.zeros((15, 12), dtype=np.int32)
+        for label in range(1, 4):
+            y, x = rng.integers(0, 15), rng.integers(0, 12)
+            seeds[y : y + rng.integers(1, 3), x : x + rng.integers(1, 3)] = label
+        labels = [lab for lab in range(1, 4) if np.any(seeds == lab)]
+        part = skiz_partition(seeds)
+        ys, xs = np.indices(seeds.shape)
+        dist = np.stack(
+            [
+                np.min(
+                    np.abs(ys[..., None] - np.nonzero(seeds == lab)[0])
+                    + np.abs(xs[..., None] - np.nonzero(seeds == lab)[1]),
+                    axis=-1,
+                )
+                for lab in labels
+            ]
+        )
+        best = dist.min(axis=0)
+        # Every cell gets a label at the minimal city-block distance (any one of a tie).
+        chosen = np.array(labels)[None, None, :] == part[..., None]
+        assert np.all(np.any(chosen & (np.moveaxis(dist, 0, -1) == best[..., None]), axis=-1))
+
+
+def test_skiz_partition_without_seeds_is_all_zero() -> None:
+    np.testing.assert_array_equal(skiz_partition(np.zeros((4, 5), np.int32)), 0)
+
+
+# ---------------------------------------------------------------- cell weights
+@pytest.mark.parametrize("k", [1, 3, 10])
+def test_top_k_mean_per_cell_against_brute_force(k: int) -> None:
+    rng = np.random.default_rng(11 + k)
+    n_cells = 40
+    cell = rng.integers(0, n_cells - 5, 500)  # the last 5 cells stay empty
+    value = rng.random(500)
+    got = top_k_mean_per_cell(cell, value, n_cells, k)
+    for c in range(n_cells):
+        v = np.sort(value[cell == c])[::-1]
+        if v.size == 0:
+            assert np.isnan(got[c])
+        else:
+            assert got[c] == pytest.approx(np.mean(v[:k]), rel=1e-12)
+    assert np.all(np.isnan(got[-5:]))
+
+
+# ---------------------------------------------------------------- the paper's first scan
+START_ROOMS = (0, 1, 2, 3)
+
+
+@pytest.fixture(scope="module")
+def initialised() -> dict[int, tuple[CEAMCL, np.ndarray, int]]:
+    """CEAMCL after ``initialise_global`` on the first scan of the paper run from each room."""
+    out = {}
+    for room in START_ROOMS:
+        sc = paper_scenario(room)
+        grid = sc.grid()
+        sim_seed, filter_seed = np.random.SeedSequence(200 + room).spawn(2)
+        start = sc.true_path()[:1]
+        log = Simulator(grid, sc.config).run(start, np.random.default_rng(sim_seed))
+        f = make_filter("ceamcl", grid, np.random.default_rng(filter_seed))
+        assert isinstance(f, CEAMCL)
+        diag = f.initialise_global(log.scan(0))
+        out[room] = (f, start[0], diag.n_particles)
+    return out
+
+
+@pytest.mark.parametrize("room", START_ROOMS)
+def test_initial_species_cover_the_four_symmetric_images(
+    initialised: dict[int, tuple[CEAMCL, np.ndarray, int]], room: int
+) -> None:
+    f, truth, total = initialised[room]
+    assert f.initial is not None
+    means = np.array([s.mean for s in f.stats.values()])
+    sizes = sorted(s.n for s in f.stats.values())
+    print(
+        f"room {room}: {total} samples (N0 = {f.initial.n0}), {f.initial.n_species} regions, "
+        f"{len(f.stats)} species, sizes {sizes}"
+    )
+    for image in symmetric_images(truth):
+        dist = np.hypot(means[:, 0] - image[0], means[:, 1] - image[1])
+        dth = np.abs(np.angle(np.exp(1j * (means[:, 2] - image[2]))))
+        # A species at the image's place *and* heading (a species at the right place but
+        # facing another way is not this image).
+        assert np.any((dist < 0.5) & (dth < 0.3)), f"no species near image {image}"
+    # The paper's Fig. 2: 537 and 961 initial samples for 4 and 8 species.
+    assert 300 <= total <= 2500
+    assert total == f.poses.shape[0] == sum(s.n for s in f.stats.values())
+
+
+@pytest.mark.parametrize("room", START_ROOMS)
+def test_initial_sizes_follow_eq5_and_eq6(
+    initialised: dict[int, tuple[CEAMCL, np.ndarray, int]], room: int
+) -> None:
+    f, _, _ = initialised[room]
+    init = f.initial
+    assert init is not None
+    cfg = f.config
+    # eq. 5: N0 = eta |V| / mean weight of V.
+    assert init.n0 == round(cfg.eta * init.v_size / init.v_mean_weight)
+    assert 0.85 < init.v_mean_weight <= 1.0  # V holds the cells scaled above mu = 0.85
+    # eq. 6: part i gets N0 wbar(i) / sum wbar(k); each share is rounded (and floored at the
+    # minimum species size), so the total is N0 up to half a sample per part.
+    counts = np.bincount(init.labels, minlength=init.n_species)
+    weights = np.array(
+        [init.cell_weight[init.seeds == s + 1].mean() for s in range(init.n_species)]
+    )
+    expected = np.maximum(np.round(init.n0 * weights / weights.sum()), cfg.min_species_size)
+    np.testing.assert_array_equal(counts, expected)
+    assert abs(int(counts.sum()) - init.n0) <= init.n_species
+    # Every sample was taken from the test poses of its own part of the SKIZ partition.
+    part = init.partition.reshape(-1)[init.cells.index(init.poses[:, :2])]
+    np.testing.assert_array_equal(part, init.labels + 1)
