@@ -85,6 +85,7 @@ class MCL:
         self._evaluations = 0
         self._prior_log_weights: NDArray[np.float64] = self.log_weights.copy()
         self._prepared: PreparedScan | None = None
+        self._resampled = False
 
     # ------------------------------------------------------------------ initialisation
     def initialise_global(self, scan: LaserScan) -> StepDiagnostics:
@@ -156,8 +157,7 @@ class MCL:
         self._resampled = True
 
     def _diagnostics(self, start: float, reinitialised: bool) -> StepDiagnostics:
-        resampled = getattr(self, "_resampled", False)
-        self._resampled = False
+        resampled, self._resampled = self._resampled, False
         return StepDiagnostics(
             step=self.t,
             n_particles=int(self.poses.shape[0]),
@@ -196,7 +196,7 @@ class MCL:
                     covariance=pose_covariance(self.poses[members], wk, mean),
                     n_particles=int(members.sum()),
                     weight=float(mass[k]),
-                    fitness=float(np.average(self.fitness[members], weights=None)),
+                    fitness=float(np.mean(self.fitness[members])),
                     label=int(k),
                 )
             )

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from ceamcl.angles import wrap
 from ceamcl.errors import ConfigError
 from ceamcl.maps.grid import FREE, OCCUPIED, OccupancyGrid
 
@@ -73,8 +74,6 @@ def rotate_poses_about_centre(
     poses: NDArray[np.float64], quarter_turns: int
 ) -> NDArray[np.float64]:
     """Rotate poses ``(N, 3)`` about the hall's centre; headings turn with them."""
-    from ceamcl.angles import wrap
-
     p = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
     xy = rotate_about_centre(p[:, :2], quarter_turns)
     return np.column_stack([xy, wrap(p[:, 2] + quarter_turns * np.pi / 2.0)])

@@ -100,6 +100,7 @@ class CEAMCL:
         self._prepared: PreparedScan | None = None
         self._evaluations = 0
         self._events: dict[str, float] = {}
+        self._targets: dict[int, int] = {}
 
     # ================================================================== initialisation
     def initialise_global(self, scan: LaserScan) -> StepDiagnostics:
@@ -144,8 +145,7 @@ class CEAMCL:
         # The paper clusters initial species in x-y only; one x-y region can hold a pose and
         # its mirror image (same place, other heading). Splitting now, before the first
         # resampling, keeps both as species instead of letting resampling pick one.
-        self._split_and_merge()
-        self._refresh_stats()
+        self._split_and_merge()  # leaves self.stats fresh
         self._compute_resources_only()
         self._events["n0"] = float(init.n0)
         self._events["v_cells"] = float(init.v_size)
@@ -184,8 +184,7 @@ class CEAMCL:
             return self._diagnostics(start, reinitialised=False)
         self._weigh(scan)
         self._evolve()
-        self._split_and_merge()
-        self._refresh_stats()
+        self._split_and_merge()  # leaves self.stats fresh
         self._compete()
         return self._diagnostics(start, reinitialised=False)
 
@@ -201,7 +200,7 @@ class CEAMCL:
     # ------------------------------------------------------------------ 1. sample size
     def _grow(self) -> None:
         cfg = self.config
-        new_poses, new_species, keep_masks = [], [], []
+        new_poses, new_species, dead = [], [], []
         targets: dict[int, int] = {}
         total_now = self.poses.shape[0]
         positive = sum(max(dn, 0.0) for dn in self.competition.dn.values())
@@ -214,15 +213,15 @@ class CEAMCL:
             change = self._stochastic_round(dn)
             target = max(stats.n + change, 0)
             if target < cfg.min_species_size:
-                keep_masks.append(sid)
+                dead.append(sid)
                 self._events["extinctions"] = self._events.get("extinctions", 0.0) + 1
                 continue
             targets[sid] = target
             if change > 0:
                 new_poses.append(sample_living_domain(stats, change, self.rng))
                 new_species.append(np.full(change, sid, dtype=np.int64))
-        if keep_masks:
-            alive = ~np.isin(self.species, keep_masks)
+        if dead:
+            alive = ~np.isin(self.species, dead)
             self._take(alive)
         if new_poses:
             added = np.vstack(new_poses)
@@ -279,6 +278,7 @@ class CEAMCL:
 
     # ------------------------------------------------------------------ 6. split and merge
     def _split_and_merge(self) -> None:
+        """Split, then merge; on return ``self.stats`` describes the current particles."""
         cfg = self.config
         # Split: one species per connected region of occupied cells; fragments smaller than a
         # viable species are dropped (resampling refills the parent next step).
