@@ -1,0 +1,34 @@
+"""``ceamcl world``: list the built-in worlds or export one as a ROS map."""
+
+from __future__ import annotations
+
+import argparse
+
+from rich.console import Console
+
+from ceamcl.errors import ConfigError
+from ceamcl.maps.worlds import WORLD_NAMES, describe_worlds, get_world
+
+
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add ``ceamcl world``."""
+    world = sub.add_parser("world", help="export a built-in world as a ROS map (YAML + image)")
+    world.add_argument("name", nargs="?", choices=WORLD_NAMES)
+    world.add_argument("-o", "--output", help="path of the map YAML to write")
+    world.add_argument("--format", choices=("pgm", "png"), default="pgm")
+    world.add_argument("--list", action="store_true", help="list the built-in worlds")
+    world.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace, console: Console) -> int:
+    if args.list or args.name is None:
+        for name, desc in describe_worlds().items():
+            console.print(f"{name:16s} {desc}")
+        return 0
+    if not args.output:
+        raise ConfigError("world: -o/--output MAP.yaml is required to export a world")
+    from ceamcl.maps.ros_io import save_map
+
+    path = save_map(get_world(args.name), args.output, image_format=args.format)
+    console.print(f"wrote {path}")
+    return 0
