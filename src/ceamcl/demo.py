@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -24,6 +24,9 @@ from ceamcl.runner import RunResult, run_filter
 from ceamcl.simulation.scenarios import HALL_WORLDS, get_scenario
 from ceamcl.simulation.simulator import SimulatedLog
 
+if TYPE_CHECKING:
+    from ceamcl.viz.outputs import OutputOptions
+
 
 @dataclass
 class DemoOutcome:
@@ -31,6 +34,7 @@ class DemoOutcome:
     log: SimulatedLog
     summary: dict[str, Any]
     out_dir: Path | None
+    files: list[Path] = field(default_factory=list)  # visual outputs written (gif, report, mcap)
 
 
 def seeded_generators(seed: int, count: int) -> list[np.random.Generator]:
@@ -94,12 +98,15 @@ def run_demo(
     out: str | os.PathLike[str] | None = None,
     on_step: Callable[[int], None] | None = None,
     on_start: Callable[[int], None] | None = None,
+    outputs: OutputOptions | None = None,
+    on_frame: Callable[[int, int], None] | None = None,
 ) -> DemoOutcome:
     """Simulate ``scenario`` on ``world`` and localise globally with ``algorithm``.
 
     With ``out`` set, writes ``summary.json``, ``trajectory.tum``, ``groundtruth.tum``,
     ``diagnostics.csv`` and ``run.png`` there. ``on_start(total_steps)`` and ``on_step(k)``
-    report progress.
+    report progress. ``outputs`` (``ceamcl.viz.outputs.OutputOptions``) adds ``run.gif``,
+    ``report.html`` and an MCAP file; ``on_frame(i, total)`` reports the animation's progress.
     """
     out_dir = ensure_output_dir(out) if out is not None else None
     sc = get_scenario(scenario, world if scenario == "paper" else None, start_room)
@@ -109,7 +116,8 @@ def run_demo(
     if on_start is not None:
         on_start(len(log))
     f = make_filter(algorithm, grid, filter_rng, sensor=sensor, n_particles=n_particles)
-    result = run_filter(f, log, on_step=on_step)
+    snapshot_every = outputs.snapshot_every if outputs is not None else 0
+    result = run_filter(f, log, on_step=on_step, snapshot_every=snapshot_every)
     summary = summarise(
         result, log, seed=seed, scenario=scenario, start_room=start_room, sensor=sensor
     )
@@ -130,4 +138,19 @@ def run_demo(
                 f"seed {seed}: sample size and resources (Fig. 6)",
             )
         write_json(out_dir / "summary.json", summary)
-    return DemoOutcome(result, log, summary, out_dir)
+    files: list[Path] = []
+    if outputs is not None and outputs.any:
+        from ceamcl.viz.outputs import write_outputs
+
+        # Without an output folder only the MCAP file (a path of its own) is written.
+        files = write_outputs(
+            result,
+            grid,
+            out_dir if out_dir is not None else Path(),
+            outputs if out_dir is not None else outputs.only_mcap(),
+            log=log,
+            summary=summary,
+            title=f"{algorithm} on {grid.name}, seed {seed}",
+            on_frame=on_frame,
+        )
+    return DemoOutcome(result, log, summary, out_dir, files)

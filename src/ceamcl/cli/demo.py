@@ -5,10 +5,12 @@ from __future__ import annotations
 import argparse
 
 from rich.console import Console
+from rich.progress import TaskID
 from rich.table import Table
 
 from ceamcl.cli.common import make_progress, non_negative_int, positive_int
 from ceamcl.filters import ALGORITHMS, SENSOR_MODELS
+from ceamcl.viz.outputs import OutputOptions, add_output_arguments
 
 DEFAULT_ALGORITHM = "ceamcl"
 
@@ -37,12 +39,14 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     )
     demo.add_argument("--out", default="demo-out", help="folder for the results")
     demo.add_argument("--quiet", action="store_true", help="no progress bar or table")
+    add_output_arguments(demo, animation_default=True)
     demo.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace, console: Console) -> int:
     from ceamcl.demo import run_demo
 
+    outputs = OutputOptions.from_args(args)
     progress = make_progress(
         f"[bold]{args.algorithm}[/] on {args.world}", console, quiet=args.quiet
     )
@@ -55,6 +59,13 @@ def run(args: argparse.Namespace, console: Console) -> int:
         def step(k: int) -> None:
             progress.update(task, completed=k + 1)
 
+        frame_task: list[TaskID] = []
+
+        def frame(i: int, total: int) -> None:
+            if not frame_task:
+                frame_task.append(progress.add_task("animation frames", total=total))
+            progress.update(frame_task[0], completed=i)
+
         outcome = run_demo(
             args.algorithm,
             world=args.world,
@@ -65,6 +76,8 @@ def run(args: argparse.Namespace, console: Console) -> int:
             out=args.out,
             on_step=step,
             on_start=start,
+            outputs=outputs,
+            on_frame=frame,
         )
     if not args.quiet:
         table = Table(title=f"ceamcl demo ({args.algorithm}, seed {args.seed})")
@@ -89,4 +102,6 @@ def run(args: argparse.Namespace, console: Console) -> int:
         table.add_row("hypotheses at the end", str(len(s["hypotheses_final"])))
         console.print(table)
         console.print(f"results written to [bold]{outcome.out_dir}[/]")
+        for path in outcome.files:
+            console.print(f"  {path}")
     return 0
