@@ -28,5 +28,10 @@ pytest: $(STAMP)
 
 test: lint typecheck pytest
 
+# Regression benchmarks of the hot kernels (pytest-benchmark), then the full `ceamcl bench`.
+bench: $(STAMP)
+	$(BIN)/python -m pytest -q benchmarks --benchmark-enable
+	$(BIN)/ceamcl bench --out bench-out
+
 clean:
 	rm -rf $(VENV) demo-out .mypy_cache .ruff_cache .pytest_cache

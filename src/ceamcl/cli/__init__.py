@@ -17,7 +17,7 @@ from ceamcl import __version__
 from ceamcl.errors import CeamclError
 
 #: Subcommand modules, in the order ``ceamcl --help`` lists them.
-COMMAND_MODULES: tuple[str, ...] = ("demo", "world")
+COMMAND_MODULES: tuple[str, ...] = ("demo", "world", "bench")
 
 
 def build_parser() -> argparse.ArgumentParser:

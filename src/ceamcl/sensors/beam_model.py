@@ -25,10 +25,14 @@ from numpy.typing import ArrayLike, NDArray
 
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.sensors.likelihood_field import PARALLEL_MIN_POSES
-from ceamcl.sensors.raycast import _march, cast_fan
+from ceamcl.sensors.raycast import RangeTable, _march, _table_range, cast_fan
 from ceamcl.sensors.scan import LaserScan, PreparedScan, laser_poses, prepare_scan
 
 _SQRT_2PI = math.sqrt(2.0 * math.pi)
+
+#: How the expected ranges are found: "table" (a ray-cast lookup table, see
+#: :class:`~ceamcl.sensors.raycast.RangeTable`) or "exact" (a ray cast per beam and pose).
+RAY_CASTING: tuple[str, ...] = ("table", "exact")
 
 
 @dataclass(frozen=True)
@@ -42,6 +46,9 @@ class BeamModelConfig:
     sigma_hit_m: float = 0.2
     lambda_short: float = 0.1
     max_beams: int = 60
+    ray_casting: str = "table"
+    table_angles: int = 360
+    table_max_mb: float = 256.0
 
     def __post_init__(self) -> None:
         if not self.z_hit > 0 or min(self.z_short, self.z_max, self.z_rand) < 0:
@@ -52,6 +59,14 @@ class BeamModelConfig:
             raise ValueError(f"lambda_short: expected > 0, got {self.lambda_short}")
         if self.max_beams < 1:
             raise ValueError(f"max_beams: expected >= 1, got {self.max_beams}")
+        if self.ray_casting not in RAY_CASTING:
+            raise ValueError(
+                f"ray_casting: expected one of {', '.join(RAY_CASTING)}, got {self.ray_casting!r}"
+            )
+        if self.table_angles < 4:
+            raise ValueError(f"table_angles: expected >= 4, got {self.table_angles}")
+        if not self.table_max_mb >= 0:
+            raise ValueError(f"table_max_mb: expected >= 0, got {self.table_max_mb}")
 
 
 @numba.njit(cache=True, inline="always")
@@ -129,12 +144,99 @@ _beam_kernel_parallel = numba.njit(cache=True, parallel=True, fastmath=True)(_be
 _beam_kernel_serial = numba.njit(cache=True, fastmath=True)(_beam_kernel_py)
 
 
+def _beam_table_kernel_py(
+    poses: NDArray[np.float64],
+    ranges: NDArray[np.float64],
+    bearings: NDArray[np.float64],
+    extra: NDArray[np.float64],
+    short: NDArray[np.float64],
+    laser_x: float,
+    laser_y: float,
+    laser_yaw: float,
+    slot: NDArray[np.int32],
+    rows: NDArray[np.float32],
+    cos_k: NDArray[np.float64],
+    sin_k: NDArray[np.float64],
+    blocking: NDArray[np.bool_],
+    dist: NDArray[np.float64],
+    res: float,
+    range_max: float,
+    a_hit: float,
+    inv_two_sigma2: float,
+) -> NDArray[np.float64]:
+    """The beam model over a :class:`RangeTable`. Per beam ``j``, ``short[j]`` is the short
+    term ``z_short lambda exp(-lambda r_j)`` (added where ``r_j < r*``) and ``extra[j]`` is
+    ``z_max`` or ``z_rand / range_max``."""
+    n = poses.shape[0]
+    m = ranges.shape[0]
+    out = np.empty(n)
+    for i in numba.prange(n):
+        c = math.cos(poses[i, 2])
+        s = math.sin(poses[i, 2])
+        lx = poses[i, 0] + c * laser_x - s * laser_y
+        ly = poses[i, 1] + s * laser_x + c * laser_y
+        lth = poses[i, 2] + laser_yaw
+        acc = 0.0
+        for j in range(m):
+            expected = _table_range(
+                lx,
+                ly,
+                lth + bearings[j],
+                slot,
+                rows,
+                cos_k,
+                sin_k,
+                blocking,
+                dist,
+                res,
+                range_max,
+            )
+            z = ranges[j] - expected
+            p = a_hit * math.exp(-z * z * inv_two_sigma2)
+            if z < 0.0:
+                p += short[j]
+            p += extra[j]
+            acc += math.log(p)
+        out[i] = acc
+    return out
+
+
+_beam_table_parallel = numba.njit(cache=True, parallel=True, fastmath=True)(_beam_table_kernel_py)
+_beam_table_serial = numba.njit(cache=True, fastmath=True)(_beam_table_kernel_py)
+
+
 class BeamModel:
-    """Beam model over an occupancy grid (implements :class:`SensorModel`)."""
+    """Beam model over an occupancy grid (implements :class:`SensorModel`).
+
+    With ``config.ray_casting == "table"`` (the default) expected ranges come from a lazily
+    filled :class:`RangeTable` per ``range_max`` (docs/performance.md: speed and accuracy);
+    with ``"exact"`` every beam of every pose is ray-cast.
+    """
 
     def __init__(self, grid: OccupancyGrid, config: BeamModelConfig | None = None) -> None:
         self.grid = grid
         self.config = config or BeamModelConfig()
+        self._tables: dict[float, RangeTable] = {}
+
+    @property
+    def ray_casting(self) -> str:
+        """ "table" or "exact": what :meth:`log_likelihood` uses."""
+        if self.config.ray_casting == "exact" or self.config.table_max_mb <= 0:
+            return "exact"
+        return "table"
+
+    def range_table(self, range_max: float) -> RangeTable:
+        """The lookup table for this range limit (created empty on first use)."""
+        table = self._tables.get(range_max)
+        if table is None:
+            table = RangeTable(
+                self.grid,
+                range_max,
+                self.config.table_angles,
+                int(self.config.table_max_mb * 1e6),
+            )
+            self._tables[range_max] = table
+        return table
 
     def prepare(self, scan: LaserScan) -> PreparedScan:
         return prepare_scan(scan, self.config.max_beams, keep_max_range=True)
@@ -149,14 +251,41 @@ class BeamModel:
         return math.log(max(hit_case, a_hit + cfg.z_max))
 
     def log_likelihood(self, poses: ArrayLike, prepared: PreparedScan) -> NDArray[np.float64]:
-        mp = self.grid.poses_to_map(poses)
+        mp = np.ascontiguousarray(self.grid.poses_to_map(poses))
         if prepared.n_beams == 0:
             return np.zeros(mp.shape[0])
         cfg = self.config
         lx, ly, lyaw = prepared.laser_pose
-        kernel = _beam_kernel_parallel if mp.shape[0] >= PARALLEL_MIN_POSES else _beam_kernel_serial
+        parallel = mp.shape[0] >= PARALLEL_MIN_POSES
+        if self.ray_casting == "table":
+            table = self.range_table(prepared.range_max)
+            table.reserve(mp, (lx, ly))
+            extra = np.where(prepared.is_max, cfg.z_max, cfg.z_rand / prepared.range_max)
+            short = cfg.z_short * cfg.lambda_short * np.exp(-cfg.lambda_short * prepared.ranges)
+            tkernel = _beam_table_parallel if parallel else _beam_table_serial
+            return tkernel(  # type: ignore[no-any-return,unused-ignore]
+                mp,
+                prepared.ranges,
+                prepared.bearings,
+                np.ascontiguousarray(extra),
+                np.ascontiguousarray(short),
+                lx,
+                ly,
+                lyaw,
+                table.slot,
+                table.rows,
+                table.cos_k,
+                table.sin_k,
+                self.grid.blocking_mask,
+                self.grid.distance_to_blocking,
+                self.grid.resolution,
+                prepared.range_max,
+                self._a_hit(),
+                1.0 / (2.0 * cfg.sigma_hit_m**2),
+            )
+        kernel = _beam_kernel_parallel if parallel else _beam_kernel_serial
         return kernel(  # type: ignore[no-any-return,unused-ignore]
-            np.ascontiguousarray(mp),
+            mp,
             prepared.ranges,
             prepared.bearings,
             prepared.is_max,
@@ -175,17 +304,26 @@ class BeamModel:
             cfg.z_rand / prepared.range_max,
         )
 
+    def expected_ranges(self, poses: ArrayLike, prepared: PreparedScan) -> NDArray[np.float64]:
+        """Expected ranges ``(N, M)`` of the prepared beams, as :meth:`log_likelihood` uses
+        them (from the table or exact)."""
+        p = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
+        lp = laser_poses(p, prepared.laser_pose)
+        if self.ray_casting == "table":
+            table = self.range_table(prepared.range_max)
+            return table.cast_fan(self.grid.poses_to_map(lp), prepared.bearings)
+        return cast_fan(self.grid, lp, prepared.bearings, prepared.range_max)
+
     def log_likelihood_reference(
         self, poses: ArrayLike, prepared: PreparedScan
     ) -> NDArray[np.float64]:
-        """NumPy version of :meth:`log_likelihood` over the compiled ray caster's fan."""
+        """NumPy version of :meth:`log_likelihood` over :meth:`expected_ranges` (the compiled
+        table lookup or ray caster; those are tested against brute force on their own)."""
         p = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
         if prepared.n_beams == 0:
             return np.zeros(p.shape[0])
         cfg = self.config
-        expected = cast_fan(
-            self.grid, laser_poses(p, prepared.laser_pose), prepared.bearings, prepared.range_max
-        )
+        expected = self.expected_ranges(p, prepared)
         r = prepared.ranges[None, :]
         z = r - expected
         prob = self._a_hit() * np.exp(-z * z / (2.0 * cfg.sigma_hit_m**2))

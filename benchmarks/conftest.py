@@ -1,0 +1,1 @@
+"""pytest-benchmark regression benchmarks; see benchmarks/test_kernels.py."""
