@@ -186,8 +186,7 @@ def test_beam_model_matches_the_mixture_by_hand() -> None:
         (2.3, False),  # long: Gaussian tail + random
         (1.2, False),  # short: an unexpected obstacle
         (8.0, True),  # max-range reading where a wall should be
-        (float("inf"), True),  # also max range
-        (0.0, True),  # below range_min: amcl treats it as max range
+        (float("inf"), True),  # also max range (REP 117: no return within range)
     ]
     for r, is_max in cases:
         prepared = model.prepare(geom.scan([r]))
@@ -238,11 +237,13 @@ def test_likelihood_field_skips_max_range_readings(office_log: SimulatedLog) -> 
     ranges = scan.ranges.copy()
     chosen = rng.choice(ranges.size, 30, replace=False)
     scores = []
-    for value in (scan.range_max, np.inf, 1e6, 0.0, -np.inf, -1.0, scan.range_min):
+    # REP 117: max range and +inf are "no return"; beyond range_max, below range_min and
+    # -inf are invalid. The likelihood field drops all of them.
+    for value in (scan.range_max, np.inf, 1e6, 0.0, -np.inf, -1.0):
         r = ranges.copy()
         r[chosen] = value
         prepared = model.prepare(scan_with(r, scan))
-        usable = (r > scan.range_min) & (r < scan.range_max)
+        usable = (r >= scan.range_min) & (r < scan.range_max)
         assert prepared.n_beams == np.count_nonzero(usable) <= ranges.size - chosen.size
         scores.append(model.log_likelihood(poses, prepared))
     for s in scores[1:]:
@@ -262,7 +263,7 @@ def test_beam_model_scores_max_range_readings_with_z_max(office_log: SimulatedLo
     poses = np.vstack([office_log.true_poses[100], grid.sample_free_poses(50, rng)])
     chosen = rng.choice(scan.n_beams, 30, replace=False)
     results = []
-    for value in (scan.range_max, np.inf, 1e6, 0.0):
+    for value in (scan.range_max, np.inf):  # REP 117: both mean "no return within range"
         r = scan.ranges.copy()
         r[chosen] = value
         prepared = model.prepare(scan_with(r, scan))
@@ -357,9 +358,11 @@ def test_prepare_scan_classifies_readings() -> None:
     geom = LaserGeometry.covering(np.pi, 7, 8.0, range_min=0.1)
     scan = geom.scan([1.0, np.nan, 8.0, np.inf, 0.05, -np.inf, 7.99])
     kept = prepare_scan(scan, 100, keep_max_range=True)
-    assert kept.source_indices.tolist() == [0, 2, 3, 4, 5, 6]
-    assert kept.is_max.tolist() == [False, True, True, True, True, False]
-    assert kept.ranges.tolist() == [1.0, 8.0, 8.0, 8.0, 8.0, 7.99]
+    # REP 117: NaN and -inf (too close) are no measurement, 0.05 < range_min is invalid;
+    # range_max and +inf are "no return within range" (max-range readings).
+    assert kept.source_indices.tolist() == [0, 2, 3, 6]
+    assert kept.is_max.tolist() == [False, True, True, False]
+    assert kept.ranges.tolist() == [1.0, 8.0, 8.0, 7.99]
     dropped = prepare_scan(scan, 100, keep_max_range=False)
     assert dropped.source_indices.tolist() == [0, 6]
     assert dropped.n_beams == 2

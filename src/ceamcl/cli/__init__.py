@@ -17,7 +17,13 @@ from ceamcl import __version__
 from ceamcl.errors import CeamclError
 
 #: Subcommand modules, in the order ``ceamcl --help`` lists them.
-COMMAND_MODULES: tuple[str, ...] = ("demo", "world", "bench")
+COMMAND_MODULES: tuple[str, ...] = (
+    "demo",
+    "world",
+    "soak",
+    "bench",
+    "experiment",
+)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -4,7 +4,8 @@ MCL plus the genetic operators of CEAMCL (section 3.4), applied to the whole par
 after weighting: crossover of random disjoint pairs with probability ``p_c`` (eq. 17) and
 mutation of each particle with probability ``p_m`` (eq. 18, corrected). No species, no
 competition, a fixed sample size. An evolved particle keeps its slot's prior weight times its
-new likelihood.
+new likelihood. The operators run only on a step whose scan has a usable beam (with no
+information they would only stir the particles at random).
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from numpy.typing import NDArray
 
 from ceamcl.filters.evolution import EvolutionConfig, evolve
 from ceamcl.filters.mcl import MCL, MCLConfig
-from ceamcl.filters.resampling import normalise_log_weights
+from ceamcl.filters.resampling import normalise_log_weights, sanitise_log_likelihood
 from ceamcl.sensors.base import fitness
 
 
@@ -44,6 +45,7 @@ class GMCL(MCL):
         self._evaluations += evolve(
             self.poses, self.loglik, everyone, self.config.evolution, evaluate, self.rng
         )
+        self.loglik = sanitise_log_likelihood(self.loglik)
         self.fitness = fitness(self.loglik, prepared, self.sensor)
         log_w, _, ok = normalise_log_weights(self._prior_log_weights + self.loglik)
         if ok:

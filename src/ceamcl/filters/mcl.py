@@ -5,6 +5,11 @@ scan's likelihood (weight), and resample with the low-variance sampler when the 
 sample size falls below ``resample_ess_fraction * N`` (resample). Global localisation starts
 from particles uniform over free space, weighted by the first scan.
 
+Safeguards (docs/robustness.md): a missing scan, or one with no usable beam, leaves the weights
+unchanged (no weighting, no genetic operators); NaN or +inf likelihoods count as impossible;
+when every particle is impossible the filter re-initialises uniformly over free space and the
+step's :class:`StepDiagnostics` says ``reinitialised=True``.
+
 The estimate is the weighted mean of all particles with a circular mean heading; in a
 symmetric world it can fall between modes, which is why :meth:`MCL.hypotheses` also reports
 the particle clusters (as ROS amcl does), heaviest first.
@@ -12,12 +17,15 @@ the particle clusters (as ROS amcl does), heaviest first.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ceamcl.angles import wrap
+from ceamcl.errors import ConfigError, LogFormatError
 from ceamcl.filters.base import (
     Hypothesis,
     ParticleSnapshot,
@@ -25,12 +33,64 @@ from ceamcl.filters.base import (
     StepDiagnostics,
 )
 from ceamcl.filters.clustering import cluster_labels
-from ceamcl.filters.resampling import effective_sample_size, normalise_log_weights, systematic
+from ceamcl.filters.resampling import (
+    effective_sample_size,
+    normalise_log_weights,
+    sanitise_log_likelihood,
+    systematic,
+)
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel
 from ceamcl.pose import pose_covariance, pose_mean
 from ceamcl.sensors.base import SensorModel, fitness
 from ceamcl.sensors.scan import LaserScan, PreparedScan
+
+
+def check_increment(increment: OdometryIncrement) -> None:
+    """Refuse an odometry increment with a NaN or infinite component (it would turn every
+    particle into NaN)."""
+    values = (increment.rot1, increment.trans, increment.rot2)
+    if not all(math.isfinite(v) for v in values):
+        raise LogFormatError(
+            f"odometry increment: expected finite rot1, trans, rot2, got {values} "
+            f"(is an odometry pose NaN or infinite?)"
+        )
+
+
+def gaussian_poses(
+    pose: ArrayLike, covariance: ArrayLike, n: int, rng: np.random.Generator
+) -> NDArray[np.float64]:
+    """``n`` poses from ``N(pose, covariance)``, headings wrapped.
+
+    Draws exactly what ``rng.multivariate_normal(..., method="cholesky")`` draws for a positive
+    definite covariance; a positive semi-definite one (e.g. all zeros: every particle on the
+    pose) is factored by its eigen-decomposition instead of failing.
+
+    Raises:
+        ConfigError: ``pose`` is not three finite numbers, or ``covariance`` not a finite,
+            symmetric, positive semi-definite ``3 x 3`` matrix.
+    """
+    mean = np.asarray(pose, dtype=np.float64).reshape(-1)
+    if mean.shape != (3,) or not np.all(np.isfinite(mean)):
+        raise ConfigError(f"pose: expected three finite numbers (x, y, theta), got {pose!r}")
+    cov = np.asarray(covariance, dtype=np.float64)
+    if cov.shape != (3, 3) or not np.all(np.isfinite(cov)):
+        raise ConfigError(f"covariance: expected a finite 3 x 3 matrix, got shape {cov.shape}")
+    scale = max(float(np.abs(cov).max()), 1e-300)
+    if not np.allclose(cov, cov.T, rtol=1e-9, atol=1e-12 * scale):
+        raise ConfigError("covariance: expected a symmetric matrix")
+    try:
+        factor = np.linalg.cholesky(cov)
+    except np.linalg.LinAlgError:
+        d, u = np.linalg.eigh(0.5 * (cov + cov.T))
+        if d.min() < -1e-9 * scale:
+            raise ConfigError(
+                f"covariance: expected a positive semi-definite matrix, eigenvalues {d.tolist()}"
+            ) from None
+        factor = u * np.sqrt(np.clip(d, 0.0, None))
+    out = mean + np.dot(rng.standard_normal((n, 3)), factor.T)
+    out[:, 2] = wrap(out[:, 2])
+    return np.asarray(out, dtype=np.float64)
 
 
 @dataclass(frozen=True)
@@ -101,28 +161,35 @@ class MCL:
     def initialise_pose(self, pose: ArrayLike, covariance: ArrayLike) -> None:
         self.t = 0
         n = self.config.n_particles
-        mean = np.asarray(pose, dtype=np.float64)
-        cov = np.asarray(covariance, dtype=np.float64)
-        self.poses = self.rng.multivariate_normal(mean, cov, size=n, method="cholesky")
-        self.poses[:, 2] = np.angle(np.exp(1j * self.poses[:, 2]))
+        self.poses = gaussian_poses(pose, covariance, n, self.rng)
         self.log_weights = np.full(n, -np.log(n))
         self.fitness = np.ones(n)
+        self.loglik = np.zeros(n)
+        self._prepared = None
 
     # ------------------------------------------------------------------ one step
     def step(self, increment: OdometryIncrement, scan: LaserScan | None) -> StepDiagnostics:
         start = time.perf_counter()
+        check_increment(increment)
         self.t += 1
         self._evaluations = 0
+        self._prepared = None  # set by _weight when the scan has a usable beam
         self.poses = self.motion.sample(self.poses, increment, self.rng)
         reinit = self._weight(scan) if scan is not None else False
         self._after_weighting()
         return self._diagnostics(start, reinit)
 
     def _weight(self, scan: LaserScan) -> bool:
-        """Importance weighting; returns True when the filter had to re-initialise."""
+        """Importance weighting; returns True when the filter had to re-initialise.
+
+        A scan with no usable beam leaves everything as it is (``self._prepared`` stays None,
+        so no genetic operator runs either)."""
+        self._prepared = None
         prepared = self.sensor.prepare(scan)
+        if prepared.n_beams == 0:
+            return False
         self._prepared = prepared
-        ll = self.sensor.log_likelihood(self.poses, prepared)
+        ll = sanitise_log_likelihood(self.sensor.log_likelihood(self.poses, prepared))
         self._evaluations += self.poses.shape[0]
         self.loglik = ll
         self.fitness = fitness(ll, prepared, self.sensor)
@@ -130,9 +197,13 @@ class MCL:
         log_w, _, ok = normalise_log_weights(self.log_weights + ll)
         if not ok:
             # Every particle impossible (or the model returned NaN): start again from scratch.
-            self.poses = self.grid.sample_free_poses(self.config.n_particles, self.rng)
-            self.log_weights = np.full(self.poses.shape[0], -np.log(self.poses.shape[0]))
-            self.fitness = np.ones(self.poses.shape[0])
+            n = self.config.n_particles
+            self.poses = self.grid.sample_free_poses(n, self.rng)
+            self.log_weights = np.full(n, -np.log(n))
+            self.fitness = np.ones(n)
+            self.loglik = np.zeros(n)
+            self._prior_log_weights = self.log_weights.copy()
+            self._prepared = None
             return True
         self.log_weights = log_w
         return False

@@ -4,13 +4,24 @@ A :class:`LaserScan` mirrors ``sensor_msgs/LaserScan``: ranges at evenly spaced 
 a valid interval ``[range_min, range_max]``, and the laser's pose on the robot.
 
 :func:`prepare_scan` selects the beams a sensor model evaluates (``max_beams``, evenly spaced
-over the scan, as ROS amcl's ``laser_max_beams``) and classifies each reading as ROS amcl does:
+over the scan, as ROS amcl's ``laser_max_beams``) and classifies each reading as
+``sensor_msgs/LaserScan`` and REP 117 define them:
 
-* NaN: skipped (amcl's likelihood-field model drops it);
-* ``r <= range_min`` (zero, negative, -inf): amcl replaces it by ``range_max``, i.e. a
-  *max-range* reading;
-* ``r >= range_max`` or +inf: a *max-range* reading (no return). The likelihood field skips
-  these; the beam model scores them with its ``z_max`` term.
+* ``NaN``: erroneous or missing measurement: dropped;
+* ``-inf``: an object too close to measure: dropped (it says nothing about the map);
+* ``+inf``: no return within range: a *max-range* reading;
+* a finite reading outside ``[range_min, range_max]`` (zero, negative, below ``range_min``,
+  beyond ``range_max``): invalid, dropped;
+* exactly ``range_max``: a *max-range* reading too, as drivers that predate REP 117 (and the
+  simulator) report "no return" as ``range_max``;
+* anything else in ``[range_min, range_max)``: a hit.
+
+The likelihood field skips max-range readings; the beam model scores them with its ``z_max``
+term. Unlike ROS 1 amcl, which turns readings ``<= range_min`` into max-range readings,
+invalid readings are dropped, so a driver's "0 = no echo" convention must be converted to
+``+inf`` before the filter sees it. :class:`PreparedScan` counts each class among the
+selected beams. A scan whose selected beams are all dropped carries no information: filters
+leave their weights unchanged on it (see ``docs/robustness.md``).
 """
 
 from __future__ import annotations
@@ -19,6 +30,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
+from ceamcl.errors import LogFormatError
 
 
 @dataclass(frozen=True, eq=False)
@@ -37,13 +50,28 @@ class LaserScan:
     stamp: float = 0.0
 
     def __post_init__(self) -> None:
-        r = np.asarray(self.ranges, dtype=np.float64).reshape(-1)
+        try:
+            r = np.asarray(self.ranges, dtype=np.float64).reshape(-1)
+        except (TypeError, ValueError):
+            raise LogFormatError("scan: ranges: expected a sequence of numbers") from None
         object.__setattr__(self, "ranges", r)
         if not (np.isfinite(self.range_max) and self.range_max > 0):
-            raise ValueError(f"range_max: expected a positive number, got {self.range_max}")
+            raise LogFormatError(
+                f"scan: range_max: expected a positive finite number, got {self.range_max}"
+            )
         if not (np.isfinite(self.range_min) and 0 <= self.range_min < self.range_max):
-            raise ValueError(
-                f"range_min: expected 0 <= range_min < range_max, got {self.range_min}"
+            raise LogFormatError(
+                f"scan: range_min: expected 0 <= range_min < range_max ({self.range_max}), "
+                f"got {self.range_min}"
+            )
+        for name in ("angle_min", "angle_increment", "stamp"):
+            if not np.isfinite(getattr(self, name)):
+                raise LogFormatError(
+                    f"scan: {name}: expected a finite number, got {getattr(self, name)}"
+                )
+        if len(self.pose) != 3 or not all(np.isfinite(v) for v in self.pose):
+            raise LogFormatError(
+                f"scan: pose: expected three finite numbers (x, y, yaw), got {self.pose}"
             )
 
     @property
@@ -99,9 +127,12 @@ class LaserGeometry:
 class PreparedScan:
     """The beams of one scan that a sensor model evaluates.
 
-    ``ranges``/``bearings`` hold the selected, non-NaN beams; ``is_max`` flags max-range
+    ``ranges``/``bearings`` hold the selected, usable beams; ``is_max`` flags max-range
     readings. ``n_beams`` is how many beams enter the likelihood of the model at hand
-    (the fitness is the geometric mean over those).
+    (the fitness is the geometric mean over those); 0 means the scan says nothing.
+    ``n_nan``, ``n_too_close`` (-inf), ``n_invalid`` (finite, outside
+    ``[range_min, range_max]``) and ``n_max_range`` count the selected beams of each class
+    (``n_max_range`` whether or not the model keeps them).
     """
 
     ranges: NDArray[np.float64]
@@ -111,6 +142,15 @@ class PreparedScan:
     laser_pose: tuple[float, float, float]
     n_beams: int
     source_indices: NDArray[np.intp] = field(default_factory=lambda: np.zeros(0, np.intp))
+    n_nan: int = 0
+    n_too_close: int = 0
+    n_invalid: int = 0
+    n_max_range: int = 0
+
+    @property
+    def informative(self) -> bool:
+        """Whether at least one beam enters the likelihood."""
+        return self.n_beams > 0
 
 
 def select_beam_indices(n_total: int, max_beams: int) -> NDArray[np.intp]:
@@ -124,8 +164,24 @@ def select_beam_indices(n_total: int, max_beams: int) -> NDArray[np.intp]:
     return np.unique(np.round(np.linspace(0, n_total - 1, max_beams)).astype(np.intp))
 
 
+def classify_ranges(
+    ranges: NDArray[np.float64], range_min: float, range_max: float
+) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    """REP 117 classes of raw readings: ``(usable, is_max)``.
+
+    ``usable``: a hit in ``[range_min, range_max)`` or a max-range reading (``+inf`` or exactly
+    ``range_max``); ``is_max``: the max-range readings among them. NaN, ``-inf`` and finite
+    readings outside ``[range_min, range_max]`` are neither.
+    """
+    r = np.asarray(ranges, dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        is_max = (r == np.inf) | (r == range_max)
+        hit = (r >= range_min) & (r < range_max)
+    return hit | is_max, is_max
+
+
 def prepare_scan(scan: LaserScan, max_beams: int, *, keep_max_range: bool) -> PreparedScan:
-    """Select and classify beams as ROS amcl does (see the module docstring).
+    """Select and classify beams (REP 117; see the module docstring).
 
     ``keep_max_range``: whether max-range readings enter the likelihood (beam model) or are
     dropped (likelihood field).
@@ -133,10 +189,10 @@ def prepare_scan(scan: LaserScan, max_beams: int, *, keep_max_range: bool) -> Pr
     idx = select_beam_indices(scan.n_beams, max_beams)
     r = scan.ranges[idx]
     bearings = scan.angles[idx]
-    keep = ~np.isnan(r)
-    is_max = keep & ((r <= scan.range_min) | (r >= scan.range_max))
-    if not keep_max_range:
-        keep &= ~is_max
+    usable, is_max = classify_ranges(r, scan.range_min, scan.range_max)
+    nan = np.isnan(r)
+    too_close = r == -np.inf
+    keep = usable if keep_max_range else usable & ~is_max
     r = np.where(is_max, scan.range_max, r)[keep]
     return PreparedScan(
         ranges=np.ascontiguousarray(r),
@@ -146,6 +202,10 @@ def prepare_scan(scan: LaserScan, max_beams: int, *, keep_max_range: bool) -> Pr
         laser_pose=scan.pose,
         n_beams=int(keep.sum()),
         source_indices=idx[keep],
+        n_nan=int(nan.sum()),
+        n_too_close=int(too_close.sum()),
+        n_invalid=int((~usable & ~nan & ~too_close).sum()),
+        n_max_range=int(is_max.sum()),
     )
 
 

@@ -17,6 +17,13 @@ One step, in the paper's order, each phase a method:
 
 Importance factors are normalised inside each species (NOTES.md): resampling keeps a species'
 size, which changes only through ``dN``.
+
+Safeguards (docs/robustness.md): a step without a scan, or whose scan has no usable beam, only
+resamples and predicts; weights are unchanged and every ``dN`` is set to 0, so sizes freeze
+until the laser speaks again. NaN and +inf likelihoods count as impossible. When every species
+has died out, or every particle is impossible under the scan, the filter re-initialises
+globally (section 3.1 on that scan, or uniformly over free space without one) and the step's
+:class:`StepDiagnostics` says ``reinitialised=True``.
 """
 
 from __future__ import annotations
@@ -45,15 +52,17 @@ from ceamcl.filters.ceamcl.config import CEAMCLConfig
 from ceamcl.filters.ceamcl.initialisation import InitialSpecies, generate_initial_species
 from ceamcl.filters.ceamcl.species import (
     SpeciesStats,
-    domains_overlap,
+    all_species_stats,
+    compact_species,
     group_members,
     in_species_weights,
+    overlapping_pairs,
     sample_living_domain,
-    species_stats,
     split_parts,
 )
 from ceamcl.filters.evolution import evolve
-from ceamcl.filters.resampling import systematic
+from ceamcl.filters.mcl import check_increment, gaussian_poses
+from ceamcl.filters.resampling import sanitise_log_likelihood, systematic
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel
 from ceamcl.sensors.base import SensorModel, fitness
@@ -107,18 +116,29 @@ class CEAMCL:
         """Initial species generation (section 3.1) from the first scan."""
         start = time.perf_counter()
         self.t = 0
+        self._initialise_from(self.sensor.prepare(scan))
+        return self._diagnostics(start, reinitialised=False)
+
+    def _initialise_from(self, prepared: PreparedScan | None) -> None:
+        """Section 3.1. Without a usable beam (``prepared`` None or empty) every test pose is
+        equally fit, so the species spread uniformly over free space."""
         self._reset_events()
         cfg = self.config
-        prepared = self.sensor.prepare(scan)
         test = self.grid.sample_free_poses(cfg.n_test, self.rng)
-        ll = np.concatenate(
-            [
-                self.sensor.log_likelihood(test[i : i + cfg.test_batch], prepared)
-                for i in range(0, cfg.n_test, cfg.test_batch)
-            ]
-        )
-        self._evaluations = cfg.n_test
-        fit = fitness(ll, prepared, self.sensor)
+        if prepared is None or prepared.n_beams == 0:
+            ll = np.zeros(cfg.n_test)
+            self._evaluations = 0
+        else:
+            ll = sanitise_log_likelihood(
+                np.concatenate(
+                    [
+                        self.sensor.log_likelihood(test[i : i + cfg.test_batch], prepared)
+                        for i in range(0, cfg.n_test, cfg.test_batch)
+                    ]
+                )
+            )
+            self._evaluations = cfg.n_test
+        fit = np.ones(cfg.n_test) if prepared is None else fitness(ll, prepared, self.sensor)
         init = generate_initial_species(
             self.grid,
             test,
@@ -139,7 +159,7 @@ class CEAMCL:
         self.loglik = init.loglik
         self.fitness = init.fitness
         self._next_id = init.n_species
-        self._prepared = prepared
+        self._prepared = prepared if prepared is not None and prepared.n_beams > 0 else None
         # "for each species i, let dN_0 / dt = 0": competition starts after the first step.
         self.competition = _Competition({i: 0.0 for i in range(init.n_species)}, {}, {})
         # The paper clusters initial species in x-y only; one x-y region can hold a pose and
@@ -149,16 +169,11 @@ class CEAMCL:
         self._compute_resources_only()
         self._events["n0"] = float(init.n0)
         self._events["v_cells"] = float(init.v_size)
-        return self._diagnostics(start, reinitialised=False)
 
     def initialise_pose(self, pose: ArrayLike, covariance: ArrayLike) -> None:
         """Pose tracking: one species of ``tracking_samples`` around a known pose."""
         n = self.config.tracking_samples
-        mean = np.asarray(pose, dtype=np.float64)
-        self.poses = self.rng.multivariate_normal(
-            mean, np.asarray(covariance), n, method="cholesky"
-        )
-        self.poses[:, 2] = np.angle(np.exp(1j * self.poses[:, 2]))
+        self.poses = gaussian_poses(pose, covariance, n, self.rng)
         self.species = np.zeros(n, dtype=np.int64)
         self.loglik = np.zeros(n)
         self.fitness = np.ones(n)
@@ -171,6 +186,7 @@ class CEAMCL:
     # ================================================================== one step
     def step(self, increment: OdometryIncrement, scan: LaserScan | None) -> StepDiagnostics:
         start = time.perf_counter()
+        check_increment(increment)
         self.t += 1
         self._evaluations = 0
         self._reset_events()
@@ -179,21 +195,33 @@ class CEAMCL:
             return self._restart(scan, start)
         self._resample()
         self._predict(increment)
-        if scan is None:
+        prepared = None if scan is None else self.sensor.prepare(scan)
+        if prepared is None or prepared.n_beams == 0:
+            # No information: sizes freeze (dN = 0) and the particles, just resampled, keep
+            # equal weights (no evidence is counted twice at the next resampling).
+            self.loglik = np.zeros(self.poses.shape[0])
             self._refresh_stats()
+            self.competition.dn = {sid: 0.0 for sid in self.stats}
             return self._diagnostics(start, reinitialised=False)
-        self._weigh(scan)
+        self._weigh(prepared)
+        if not np.any(np.isfinite(self.loglik)):
+            return self._restart(scan, start)  # every particle impossible under this scan
         self._evolve()
         self._split_and_merge()  # leaves self.stats fresh
         self._compete()
         return self._diagnostics(start, reinitialised=False)
 
     def _restart(self, scan: LaserScan | None, start: float) -> StepDiagnostics:
-        """Every species died out: global initialisation again (recorded in the diagnostics)."""
-        if scan is None:
-            raise RuntimeError("CEAMCL: every species died out and no scan to restart from")
+        """Every species died out (or every particle is impossible): global initialisation
+        again, from ``scan`` or, without one, uniformly over free space; recorded in the
+        diagnostics as ``reinitialised`` (and ``extra["restarts"]``)."""
         t = self.t
-        self.initialise_global(scan)
+        evaluations, events = self._evaluations, dict(self._events)
+        self._initialise_from(None if scan is None else self.sensor.prepare(scan))
+        self._evaluations += evaluations
+        for key, value in self._events.items():
+            events[key] = events.get(key, 0.0) + value
+        self._events = {**events, "restarts": 1.0}
         self.t = t
         return self._diagnostics(start, reinitialised=True)
 
@@ -211,6 +239,9 @@ class CEAMCL:
             if dn > 0:
                 dn *= scale
             change = self._stochastic_round(dn)
+            if change > 0:  # rounding up must not break the cap on the total sample size
+                change = min(change, room)
+                room -= change
             target = max(stats.n + change, 0)
             if target < cfg.min_species_size:
                 dead.append(sid)
@@ -225,17 +256,23 @@ class CEAMCL:
             self._take(alive)
         if new_poses:
             added = np.vstack(new_poses)
-            assert self._prepared is not None
-            ll = self.sensor.log_likelihood(added, self._prepared)
-            self._evaluations += added.shape[0]
+            if self._prepared is None:  # no scan yet: newcomers are as likely as the rest
+                ll = np.zeros(added.shape[0])
+                fit_added = np.ones(added.shape[0])
+            else:
+                ll = sanitise_log_likelihood(self.sensor.log_likelihood(added, self._prepared))
+                fit_added = fitness(ll, self._prepared, self.sensor)
+                self._evaluations += added.shape[0]
             self.poses = np.vstack([self.poses, added])
             self.species = np.concatenate([self.species, *new_species])
             self.loglik = np.concatenate([self.loglik, ll])
-            self.fitness = np.concatenate([self.fitness, fitness(ll, self._prepared, self.sensor)])
+            self.fitness = np.concatenate([self.fitness, fit_added])
             self._events["new_samples"] = float(added.shape[0])
         self._targets = targets
 
     def _stochastic_round(self, x: float) -> int:
+        if not np.isfinite(x):
+            return 0
         lo = float(np.floor(x))
         return int(lo) + int(self.rng.random() < (x - lo))
 
@@ -258,9 +295,9 @@ class CEAMCL:
         self.poses = self.motion.sample(self.poses, increment, self.rng)
 
     # ------------------------------------------------------------------ 4. weighting
-    def _weigh(self, scan: LaserScan) -> None:
-        self._prepared = self.sensor.prepare(scan)
-        self.loglik = self.sensor.log_likelihood(self.poses, self._prepared)
+    def _weigh(self, prepared: PreparedScan) -> None:
+        self._prepared = prepared
+        self.loglik = sanitise_log_likelihood(self.sensor.log_likelihood(self.poses, prepared))
         self._evaluations += self.poses.shape[0]
 
     def _evaluate(self, poses: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -274,6 +311,7 @@ class CEAMCL:
             self.poses, self.loglik, groups, self.config.evolution, self._evaluate, self.rng
         )
         assert self._prepared is not None
+        self.loglik = sanitise_log_likelihood(self.loglik)
         self.fitness = fitness(self.loglik, self._prepared, self.sensor)
 
     # ------------------------------------------------------------------ 6. split and merge
@@ -283,8 +321,10 @@ class CEAMCL:
         # Split: one species per connected region of occupied cells; fragments smaller than a
         # viable species are dropped (resampling refills the parent next step).
         keep = np.ones(self.species.size, dtype=bool)
-        for idx in group_members(self.species).values():
-            if idx.size < 2 * cfg.min_species_size:
+        members = group_members(self.species)
+        compact = compact_species(members, self.poses, cfg.split_cell_m, cfg.split_cell_rad)
+        for sid, idx in members.items():
+            if idx.size < 2 * cfg.min_species_size or sid in compact:
                 continue
             parts = split_parts(idx, self.poses, cfg.split_cell_m, cfg.split_cell_rad)
             for part in parts[1:]:
@@ -301,13 +341,12 @@ class CEAMCL:
         self._merge()
 
     def _merge(self) -> None:
+        if self._prepared is None:
+            return  # no scan to probe the fitness between two species: no evidence to merge
         cfg = self.config
         ids = sorted(self.stats, key=lambda s: -self.stats[s].fitness)
         pairs = [
-            (a, b)
-            for i, a in enumerate(ids)
-            for b in ids[i + 1 :]
-            if domains_overlap(self.stats[a], self.stats[b])
+            (ids[i], ids[j]) for i, j in overlapping_pairs([self.stats[sid] for sid in ids])
         ]
         if not pairs:
             return
@@ -373,10 +412,7 @@ class CEAMCL:
         self.fitness = self.fitness[mask]
 
     def _refresh_stats(self) -> None:
-        self.stats = {
-            sid: species_stats(sid, idx, self.poses, self.loglik, self.fitness)
-            for sid, idx in group_members(self.species).items()
-        }
+        self.stats = all_species_stats(self.species, self.poses, self.loglik, self.fitness)
 
     def _reset_events(self) -> None:
         self._events = {}

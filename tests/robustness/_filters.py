@@ -1,0 +1,70 @@
+"""Small, cheap filters of every algorithm for the robustness tests."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ceamcl.filters import ALGORITHMS, LocalisationFilter, make_filter
+from ceamcl.filters.ceamcl import CEAMCL, CEAMCLConfig
+from ceamcl.filters.gmcl import GMCL, GMCLConfig
+from ceamcl.filters.mcl import MCL, MCLConfig
+from ceamcl.maps.grid import OccupancyGrid
+from ceamcl.motion.odometry import OdometryMotionModel
+from ceamcl.sensors.base import SensorModel
+from ceamcl.sensors.beam_model import BeamModel, BeamModelConfig
+from ceamcl.sensors.likelihood_field import LikelihoodFieldConfig, LikelihoodFieldModel
+
+SMALL_N = 60
+
+
+def small_sensor(name: str, grid: OccupancyGrid, max_beams: int = 30) -> SensorModel:
+    if name == "beam":
+        return BeamModel(grid, BeamModelConfig(max_beams=max_beams))
+    return LikelihoodFieldModel(grid, LikelihoodFieldConfig(max_beams=max_beams))
+
+
+def small_filter(
+    algorithm: str,
+    grid: OccupancyGrid,
+    rng: np.random.Generator,
+    sensor: SensorModel,
+    *,
+    resample_ess_fraction: float = 0.5,
+    ceamcl_config: CEAMCLConfig | None = None,
+) -> LocalisationFilter:
+    """A filter with a few dozen particles (CEAMCL: a few hundred test poses)."""
+    motion = OdometryMotionModel()
+    if algorithm == "ceamcl":
+        cfg = ceamcl_config or CEAMCLConfig(
+            n_test=300, test_batch=300, max_samples=400, tracking_samples=30
+        )
+        return CEAMCL(grid, motion, sensor, cfg, rng=rng)
+    if algorithm == "mcl":
+        return MCL(grid, motion, sensor, MCLConfig(SMALL_N, resample_ess_fraction), rng=rng)
+    if algorithm == "gmcl":
+        return GMCL(
+            grid,
+            motion,
+            sensor,
+            GMCLConfig(n_particles=SMALL_N, resample_ess_fraction=resample_ess_fraction),
+            rng=rng,
+        )
+    return make_filter(algorithm, grid, rng, sensor=sensor, n_particles=SMALL_N)
+
+
+def assert_all_finite(f: LocalisationFilter) -> None:
+    """Poses, weights, estimate and hypotheses hold no NaN or inf."""
+    snap = f.particles()
+    assert np.all(np.isfinite(snap.poses)), f"{f.name}: non-finite particle pose"
+    assert np.all(np.isfinite(snap.weights)), f"{f.name}: non-finite particle weight"
+    if snap.weights.size:
+        assert np.all(snap.weights >= 0)
+        assert abs(float(snap.weights.sum()) - 1.0) < 1e-6
+    est = f.estimate()
+    assert np.all(np.isfinite(est.pose)), f"{f.name}: non-finite estimate"
+    assert np.all(np.isfinite(est.covariance)), f"{f.name}: non-finite covariance"
+    for h in f.hypotheses():
+        assert np.all(np.isfinite(h.pose)) and np.isfinite(h.weight) and np.isfinite(h.fitness)
+
+
+__all__ = ["ALGORITHMS", "SMALL_N", "assert_all_finite", "small_filter", "small_sensor"]

@@ -1,0 +1,68 @@
+"""Bad command-line input: one line on stderr, exit code 2, no traceback, nothing written."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from ceamcl.cli import main
+
+
+def run_cli(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "ceamcl", *args],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+
+
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        (["demo", "--algorithm", "nope"], "invalid choice: 'nope'"),
+        (["demo", "--world", "atlantis"], "invalid choice: 'atlantis'"),
+        (["demo", "--particles", "-5"], "expected a non-negative number, got -5"),
+        (["demo", "--particles", "0"], "expected a positive number, got 0"),
+        (["demo", "--seed", "x"], "expected a whole number, got 'x'"),
+        (["soak", "--steps", "-1"], "expected a non-negative number, got -1"),
+        (["soak", "--algorithm", "pf"], "invalid choice: 'pf'"),
+        (["soak", "--max-growth-pct", "nan"], "expected a positive finite number"),
+        (["world", "atlantis", "-o", "x.yaml"], "invalid choice: 'atlantis'"),
+    ],
+)
+def test_bad_arguments_exit_2_without_traceback(args: list[str], expected: str) -> None:
+    done = run_cli(*args)
+    assert done.returncode == 2
+    assert expected in done.stderr
+    assert "Traceback" not in done.stderr + done.stdout
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root can write anywhere")
+def test_unwritable_output_folder_is_refused(tmp_path: Path) -> None:  # pragma: no cover
+    locked = tmp_path / "locked"
+    locked.mkdir(mode=0o500)
+    done = run_cli("soak", "--steps", "10", "--out", str(locked / "out"))
+    assert done.returncode == 2 and "cannot create output folder" in done.stderr
+
+
+def test_output_path_that_is_a_file_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    for argv in (
+        ["demo", "--quiet", "--out", str(blocker / "out")],
+        ["soak", "--quiet", "--steps", "10", "--out", str(blocker / "out")],
+        ["world", "small-office", "-o", str(blocker / "map.yaml")],
+    ):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("ceamcl: error: ") and str(blocker) in err
+        assert "Traceback" not in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file"]  # nothing half-written
