@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from ceamcl.errors import ConfigError
@@ -15,6 +17,7 @@ from ceamcl.filters.base import (
 )
 from ceamcl.filters.ceamcl import CEAMCL, CEAMCLConfig
 from ceamcl.filters.gmcl import GMCL, GMCLConfig
+from ceamcl.filters.kld_amcl import KLDAMCL, KLDAMCLConfig
 from ceamcl.filters.mcl import MCL, MCLConfig
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryMotionModel, OdometryNoise
@@ -22,7 +25,7 @@ from ceamcl.sensors.base import SensorModel
 from ceamcl.sensors.beam_model import BeamModel
 from ceamcl.sensors.likelihood_field import LikelihoodFieldModel
 
-ALGORITHMS: tuple[str, ...] = ("ceamcl", "gmcl", "mcl")
+ALGORITHMS: tuple[str, ...] = ("ceamcl", "gmcl", "mcl", "kld-amcl", "kld-amcl-recovery")
 SENSOR_MODELS: tuple[str, ...] = ("likelihood-field", "beam")
 
 
@@ -49,7 +52,7 @@ def make_filter(
     """A filter by name (see :data:`ALGORITHMS`) with default settings.
 
     ``n_particles`` sets the sample size of fixed-size filters (MCL, GMCL); CEAMCL chooses its
-    own (eq. 5) and ignores it.
+    own (eq. 5) and ignores it; for KLD-AMCL it is the upper bound ``max_particles``.
     """
     sensor_model = make_sensor(sensor, grid) if isinstance(sensor, str) else sensor
     motion = OdometryMotionModel(odometry_noise or OdometryNoise())
@@ -61,6 +64,19 @@ def make_filter(
     if algorithm == "gmcl":
         gcfg = GMCLConfig() if n_particles is None else GMCLConfig(n_particles=n_particles)
         return GMCL(grid, motion, sensor_model, gcfg, rng=rng)
+    if algorithm in ("kld-amcl", "kld-amcl-recovery"):
+        # n_particles, when given, is KLD-sampling's upper bound (max_particles).
+        kcfg = KLDAMCLConfig(
+            alpha_slow=0.001 if algorithm == "kld-amcl-recovery" else 0.0,
+            alpha_fast=0.1 if algorithm == "kld-amcl-recovery" else 0.0,
+        )
+        if n_particles is not None:
+            kcfg = replace(
+                kcfg,
+                max_particles=n_particles,
+                min_particles=min(kcfg.min_particles, n_particles),
+            )
+        return KLDAMCL(grid, motion, sensor_model, kcfg, rng=rng)
     if algorithm == "ceamcl":
         return CEAMCL(grid, motion, sensor_model, CEAMCLConfig(), rng=rng)
     raise ConfigError(
@@ -72,11 +88,13 @@ __all__ = [
     "ALGORITHMS",
     "CEAMCL",
     "GMCL",
+    "KLDAMCL",
     "MCL",
     "SENSOR_MODELS",
     "CEAMCLConfig",
     "GMCLConfig",
     "Hypothesis",
+    "KLDAMCLConfig",
     "LocalisationFilter",
     "MCLConfig",
     "ParticleSnapshot",

@@ -1,0 +1,441 @@
+"""KLD-AMCL: the adaptive particle filter of ROS and Nav2 ``amcl`` (Fox 2003; Thrun et al. 2005).
+
+Written after the behaviour of amcl's ``pf`` library and node, with the project's motion and
+sensor models:
+
+* **Update thresholds.** Odometry accumulates between filter updates; a scan triggers an
+  update only once the odometry pose has moved more than ``update_min_d`` along x or y, or
+  turned more than ``update_min_a``, since the last update (amcl tests each axis of the
+  odometry frame). The first scan after an initialisation always updates. An update moves
+  the particles by the whole accumulated motion, then weights them.
+* **Sensor update** in log space; if every weight vanishes (or is NaN) the weights become
+  uniform, as amcl does.
+* **Augmented MCL** (Probabilistic Robotics Table 8.3): running averages ``w_slow`` and
+  ``w_fast`` of the average weight, and at resampling each new particle is drawn uniformly
+  over free space with probability ``max(0, 1 - w_fast / w_slow)``; both averages reset to 0
+  after particles were injected. See :func:`average_weight` for the one deviation (the scale
+  of the average weight).
+* **KLD-sampling** at resampling: particles are drawn one by one (multinomial, as amcl's
+  roulette wheel) and dropped into a histogram of ``0.5 m x 0.5 m x 10 deg`` bins; drawing stops
+  as soon as the count exceeds :func:`kld_sample_size` of the number of occupied bins, and
+  never goes above ``max_particles``. Resampling happens every ``resample_interval``-th update.
+* **Estimate** as amcl: the particles are grouped into clusters of connected occupied bins,
+  and the estimate is the weighted mean of the heaviest cluster. Between updates it is carried
+  along by the odometry since the last update, as amcl's map -> odom transform carries the
+  robot. (Unlike amcl's kd-tree, our bins join across the +-pi heading seam.)
+* **Global localisation**: ``max_particles`` poses uniform over free space.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ceamcl.errors import ConfigError
+from ceamcl.filters.base import Hypothesis, ParticleSnapshot, PoseEstimate, StepDiagnostics
+from ceamcl.filters.clustering import pose_cluster_labels
+from ceamcl.filters.resampling import effective_sample_size, normalise_log_weights
+from ceamcl.maps.grid import OccupancyGrid
+from ceamcl.motion.odometry import (
+    OdometryIncrement,
+    OdometryMotionModel,
+    apply_increment,
+    increment_between,
+)
+from ceamcl.pose import pose_covariance, pose_mean
+from ceamcl.sensors.base import SensorModel, fitness
+from ceamcl.sensors.scan import LaserScan, PreparedScan
+
+#: Upper standard-normal quantile for 1 - delta = 0.99 (amcl's ``kld_z`` default is 0.99 in the
+#: ROS 1 wiki and Nav2's ``pf_z`` passes 0.99 itself, where the formula needs this quantile).
+Z_099 = 2.33
+
+
+def kld_sample_size(k: int, err: float, z: float, n_min: int, n_max: int) -> int:
+    """KLD-sampling bound (Fox 2003, eq. 13) for ``k`` occupied bins, clamped to ``[n_min, n_max]``.
+
+    ``n = (k - 1) / (2 err) * (1 - 2 / (9 (k - 1)) + sqrt(2 / (9 (k - 1))) z)^3`` rounded up;
+    with at most one occupied bin the bound is undefined and amcl, like this function, returns
+    ``n_max``.
+    """
+    if k <= 1:
+        return n_max
+    b = 2.0 / (9.0 * (k - 1))
+    x = 1.0 - b + math.sqrt(b) * z
+    n = math.ceil((k - 1) / (2.0 * err) * x**3)
+    return int(min(max(n, n_min), n_max))
+
+
+def histogram_bins(
+    poses: NDArray[np.float64], bin_xy_m: float, bin_theta_rad: float
+) -> NDArray[np.int64]:
+    """Integer bin keys ``(N, 3)`` of poses: ``floor(x / bin_xy)``, ``floor(y / bin_xy)``,
+    ``floor(theta / bin_theta)`` (amcl's kd-tree keys)."""
+    return np.column_stack(
+        [
+            np.floor(poses[:, 0] / bin_xy_m),
+            np.floor(poses[:, 1] / bin_xy_m),
+            np.floor(poses[:, 2] / bin_theta_rad),
+        ]
+    ).astype(np.int64)
+
+
+def occupied_bins_prefix(keys: NDArray[np.int64]) -> NDArray[np.int64]:
+    """``out[m - 1]``: number of distinct bins among the first ``m`` keys (rows)."""
+    if keys.shape[0] == 0:
+        return np.zeros(0, dtype=np.int64)
+    _, first = np.unique(keys, axis=0, return_index=True)
+    new = np.zeros(keys.shape[0], dtype=np.int64)
+    new[first] = 1
+    return np.cumsum(new)
+
+
+@dataclass(frozen=True)
+class KLDAMCLConfig:
+    """KLD-AMCL settings; defaults are Nav2 amcl's (``kld_z`` see :data:`Z_099`).
+
+    min_particles, max_particles: bounds of the sample size (Nav2: 500, 2000).
+    kld_err, kld_z: KLD-sampling error bound and upper standard-normal quantile.
+    bin_xy_m, bin_theta_rad: histogram bins of KLD-sampling and of the clusters.
+    alpha_slow, alpha_fast: augmented-MCL decay rates; 0 and 0 (Nav2's default) turns it off.
+    resample_interval: resample at every k-th filter update.
+    update_min_d, update_min_a: odometry motion (per axis, m; rad) that triggers an update.
+    """
+
+    min_particles: int = 500
+    max_particles: int = 2000
+    kld_err: float = 0.05
+    kld_z: float = Z_099
+    bin_xy_m: float = 0.5
+    bin_theta_rad: float = math.radians(10.0)
+    alpha_slow: float = 0.0
+    alpha_fast: float = 0.0
+    resample_interval: int = 1
+    update_min_d: float = 0.25
+    update_min_a: float = 0.2
+
+    def __post_init__(self) -> None:
+        if self.min_particles < 1:
+            raise ConfigError(f"min_particles: expected >= 1, got {self.min_particles}")
+        if self.max_particles < self.min_particles:
+            raise ConfigError(
+                f"max_particles: expected >= min_particles ({self.min_particles}), "
+                f"got {self.max_particles}"
+            )
+        if not (math.isfinite(self.kld_err) and 0.0 < self.kld_err < 1.0):
+            raise ConfigError(f"kld_err: expected a number in (0, 1), got {self.kld_err}")
+        if not (math.isfinite(self.kld_z) and self.kld_z > 0.0):
+            raise ConfigError(f"kld_z: expected a positive quantile, got {self.kld_z}")
+        for name in ("bin_xy_m", "bin_theta_rad"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0.0):
+                raise ConfigError(f"{name}: expected a positive number, got {v}")
+        for name in ("alpha_slow", "alpha_fast"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and 0.0 <= v <= 1.0):
+                raise ConfigError(f"{name}: expected a number in [0, 1], got {v}")
+        if self.resample_interval < 1:
+            raise ConfigError(f"resample_interval: expected >= 1, got {self.resample_interval}")
+        for name in ("update_min_d", "update_min_a"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0.0):
+                raise ConfigError(f"{name}: expected a non-negative number, got {v}")
+
+    @property
+    def recovery(self) -> bool:
+        """Whether augmented-MCL recovery can inject random particles."""
+        return self.alpha_slow > 0.0 and self.alpha_fast > 0.0
+
+
+def average_weight(
+    prior_weights: NDArray[np.float64], fitness_values: NDArray[np.float64]
+) -> float:
+    """The "average weight" that ``w_slow`` and ``w_fast`` follow: ``sum_i w_i f_i``.
+
+    amcl averages its particles' weights, which under its beam/likelihood-field heuristics
+    (``1 + sum p^3``) stay within a few orders of magnitude from scan to scan. Our weights are
+    the product of per-beam likelihoods, whose magnitude swings by many orders with the number
+    of usable beams alone, which would make ``w_fast / w_slow`` noise. We therefore average the
+    per-beam *fitness* (geometric mean of the beam likelihoods over their maximum, in (0, 1]),
+    weighted by the prior weights; a scan no pose explains drives it towards 0 just the same.
+    """
+    f = np.nan_to_num(fitness_values, nan=0.0, posinf=0.0, neginf=0.0)
+    return float(np.clip(prior_weights @ f, 0.0, 1.0))
+
+
+class KLDAMCL:
+    """ROS/Nav2 amcl's adaptive particle filter (see the module docstring)."""
+
+    name = "kld-amcl"
+
+    def __init__(
+        self,
+        grid: OccupancyGrid,
+        motion: OdometryMotionModel,
+        sensor: SensorModel,
+        config: KLDAMCLConfig | None = None,
+        *,
+        rng: np.random.Generator,
+    ) -> None:
+        self.grid = grid
+        self.motion = motion
+        self.sensor = sensor
+        self.config = config or KLDAMCLConfig()
+        self.rng = rng
+        if self.config.recovery:
+            self.name = "kld-amcl-recovery"
+        n = self.config.max_particles
+        self.poses: NDArray[np.float64] = np.zeros((n, 3))
+        self.log_weights: NDArray[np.float64] = np.full(n, -math.log(n))
+        self.fitness: NDArray[np.float64] = np.ones(n)
+        self.w_slow = 0.0
+        self.w_fast = 0.0
+        self.t = 0
+        self.odom = np.zeros(3)  # odometry pose accumulated from the increments
+        self.odom_at_update = np.zeros(3)  # odometry pose of the last filter update
+        self._force_update = True
+        self._resample_count = 0
+        self._kld_target = n
+        self._injected = 0
+        self._w_diff = 0.0
+        self._evaluations = 0
+
+    # ------------------------------------------------------------------ initialisation
+    def _reset(self, poses: NDArray[np.float64]) -> None:
+        n = poses.shape[0]
+        self.poses = poses
+        self.log_weights = np.full(n, -math.log(n))
+        self.fitness = np.ones(n)
+        self.w_slow = self.w_fast = 0.0
+        self.t = 0
+        self.odom = np.zeros(3)
+        self.odom_at_update = np.zeros(3)
+        self._force_update = True
+        self._resample_count = 0
+        self._kld_target = n
+
+    def initialise_global(self, scan: LaserScan) -> StepDiagnostics:
+        """``max_particles`` poses uniform over free space, then a (forced) update with ``scan``."""
+        start = time.perf_counter()
+        self._reset(self.grid.sample_free_poses(self.config.max_particles, self.rng))
+        self._evaluations = 0
+        resampled = self._update(scan)
+        return self._diagnostics(start, updated=True, resampled=resampled)
+
+    def initialise_pose(self, pose: ArrayLike, covariance: ArrayLike) -> None:
+        """``max_particles`` poses from ``N(pose, covariance)`` (amcl's ``pf_init``)."""
+        mean = np.asarray(pose, dtype=np.float64).reshape(3)
+        cov = np.asarray(covariance, dtype=np.float64).reshape(3, 3)
+        poses = self.rng.multivariate_normal(
+            mean, cov, size=self.config.max_particles, method="eigh"
+        )
+        poses[:, 2] = np.angle(np.exp(1j * poses[:, 2]))
+        self._reset(poses)
+
+    # ------------------------------------------------------------------ one step
+    def _motion_since_update(self) -> OdometryIncrement:
+        return increment_between(self.odom_at_update, self.odom)
+
+    def _threshold_reached(self) -> bool:
+        d = self.odom - self.odom_at_update
+        da = math.remainder(float(d[2]), 2.0 * math.pi)
+        cfg = self.config
+        return (
+            abs(d[0]) > cfg.update_min_d
+            or abs(d[1]) > cfg.update_min_d
+            or (abs(da) > cfg.update_min_a)
+        )
+
+    def step(self, increment: OdometryIncrement, scan: LaserScan | None) -> StepDiagnostics:
+        start = time.perf_counter()
+        self.t += 1
+        self._evaluations = 0
+        self.odom = apply_increment(self.odom, increment.rot1, increment.trans, increment.rot2)[0]
+        if scan is None or not (self._force_update or self._threshold_reached()):
+            return self._diagnostics(start, updated=False, resampled=False)
+        self.poses = self.motion.sample(self.poses, self._motion_since_update(), self.rng)
+        self.odom_at_update = self.odom.copy()
+        resampled = self._update(scan)
+        return self._diagnostics(start, updated=True, resampled=resampled)
+
+    def _update(self, scan: LaserScan) -> bool:
+        """Sensor update with ``scan``, then resampling when its interval comes; returns whether
+        it resampled."""
+        self._force_update = False
+        prepared = self.sensor.prepare(scan)
+        ll = self.sensor.log_likelihood(self.poses, prepared)
+        self._evaluations += self.poses.shape[0]
+        prior = normalise_log_weights(self.log_weights)[1]
+        self.fitness = _fitness(ll, prepared, self.sensor)
+        log_w, _, ok = normalise_log_weights(self.log_weights + ll)
+        if ok:
+            self.log_weights = log_w
+            w_avg = average_weight(prior, self.fitness)
+        else:
+            # Every particle impossible or NaN: uniform weights, and the average weight is 0.
+            n = self.poses.shape[0]
+            self.log_weights = np.full(n, -math.log(n))
+            w_avg = 0.0
+        cfg = self.config
+        if cfg.recovery:
+            if self.w_slow == 0.0:
+                self.w_slow = w_avg
+            else:
+                self.w_slow += cfg.alpha_slow * (w_avg - self.w_slow)
+            if self.w_fast == 0.0:
+                self.w_fast = w_avg
+            else:
+                self.w_fast += cfg.alpha_fast * (w_avg - self.w_fast)
+        self._resample_count += 1
+        if self._resample_count % cfg.resample_interval != 0:
+            self._injected = 0
+            return False
+        self._resample(prepared)
+        return True
+
+    def random_probability(self) -> float:
+        """``max(0, 1 - w_fast / w_slow)``: the chance that a resampled particle is random."""
+        if not self.config.recovery or self.w_slow <= 0.0:
+            return 0.0
+        return max(0.0, 1.0 - self.w_fast / self.w_slow)
+
+    def _resample(self, prepared: PreparedScan) -> None:
+        """KLD-sampling with random injection (amcl's ``pf_update_resample``)."""
+        cfg = self.config
+        n_max = cfg.max_particles
+        w_diff = self.random_probability()
+        self._w_diff = w_diff
+        weights = normalise_log_weights(self.log_weights)[1]
+        # Draw n_max candidates in order; amcl draws them one by one and stops early, which
+        # takes the same prefix of the same sequence of independent draws.
+        is_random = self.rng.random(n_max) < w_diff
+        cdf = np.cumsum(weights)
+        cdf /= cdf[-1]
+        idx = np.minimum(np.searchsorted(cdf, self.rng.random(n_max), side="right"), cdf.size - 1)
+        n_random = int(is_random.sum())
+        candidates = self.poses[idx]
+        cand_fitness = self.fitness[idx]
+        if n_random:
+            candidates[is_random] = self.grid.sample_free_poses(n_random, self.rng)
+        keys = histogram_bins(candidates, cfg.bin_xy_m, cfg.bin_theta_rad)
+        k = occupied_bins_prefix(keys)
+        limits = kld_sample_sizes(k, cfg.kld_err, cfg.kld_z, cfg.min_particles, n_max)
+        counts = np.arange(1, n_max + 1)
+        stop = np.flatnonzero(counts > limits)
+        m = int(stop[0]) + 1 if stop.size else n_max
+        self.poses = candidates[:m]
+        self.fitness = cand_fitness[:m]
+        self._kld_target = int(limits[m - 1])
+        injected = is_random[:m]
+        self._injected = int(injected.sum())
+        if self._injected:
+            ll = self.sensor.log_likelihood(self.poses[injected], prepared)
+            self._evaluations += self._injected
+            self.fitness[injected] = _fitness(ll, prepared, self.sensor)
+        self.log_weights = np.full(m, -math.log(m))
+        if w_diff > 0.0:
+            # amcl resets the averages so that it does not spiral into complete randomness.
+            self.w_slow = self.w_fast = 0.0
+
+    def _diagnostics(self, start: float, *, updated: bool, resampled: bool) -> StepDiagnostics:
+        w = self.weights
+        return StepDiagnostics(
+            step=self.t,
+            n_particles=int(self.poses.shape[0]),
+            ess=effective_sample_size(w),
+            resampled=resampled,
+            likelihood_evaluations=self._evaluations,
+            step_ms=(time.perf_counter() - start) * 1e3,
+            extra={
+                "updated": float(updated),
+                "w_slow": self.w_slow,
+                "w_fast": self.w_fast,
+                "random_probability": self._w_diff if resampled else 0.0,
+                "injected": float(self._injected if resampled else 0),
+                "kld_target": float(self._kld_target),
+            },
+        )
+
+    # ------------------------------------------------------------------ queries
+    @property
+    def weights(self) -> NDArray[np.float64]:
+        return normalise_log_weights(self.log_weights)[1]
+
+    def _carried(self, poses: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Poses moved (noise-free) by the odometry since the last filter update."""
+        inc = self._motion_since_update()
+        if inc.is_zero:
+            return poses
+        return apply_increment(poses, inc.rot1, inc.trans, inc.rot2)
+
+    def _labels(self) -> tuple[NDArray[np.int64], int]:
+        return pose_cluster_labels(self.poses, self.config.bin_xy_m, self.config.bin_theta_rad)
+
+    def hypotheses(self) -> list[Hypothesis]:
+        """Clusters of connected occupied bins, heaviest first (amcl's hypotheses)."""
+        labels, count = self._labels()
+        w = self.weights
+        mass = np.bincount(labels, weights=w, minlength=count)
+        out = []
+        for k in np.argsort(-mass, kind="stable"):
+            members = labels == k
+            wk = w[members]
+            mean = pose_mean(self.poses[members], wk)
+            cov = pose_covariance(self.poses[members], wk, mean)
+            out.append(
+                Hypothesis(
+                    pose=self._carried(mean[None, :])[0],
+                    covariance=cov,
+                    n_particles=int(members.sum()),
+                    weight=float(mass[k]),
+                    fitness=float(np.mean(self.fitness[members])),
+                    label=int(k),
+                )
+            )
+        return out
+
+    def estimate(self) -> PoseEstimate:
+        """The heaviest cluster's weighted mean and covariance (as amcl publishes)."""
+        best = self.hypotheses()[0]
+        return PoseEstimate(best.pose, best.covariance)
+
+    def particles(self) -> ParticleSnapshot:
+        """The particles, carried by the odometry since the last update; labels are clusters."""
+        labels, _ = self._labels()
+        return ParticleSnapshot(self._carried(self.poses.copy()), self.weights, labels)
+
+
+def _fitness(
+    ll: NDArray[np.float64], prepared: PreparedScan, sensor: SensorModel
+) -> NDArray[np.float64]:
+    """:func:`~ceamcl.sensors.base.fitness`, with NaN (a model's failure) scored 0."""
+    return np.nan_to_num(fitness(ll, prepared, sensor), nan=0.0)
+
+
+def kld_sample_sizes(
+    k: NDArray[np.int64], err: float, z: float, n_min: int, n_max: int
+) -> NDArray[np.int64]:
+    """:func:`kld_sample_size` for an array of bin counts (the same arithmetic, vectorised)."""
+    kf = k.astype(np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        b = 2.0 / (9.0 * (kf - 1.0))
+        x = 1.0 - b + np.sqrt(b) * z
+        n = np.ceil((kf - 1.0) / (2.0 * err) * x**3)
+    n = np.where(k <= 1, n_max, np.clip(n, n_min, n_max))
+    return n.astype(np.int64)
+
+
+__all__ = [
+    "KLDAMCL",
+    "Z_099",
+    "KLDAMCLConfig",
+    "average_weight",
+    "histogram_bins",
+    "kld_sample_size",
+    "kld_sample_sizes",
+    "occupied_bins_prefix",
+]

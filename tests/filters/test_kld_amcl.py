@@ -1,0 +1,330 @@
+"""Tests of KLD-AMCL (``ceamcl.filters.kld_amcl``): the sample-size bound, recovery, update
+thresholds, tracking, global localisation and determinism."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from numpy.typing import ArrayLike, NDArray
+
+from ceamcl.errors import ConfigError
+from ceamcl.filters import ALGORITHMS, KLDAMCL, KLDAMCLConfig, make_filter
+from ceamcl.filters.kld_amcl import (
+    Z_099,
+    kld_sample_size,
+    kld_sample_sizes,
+    occupied_bins_prefix,
+)
+from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel, increment_between
+from ceamcl.runner import run_filter
+from ceamcl.sensors import LaserScan, PreparedScan
+from ceamcl.sensors.scan import prepare_scan
+from ceamcl.simulation import SimulatedLog, get_scenario
+
+
+def generators(seed: int) -> tuple[np.random.Generator, np.random.Generator]:
+    sim, filt = np.random.SeedSequence(seed).spawn(2)
+    return np.random.default_rng(sim), np.random.default_rng(filt)
+
+
+def office_log(seed: int) -> tuple[SimulatedLog, np.random.Generator]:
+    sc = get_scenario("office")
+    sim_rng, filter_rng = generators(seed)
+    return sc.simulate(sim_rng, sc.grid()), filter_rng
+
+
+# ---------------------------------------------------------------------------------- KLD bound
+def test_kld_sample_size_matches_a_hand_computed_value() -> None:
+    # k = 10, err = 0.05, z = 2.33: b = 2/81 = 0.0246914, sqrt(b) = 0.1571348,
+    # x = 1 - b + 2.33 sqrt(b) = 1.3414328, x^3 = 2.4138306, n = 9 / 0.1 * x^3 = 217.24 -> 218.
+    assert kld_sample_size(10, 0.05, 2.33, 1, 10**6) == 218
+    # k = 2: b = 2/9, x = 1 - 0.2222 + 0.4714 * 2.33 = 1.87614, x^3 = 6.6039, n = 66.04 -> 67.
+    assert kld_sample_size(2, 0.05, 2.33, 1, 10**6) == 67
+    # One occupied bin (or none): amcl's pf_resample_limit returns the maximum.
+    assert kld_sample_size(1, 0.05, 2.33, 500, 2000) == 2000
+    assert kld_sample_size(0, 0.05, 2.33, 500, 2000) == 2000
+    # Clamped to [min, max].
+    assert kld_sample_size(2, 0.05, 2.33, 500, 2000) == 500
+    assert kld_sample_size(100_000, 0.05, 2.33, 500, 2000) == 2000
+
+
+def test_kld_sample_size_grows_with_the_number_of_occupied_bins() -> None:
+    k = np.arange(2, 5000)
+    n = kld_sample_sizes(k, 0.05, Z_099, 1, 10**9)
+    assert np.all(np.diff(n) > 0)
+    # Roughly linear for many bins: (k - 1) / (2 err) times a factor that tends to 1.
+    assert n[-1] / (k[-1] - 1) == pytest.approx(10.0, rel=0.1)
+    # Smaller error bound or larger quantile: more particles.
+    assert kld_sample_size(50, 0.01, Z_099, 1, 10**9) > kld_sample_size(50, 0.05, Z_099, 1, 10**9)
+    assert kld_sample_size(50, 0.05, 3.0, 1, 10**9) > kld_sample_size(50, 0.05, Z_099, 1, 10**9)
+
+
+def test_vectorised_sample_sizes_agree_with_the_scalar_formula() -> None:
+    k = np.arange(0, 3000)
+    vec = kld_sample_sizes(k, 0.05, Z_099, 500, 2000)
+    assert [kld_sample_size(int(v), 0.05, Z_099, 500, 2000) for v in k] == vec.tolist()
+
+
+def test_occupied_bins_prefix_counts_distinct_bins() -> None:
+    keys = np.array([[0, 0, 0], [0, 0, 0], [1, 0, 0], [0, 0, 0], [1, 0, 1], [1, 0, 0]])
+    assert occupied_bins_prefix(keys).tolist() == [1, 1, 2, 2, 3, 3]
+
+
+# ---------------------------------------------------------------------------------- config
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [
+        ("min_particles", 0),
+        ("kld_err", 0.0),
+        ("kld_z", -1.0),
+        ("bin_xy_m", 0.0),
+        ("bin_theta_rad", float("nan")),
+        ("alpha_slow", 2.0),
+        ("alpha_fast", -0.1),
+        ("resample_interval", 0),
+        ("update_min_d", -0.1),
+        ("update_min_a", float("inf")),
+    ],
+)
+def test_config_errors_name_the_field(field: str, value: float) -> None:
+    with pytest.raises(ConfigError, match=field):
+        KLDAMCLConfig(**{field: value})  # type: ignore[arg-type]
+
+
+def test_config_rejects_max_below_min() -> None:
+    with pytest.raises(ConfigError, match="max_particles"):
+        KLDAMCLConfig(min_particles=600, max_particles=500)
+
+
+def test_make_filter_builds_both_variants() -> None:
+    grid = get_scenario("office").grid()
+    assert {"kld-amcl", "kld-amcl-recovery"} <= set(ALGORITHMS)
+    off = make_filter("kld-amcl", grid, np.random.default_rng(0))
+    on = make_filter("kld-amcl-recovery", grid, np.random.default_rng(0), n_particles=300)
+    assert isinstance(off, KLDAMCL) and isinstance(on, KLDAMCL)
+    assert off.name == "kld-amcl" and on.name == "kld-amcl-recovery"
+    assert (off.config.alpha_slow, off.config.alpha_fast) == (0.0, 0.0)
+    assert (on.config.alpha_slow, on.config.alpha_fast) == (0.001, 0.1)
+    assert (off.config.min_particles, off.config.max_particles) == (500, 2000)
+    assert (on.config.min_particles, on.config.max_particles) == (300, 300)
+    assert (off.config.update_min_d, off.config.update_min_a) == (0.25, 0.2)
+
+
+# ---------------------------------------------------------------------------------- thresholds
+def test_small_motion_does_not_trigger_a_sensor_update() -> None:
+    log, rng = office_log(0)
+    grid = get_scenario("office").grid()
+    f = make_filter("kld-amcl", grid, rng)
+    assert isinstance(f, KLDAMCL)
+    start = np.array([1.5, 4.25, 0.0])
+    f.initialise_pose(start, np.diag([0.05**2, 0.05**2, 0.02**2]))
+    scan = log.scan(0)
+    still = OdometryIncrement(0.0, 0.0, 0.0)
+    first = f.step(still, scan)  # the first scan after an initialisation always updates
+    assert first.extra["updated"] == 1.0 and first.likelihood_evaluations == 2000
+    poses = f.poses.copy()
+    # 0.06 m per step along the odometry x axis: |dx| exceeds 0.25 m at the 5th step.
+    forward = OdometryIncrement(0.0, 0.06, 0.0)
+    flags = []
+    for _ in range(5):
+        d = f.step(forward, scan)
+        flags.append(d.extra["updated"])
+        if d.extra["updated"] == 0.0:
+            assert d.likelihood_evaluations == 0
+            np.testing.assert_array_equal(f.poses, poses)  # particles untouched...
+    assert flags == [0.0, 0.0, 0.0, 0.0, 1.0]
+    # 0.06 rad per step: |dtheta| exceeds 0.2 rad at the 4th step.
+    turn = OdometryIncrement(0.06, 0.0, 0.0)
+    assert [f.step(turn, scan).extra["updated"] for _ in range(4)] == [0.0, 0.0, 0.0, 1.0]
+    # Without a scan there is never an update, however far the robot goes.
+    assert all(f.step(forward, None).extra["updated"] == 0.0 for _ in range(10))
+
+
+def test_estimate_is_carried_by_odometry_between_updates() -> None:
+    log, rng = office_log(1)
+    grid = get_scenario("office").grid()
+    f = make_filter("kld-amcl", grid, rng)
+    f.initialise_pose([1.5, 4.25, 0.0], np.diag([0.03**2, 0.03**2, 0.01**2]))
+    f.step(OdometryIncrement(0.0, 0.0, 0.0), log.scan(0))
+    before = f.estimate().pose
+    d = f.step(OdometryIncrement(0.0, 0.1, 0.0), log.scan(0))
+    assert d.extra["updated"] == 0.0
+    after = f.estimate().pose
+    # ...but the estimate moves 0.1 m along its heading, as amcl's map -> odom transform does.
+    np.testing.assert_allclose(
+        after[:2] - before[:2], 0.1 * np.array([np.cos(before[2]), np.sin(before[2])]), atol=1e-9
+    )
+
+
+# ---------------------------------------------------------------------------------- recovery
+class ConstantSensor:
+    """A sensor model whose per-pose log-likelihood is whatever the test sets (one beam, max 0),
+    so the fitness of every pose is ``exp(value)``."""
+
+    def __init__(self, value: float = 0.0) -> None:
+        self.value = value
+
+    def prepare(self, scan: LaserScan) -> PreparedScan:
+        p = prepare_scan(scan, 1, keep_max_range=True)
+        assert p.n_beams == 1
+        return p
+
+    def log_likelihood(self, poses: ArrayLike, prepared: PreparedScan) -> NDArray[np.float64]:
+        return np.full(np.asarray(poses).reshape(-1, 3).shape[0], self.value)
+
+    def max_log_beam_likelihood(self, prepared: PreparedScan) -> float:
+        return 0.0
+
+
+@pytest.mark.parametrize("recovery", [True, False])
+def test_recovery_injects_random_particles_when_the_likelihood_collapses(recovery: bool) -> None:
+    log, rng = office_log(2)
+    grid = get_scenario("office").grid()
+    sensor = ConstantSensor(0.0)
+    cfg = KLDAMCLConfig(
+        alpha_slow=0.001 if recovery else 0.0,
+        alpha_fast=0.1 if recovery else 0.0,
+        update_min_d=0.0,
+        update_min_a=0.0,
+    )
+    f = KLDAMCL(grid, OdometryMotionModel(), sensor, cfg, rng=rng)
+    f.initialise_pose([1.5, 4.25, 0.0], np.diag([0.05**2, 0.05**2, 0.02**2]))
+    move = OdometryIncrement(0.0, 0.01, 0.0)
+    for _ in range(10):  # fitness 1 every time: w_slow = w_fast = 1, nothing injected
+        d = f.step(move, log.scan(0))
+        assert d.extra["updated"] == 1.0 and d.extra["injected"] == 0.0
+    sensor.value = -5.0  # every pose now explains the scan badly: average weight e^-5
+    d = f.step(move, log.scan(0))
+    if recovery:
+        w_avg = math.exp(-5.0)
+        w_slow = 1.0 + 0.001 * (w_avg - 1.0)
+        w_fast = 1.0 + 0.1 * (w_avg - 1.0)
+        assert d.extra["random_probability"] == pytest.approx(1.0 - w_fast / w_slow, rel=1e-9)
+        assert d.extra["injected"] > 0
+        # Injected particles are uniform over free space: many lie far from the cloud.
+        far = np.hypot(f.poses[:, 0] - 1.5, f.poses[:, 1] - 4.25) > 2.0
+        assert far.sum() >= d.extra["injected"] / 2
+        assert (d.extra["w_slow"], d.extra["w_fast"]) == (0.0, 0.0)  # reset after injecting
+    else:
+        assert d.extra["random_probability"] == 0.0 and d.extra["injected"] == 0.0
+        assert np.hypot(f.poses[:, 0] - 1.5, f.poses[:, 1] - 4.25).max() < 1.0
+
+
+def test_recovery_fires_after_a_kidnapping_only_when_on() -> None:
+    sc = get_scenario("office")
+    grid = sc.grid()
+    injected = {}
+    for algo in ("kld-amcl", "kld-amcl-recovery"):
+        log, rng = office_log(5)
+        f = make_filter(algo, grid, rng)
+        f.initialise_pose(log.true_poses[0], np.diag([0.1**2, 0.1**2, 0.05**2]))
+        total = 0.0
+        for k in range(1, len(log)):
+            # From step 150 on, the scans come from 200 steps later: the robot is elsewhere.
+            scan = log.scan(k if k < 150 else (k + 200) % len(log))
+            d = f.step(increment_between(log.odometry[k - 1], log.odometry[k]), scan)
+            assert np.all(np.isfinite(f.estimate().pose))
+            if k >= 150:
+                total += d.extra["injected"]
+        injected[algo] = total
+    assert injected["kld-amcl"] == 0.0
+    assert injected["kld-amcl-recovery"] > 0.0
+
+
+def test_vanishing_weights_give_uniform_weights_not_nan() -> None:
+    log, rng = office_log(3)
+    grid = get_scenario("office").grid()
+    for value in (-np.inf, np.nan):
+        sensor = ConstantSensor(value)
+        cfg = KLDAMCLConfig(alpha_slow=0.001, alpha_fast=0.1)
+        f = KLDAMCL(grid, OdometryMotionModel(), sensor, cfg, rng=rng)
+        f.initialise_pose([1.5, 4.25, 0.0], np.diag([0.05**2, 0.05**2, 0.02**2]))
+        d = f.step(OdometryIncrement(0.0, 0.0, 0.0), log.scan(0))
+        assert d.extra["updated"] == 1.0
+        assert np.all(np.isfinite(f.weights)) and f.weights.sum() == pytest.approx(1.0)
+        assert np.all(np.isfinite(f.estimate().pose))
+        assert all(0.0 <= h.fitness <= 1.0 for h in f.hypotheses())
+
+
+# ---------------------------------------------------------------------------------- accuracy
+def test_tracking_from_a_known_start() -> None:
+    log, rng = office_log(7)
+    grid = get_scenario("office").grid()
+    f = make_filter("kld-amcl", grid, rng)
+    f.initialise_pose(log.true_poses[0], np.diag([0.1**2, 0.1**2, 0.05**2]))
+    errors = np.zeros(len(log))
+    heading = np.zeros(len(log))
+    for k in range(1, len(log)):
+        f.step(increment_between(log.odometry[k - 1], log.odometry[k]), log.scan(k))
+        e = f.estimate().pose
+        errors[k] = np.hypot(*(e[:2] - log.true_poses[k, :2]))
+        heading[k] = abs(np.angle(np.exp(1j * (e[2] - log.true_poses[k, 2]))))
+    settled = log.times >= 5.0
+    # Between updates (every 0.25 m / 0.2 rad) the estimate rides on odometry, which drifts a
+    # few cm over 0.25 m with the simulator's noise; a decimetre bounds it.
+    assert errors[settled].max() < 0.15
+    assert np.mean(errors[settled]) < 0.06
+    assert heading[settled].max() < 0.1
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_global_localisation_on_small_office_converges(seed: int) -> None:
+    log, rng = office_log(seed)
+    grid = get_scenario("office").grid()
+    f = make_filter("kld-amcl", grid, rng)
+    res = run_filter(f, log)
+    pe = res.position_errors
+    he = res.heading_errors
+    assert pe is not None and he is not None
+    assert pe[-20:].max() < 0.2
+    assert he[-20:].max() < 0.1
+    assert all(d.n_particles <= 2000 for d in res.diagnostics)
+
+
+@pytest.mark.parametrize("scenario", ["office", "paper"])
+def test_sample_size_falls_from_max_towards_min(scenario: str) -> None:
+    sc = get_scenario(scenario)
+    grid = sc.grid()
+    sim_rng, rng = generators(11)
+    log = sc.simulate(sim_rng, grid)
+    f = make_filter("kld-amcl", grid, rng)
+    assert isinstance(f, KLDAMCL)
+    first = f.initialise_global(log.scan(0))
+    # Global initialisation draws max_particles (all weighted by the first scan).
+    assert first.resampled and first.likelihood_evaluations == 2000
+    counts = []
+    for k in range(1, len(log)):
+        d = f.step(increment_between(log.odometry[k - 1], log.odometry[k]), log.scan(k))
+        if d.resampled:
+            counts.append(d.n_particles)
+    counts_arr = np.array(counts)
+    assert counts_arr.size > 20 and counts_arr.min() >= 500
+    # Once converged, most resamplings keep (close to) min_particles. (A cloud that fits in a
+    # single bin gets max_particles: amcl's bound is undefined for one bin.)
+    assert np.median(counts_arr[len(counts_arr) // 2 :]) <= 600
+
+
+def test_same_seed_same_run_bit_for_bit() -> None:
+    sc = get_scenario("office")
+    grid = sc.grid()
+    runs = []
+    for seed in (4, 4, 5):
+        log, _ = office_log(4)
+        f = make_filter("kld-amcl-recovery", grid, np.random.default_rng(seed))
+        res = run_filter(f, log)
+        runs.append((res.estimates, [d.n_particles for d in res.diagnostics]))
+    np.testing.assert_array_equal(runs[0][0], runs[1][0])
+    assert runs[0][1] == runs[1][1]
+    assert not np.array_equal(runs[0][0], runs[2][0])
+
+
+def test_beam_model_works_too() -> None:
+    log, rng = office_log(8)
+    grid = get_scenario("office").grid()
+    f = make_filter("kld-amcl", grid, rng, sensor="beam")
+    f.initialise_pose(log.true_poses[0], np.diag([0.1**2, 0.1**2, 0.05**2]))
+    for k in range(1, 120):
+        f.step(increment_between(log.odometry[k - 1], log.odometry[k]), log.scan(k))
+    assert np.hypot(*(f.estimate().pose[:2] - log.true_poses[119, :2])) < 0.15
