@@ -43,8 +43,19 @@ _OFFICE_ROUTE = [np.array(p) for p in ([3.8, 4.25], [3.8, 2.2], [7.5, 2.3], [8.5
 
 
 @dataclass(frozen=True)
+class Kidnap:
+    """At ``at_s`` seconds the robot is carried to ``pose`` (the odometry does not see it) and
+    then drives ``waypoints`` from there."""
+
+    at_s: float
+    pose: NDArray[np.float64]
+    waypoints: list[NDArray[np.float64]]
+
+
+@dataclass(frozen=True)
 class Scenario:
-    """A world and a route: ``start`` pose and the waypoints driven after it."""
+    """A world and a route: ``start`` pose and the waypoints driven after it, optionally
+    interrupted by a kidnap."""
 
     name: str
     world: str
@@ -53,17 +64,39 @@ class Scenario:
     start_room: int | None = None
     goal_room: int | None = None
     config: SimulationConfig = field(default_factory=SimulationConfig)
+    kidnap: Kidnap | None = None
 
     def grid(self) -> OccupancyGrid:
         return get_world(self.world)
 
+    def kidnap_step(self) -> int | None:
+        """The step at which the truth jumps (``None`` without a kidnap)."""
+        if self.kidnap is None:
+            return None
+        before = drive_waypoints(self.start, self.waypoints, self.config).shape[0]
+        k = round(self.kidnap.at_s * self.config.rate_hz)
+        if not 0 < k < before:
+            raise ConfigError(
+                f"kidnap.at_s: expected a time within the first route (0 to "
+                f"{(before - 1) / self.config.rate_hz:.1f} s), got {self.kidnap.at_s}"
+            )
+        return k
+
     def true_path(self) -> NDArray[np.float64]:
-        return drive_waypoints(self.start, self.waypoints, self.config)
+        path = drive_waypoints(self.start, self.waypoints, self.config)
+        k = self.kidnap_step()
+        if self.kidnap is None or k is None:
+            return path
+        after = drive_waypoints(self.kidnap.pose, self.kidnap.waypoints, self.config)
+        return np.vstack([path[:k], after])
 
     def simulate(self, rng: np.random.Generator, grid: OccupancyGrid | None = None) -> SimulatedLog:
         """Run the simulator along the route (truth is deterministic; noise comes from ``rng``)."""
         g = grid if grid is not None else self.grid()
-        return Simulator(g, self.config).run(self.true_path(), rng)
+        k = self.kidnap_step()
+        return Simulator(g, self.config).run(
+            self.true_path(), rng, kidnapped_at=() if k is None else (k,)
+        )
 
 
 def paper_scenario(
@@ -101,7 +134,30 @@ def office_scenario(config: SimulationConfig | None = None) -> Scenario:
     )
 
 
-SCENARIO_NAMES = ("paper", "office")
+# Kidnapped robot on small-office (one answer, so relocalisation is well defined): the office
+# tour until 25 s (by then the robot is localised, in the corridor heading south into the
+# south rooms), then carried to the north-east room, from where it drives back through the
+# corridor into the north-west room.
+_KIDNAP_AT_S = 25.0
+_KIDNAP_POSE = np.array([5.5, 6.5, 0.0])
+_KIDNAP_ROUTE = [np.array(p) for p in ([7.6, 6.5], [7.6, 4.25], [1.5, 4.25], [1.5, 6.8])]
+
+
+def kidnapped_scenario(
+    config: SimulationConfig | None = None, at_s: float = _KIDNAP_AT_S
+) -> Scenario:
+    """The office tour, kidnapped at ``at_s`` into the north-east room (see above)."""
+    return Scenario(
+        "kidnapped",
+        "small-office",
+        _OFFICE_START,
+        _OFFICE_ROUTE,
+        config=config or SimulationConfig(),
+        kidnap=Kidnap(at_s, _KIDNAP_POSE, _KIDNAP_ROUTE),
+    )
+
+
+SCENARIO_NAMES = ("paper", "office", "kidnapped")
 
 
 def get_scenario(name: str, world: str | None = None, start_room: int = 0) -> Scenario:
@@ -116,6 +172,12 @@ def get_scenario(name: str, world: str | None = None, start_room: int = 0) -> Sc
         if world not in (None, "small-office"):
             raise ConfigError(f"world: the office scenario runs on small-office, got {world!r}")
         return office_scenario()
+    if name == "kidnapped":
+        if world not in (None, "small-office"):
+            raise ConfigError(
+                f"world: the kidnapped scenario runs on small-office, got {world!r}"
+            )
+        return kidnapped_scenario()
     raise ConfigError(
         f"scenario: unknown scenario {name!r}; expected one of {', '.join(SCENARIO_NAMES)}"
     )

@@ -70,6 +70,9 @@ class SimulatedLog:
     ranges: NDArray[np.float64]
     laser: LaserGeometry
     world: str = ""
+    #: Steps at which the robot was carried to another pose (kidnapped): the truth jumps,
+    #: the odometry does not move.
+    kidnapped_at: tuple[int, ...] = ()
 
     def __len__(self) -> int:
         return int(self.times.size)
@@ -126,14 +129,26 @@ class Simulator:
         self.config = config or SimulationConfig()
 
     def noisy_odometry(
-        self, true_poses: ArrayLike, rng: np.random.Generator
+        self,
+        true_poses: ArrayLike,
+        rng: np.random.Generator,
+        *,
+        kidnapped_at: Sequence[int] = (),
     ) -> NDArray[np.float64]:
-        """Odometry poses: the true increments, each perturbed by the odometry noise model."""
+        """Odometry poses: the true increments, each perturbed by the odometry noise model.
+
+        At the steps in ``kidnapped_at`` the robot is lifted and carried: the wheels do not
+        turn, so the odometry stays where it was while the truth jumps.
+        """
         truth = np.asarray(true_poses, dtype=np.float64).reshape(-1, 3)
         model = OdometryMotionModel(self.config.odometry_noise)
         odom = np.empty_like(truth)
         odom[0] = truth[0]
+        lifted = set(kidnapped_at)
         for k in range(1, truth.shape[0]):
+            if k in lifted:
+                odom[k] = odom[k - 1]
+                continue
             inc = increment_between(truth[k - 1], truth[k])
             odom[k] = model.sample(odom[k - 1 : k], inc, rng)[0]
         return odom
@@ -154,9 +169,24 @@ class Simulator:
         ranges = np.where(random, rng.uniform(laser.range_min, laser.range_max, (t, m)), ranges)
         return ranges
 
-    def run(self, true_poses: ArrayLike, rng: np.random.Generator) -> SimulatedLog:
+    def run(
+        self,
+        true_poses: ArrayLike,
+        rng: np.random.Generator,
+        *,
+        kidnapped_at: Sequence[int] = (),
+    ) -> SimulatedLog:
+        """Simulate a path; ``kidnapped_at`` lists steps where the truth jumps unseen by the
+        odometry (see :meth:`noisy_odometry`)."""
         truth = np.asarray(true_poses, dtype=np.float64).reshape(-1, 3)
-        odom = self.noisy_odometry(truth, rng)
+        kidnapped = tuple(sorted(int(k) for k in kidnapped_at))
+        if any(not 0 < k < truth.shape[0] for k in kidnapped):
+            raise ValueError(
+                f"kidnapped_at: steps must lie in 1..{truth.shape[0] - 1}, got {kidnapped}"
+            )
+        odom = self.noisy_odometry(truth, rng, kidnapped_at=kidnapped)
         ranges = self.scans(truth, rng)
         times = np.arange(truth.shape[0]) / self.config.rate_hz
-        return SimulatedLog(times, truth, odom, ranges, self.config.laser, self.grid.name)
+        return SimulatedLog(
+            times, truth, odom, ranges, self.config.laser, self.grid.name, kidnapped
+        )

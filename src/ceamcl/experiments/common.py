@@ -1,0 +1,254 @@
+"""Shared machinery of the experiments: settings, running trials, run metadata, curves, files."""
+
+from __future__ import annotations
+
+import csv
+import datetime
+import os
+import platform
+import sys
+import warnings
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, TypeVar
+
+import numpy as np
+from numpy.typing import NDArray
+from rich.console import Console
+
+from ceamcl.experiments.executors import map_trials, open_executor
+from ceamcl.experiments.routes import Course
+from ceamcl.experiments.trials import Trial, TrialRecord, run_trial
+
+T = TypeVar("T")
+
+
+@dataclass(frozen=True)
+class ExperimentSettings:
+    """What every experiment takes: the course, the algorithms, trials per route, the seed,
+    where trials run, and (for quick checks only) a cut-off of every run."""
+
+    course: Course
+    algorithms: tuple[str, ...]
+    trials: int = 5
+    seed: int = 0
+    executor: str = "local"
+    workers: int | None = None
+    max_time_s: float | None = None
+    skipped: tuple[tuple[str, str], ...] = ()  # (algorithm, reason) not run
+
+
+def make_trials(
+    experiment: str,
+    settings: ExperimentSettings,
+    *,
+    algorithms: Sequence[str] | None = None,
+    deltas: Sequence[float | None] = (None,),
+) -> list[Trial]:
+    """Every (algorithm, delta, route, repetition) trial; the log depends only on the route
+    and the repetition, so all algorithms and deltas see the same logs."""
+    return [
+        Trial(
+            experiment,
+            alg,
+            settings.course,
+            route,
+            rep,
+            settings.seed,
+            delta,
+            settings.max_time_s,
+        )
+        for alg in (algorithms if algorithms is not None else settings.algorithms)
+        for delta in deltas
+        for route in range(len(settings.course.routes))
+        for rep in range(settings.trials)
+    ]
+
+
+def run_trials(
+    trials: Sequence[Trial],
+    settings: ExperimentSettings,
+    *,
+    label: str,
+    console: Console | None = None,
+    quiet: bool = False,
+) -> list[TrialRecord]:
+    """Run the trials on the settings' executor, with a progress bar; records in input order."""
+    with open_executor(settings.executor, settings.workers) as ex:
+        return map_trials(ex, run_trial, trials, label=label, console=console, quiet=quiet)
+
+
+def run_metadata(settings: ExperimentSettings, argv: Sequence[str] | None = None) -> dict[str, Any]:
+    """How and where the numbers were made: command, seed, executor, machine, versions."""
+    import numpy
+
+    return {
+        "command": " ".join(["ceamcl", *(argv if argv is not None else sys.argv[1:])]),
+        "seed": settings.seed,
+        "trials_per_route": settings.trials,
+        "routes": [r.name for r in settings.course.routes],
+        "course": settings.course.name,
+        "executor": settings.executor,
+        "workers": settings.workers,
+        "max_time_s": settings.max_time_s,
+        "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        "machine": f"{platform.node()} ({platform.machine()}, {os.cpu_count()} cores, "
+        f"{platform.system()} {platform.release()})",
+        "python": platform.python_version(),
+        "numpy": numpy.__version__,
+    }
+
+
+# ------------------------------------------------------------------ curves over time
+def time_grid(records: Sequence[TrialRecord]) -> NDArray[np.float64]:
+    """Times of the longest record (runs share their step rate)."""
+    longest = max(records, key=lambda r: r.times.size)
+    return longest.times - longest.times[0]
+
+
+def stacked(
+    records: Sequence[TrialRecord], value: Callable[[TrialRecord], NDArray[np.float64]]
+) -> NDArray[np.float64]:
+    """``(R, T)`` per-step values of each record, NaN-padded to the longest record."""
+    n = max(r.times.size for r in records)
+    out = np.full((len(records), n), np.nan)
+    for i, r in enumerate(records):
+        v = np.asarray(value(r), dtype=np.float64)
+        out[i, : v.size] = v
+    return out
+
+
+@dataclass(frozen=True)
+class Curve:
+    """A per-step statistic over trials: centre line and a band (both ``(T,)``)."""
+
+    label: str
+    times: NDArray[np.float64]
+    centre: NDArray[np.float64]
+    low: NDArray[np.float64]
+    high: NDArray[np.float64]
+
+
+def curve(
+    label: str,
+    records: Sequence[TrialRecord],
+    value: Callable[[TrialRecord], NDArray[np.float64]],
+    *,
+    stat: str = "median",
+) -> Curve:
+    """Median with the inter-quartile band, or mean with +-1 standard deviation."""
+    data = stacked(records, value)
+    times = time_grid(records)
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", category=RuntimeWarning)
+        if stat == "median":
+            centre = np.nanmedian(data, axis=0)
+            low, high = np.nanpercentile(data, [25, 75], axis=0)
+        elif stat == "mean":
+            centre = np.nanmean(data, axis=0)
+            sd = np.nanstd(data, axis=0)
+            low, high = centre - sd, centre + sd
+        else:
+            raise ValueError(f"stat: expected 'median' or 'mean', got {stat!r}")
+    return Curve(label, times, centre, low, high)
+
+
+def group_by(items: Iterable[T], key: Callable[[T], Any]) -> dict[Any, list[T]]:
+    """Items grouped by ``key``, groups in first-seen order."""
+    out: dict[Any, list[T]] = {}
+    for item in items:
+        out.setdefault(key(item), []).append(item)
+    return out
+
+
+# ------------------------------------------------------------------ files
+def _atomic_path(path: Path) -> Path:
+    return path.with_name(path.name + ".tmp")
+
+
+def write_text(path: Path, text: str) -> Path:
+    tmp = _atomic_path(path)
+    tmp.write_text(text)
+    os.replace(tmp, path)
+    return path
+
+
+def write_csv(path: Path, rows: Sequence[Mapping[str, Any]]) -> Path:
+    """Rows as CSV (columns in first-seen order; floats with 6 significant digits)."""
+    fields: list[str] = []
+    for row in rows:
+        for key in row:
+            if key not in fields:
+                fields.append(key)
+    tmp = _atomic_path(path)
+    with tmp.open("w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=fields, restval="")
+        writer.writeheader()
+        for row in rows:
+            writer.writerow({k: _cell(v) for k, v in row.items()})
+    os.replace(tmp, path)
+    return path
+
+
+def _cell(value: Any) -> Any:
+    if value is None:
+        return ""
+    if isinstance(value, float):
+        return "" if not np.isfinite(value) else f"{value:.6g}"
+    return value
+
+
+def trial_rows(records: Sequence[TrialRecord]) -> list[dict[str, Any]]:
+    """One row per trial for ``trials.csv``."""
+    rows = []
+    for r in records:
+        m = r.metrics
+        rows.append(
+            {
+                "experiment": r.experiment,
+                "algorithm": r.algorithm,
+                "delta_per_m2": r.delta_per_m2,
+                "route": r.route,
+                "repetition": r.repetition,
+                "seed": r.seed,
+                "steps": int(r.times.size),
+                "converged_s": m.converged_s,
+                "expired_s": m.expired_s,
+                "success": int(m.success),
+                "kept_all_images": None if m.kept_all is None else int(m.kept_all),
+                "final_estimate_ok": int(m.final_estimate_ok),
+                "final_position_error_m": m.final_position_error_m,
+                "final_heading_error_rad": m.final_heading_error_rad,
+                "mean_particles": m.mean_particles,
+                "final_particles": m.final_particles,
+                "mean_step_ms": m.mean_step_ms,
+                "median_step_ms": m.median_step_ms,
+            }
+        )
+    return rows
+
+
+def fmt(value: float | None, digits: int = 2, never: str = "never") -> str:
+    """A number for a table, or ``never`` for ``None``/NaN."""
+    if value is None or not np.isfinite(value):
+        return never
+    return f"{value:.{digits}f}"
+
+
+def pct(value: float | None) -> str:
+    return "n/a" if value is None or not np.isfinite(value) else f"{100 * value:.0f}%"
+
+
+def markdown_table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
+    lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
+    lines += ["| " + " | ".join(row) + " |" for row in rows]
+    return "\n".join(lines) + "\n"
+
+
+def metadata_markdown(meta: Mapping[str, Any], skipped: Sequence[tuple[str, str]]) -> str:
+    lines = ["## How these numbers were made", ""]
+    lines += [f"- {k.replace('_', ' ')}: `{v}`" for k, v in meta.items()]
+    for alg, reason in skipped:
+        lines.append(f"- skipped `{alg}`: {reason}")
+    return "\n".join(lines) + "\n"

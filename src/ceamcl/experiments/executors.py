@@ -1,0 +1,213 @@
+"""Where experiment trials run: this process, local worker processes, or a Dask cluster.
+
+Every experiment hands its trials to a :class:`concurrent.futures.Executor` chosen by a short
+spec string, so one code path serves a laptop and a cluster::
+
+    with open_executor("local", workers=2) as ex:
+        results = map_trials(ex, run_trial, trials, label="table1")
+
+Specs:
+
+``"serial"``
+    Runs each trial in this process when it is submitted (tests, debugging, profiling).
+``"local"``
+    A :class:`~concurrent.futures.ProcessPoolExecutor` with ``workers`` processes
+    (default ``os.cpu_count()``), started with ``spawn`` because the numba kernels run threads,
+    which ``fork`` does not copy safely.
+``"dask"``
+    A local Dask distributed cluster (``workers`` single-threaded worker processes),
+    through :meth:`dask.distributed.Client.get_executor`.
+``"dask://HOST:PORT"``
+    An existing Dask scheduler at ``tcp://HOST:PORT``.
+
+Trial functions must be top-level functions of an importable module and take and return
+picklable values (plain dataclasses, numpy arrays). A trial's numbers depend only on its own
+seed, never on which executor or worker ran it.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
+from contextlib import contextmanager
+from typing import Any, TypeVar
+
+from rich.console import Console
+
+from ceamcl.errors import CeamclError, ConfigError
+
+T = TypeVar("T")
+R = TypeVar("R")
+
+EXECUTOR_SPECS: tuple[str, ...] = ("local", "serial", "dask", "dask://HOST:PORT")
+
+
+class TrialError(CeamclError, RuntimeError):
+    """A trial failed on bad input (a :class:`CeamclError` inside a trial), naming the trial."""
+
+
+class SerialExecutor(Executor):
+    """Runs each submitted call at once, in this process; the future is already done."""
+
+    def __init__(self) -> None:
+        self._shutdown = False
+
+    def submit(self, fn: Callable[..., R], /, *args: Any, **kwargs: Any) -> Future[R]:
+        if self._shutdown:
+            raise RuntimeError("cannot submit to a SerialExecutor after shutdown")
+        future: Future[R] = Future()
+        try:
+            result = fn(*args, **kwargs)
+        except BaseException as exc:
+            future.set_exception(exc)
+        else:
+            future.set_result(result)
+        return future
+
+    def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
+        self._shutdown = True
+
+
+def _single_threaded_worker() -> None:
+    """Worker initialiser: one numba thread per worker process, so ``workers`` processes use
+    ``workers`` cores rather than each spreading its kernels over every core."""
+    os.environ["NUMBA_NUM_THREADS"] = "1"
+    import sys
+
+    if "numba" in sys.modules:  # pragma: no cover - only when numba came in first
+        sys.modules["numba"].set_num_threads(1)
+
+
+def _check_workers(workers: int | None) -> int:
+    if workers is None:
+        return os.cpu_count() or 1
+    if workers < 1:
+        raise ConfigError(f"workers: expected a positive count, got {workers}")
+    return workers
+
+
+def _import_distributed() -> Any:
+    try:
+        import distributed
+    except ImportError:
+        raise ConfigError(
+            "executor: Dask is not installed; install the extra with "
+            "`pip install 'ceamcl[distributed]'` or use --executor local"
+        ) from None
+    return distributed
+
+
+@contextmanager
+def open_executor(spec: str = "local", workers: int | None = None) -> Iterator[Executor]:
+    """An executor for ``spec`` (see the module docstring), shut down on exit.
+
+    Raises :class:`ConfigError` for an unknown spec, a bad worker count or a missing Dask.
+    """
+    if spec == "serial":
+        if workers is not None:
+            _check_workers(workers)
+        with SerialExecutor() as ex:
+            yield ex
+        return
+    if spec == "local":
+        n = _check_workers(workers)
+        ctx = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(
+            max_workers=n, mp_context=ctx, initializer=_single_threaded_worker
+        ) as pool:
+            yield pool
+        return
+    if spec == "dask" or spec.startswith("dask://"):
+        distributed = _import_distributed()
+        if spec == "dask":
+            n = _check_workers(workers)
+            cluster = distributed.LocalCluster(
+                n_workers=n,
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+                silence_logs=40,  # logging.ERROR
+            )
+            client = distributed.Client(cluster)
+            try:
+                client.run(_single_threaded_worker)
+                yield client.get_executor()
+            finally:
+                client.close()
+                cluster.close()
+            return
+        address = spec[len("dask://") :]
+        host, sep, port = address.rpartition(":")
+        if not sep or not host or not port.isdigit():
+            raise ConfigError(
+                f"executor: expected dask://HOST:PORT (e.g. dask://10.0.0.5:8786), got {spec!r}"
+            )
+        try:
+            client = distributed.Client(f"tcp://{host}:{port}", timeout="10s")
+        except OSError as exc:
+            raise ConfigError(
+                f"executor: cannot reach the Dask scheduler at {host}:{port}: {exc}"
+            ) from None
+        try:
+            yield client.get_executor()
+        finally:
+            client.close()
+        return
+    raise ConfigError(
+        f"executor: unknown executor {spec!r}; expected one of {', '.join(EXECUTOR_SPECS)}"
+    )
+
+
+def _describe(item: object) -> str:
+    name = getattr(item, "name", None)
+    if isinstance(name, str):
+        return name
+    text = repr(item)
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+def map_trials(
+    executor: Executor,
+    fn: Callable[[T], R],
+    items: Sequence[T],
+    *,
+    label: str,
+    console: Console | None = None,
+    quiet: bool = False,
+) -> list[R]:
+    """``[fn(item) for item in items]`` on ``executor``, with a progress bar over trials.
+
+    All items are submitted at once; the bar advances as trials complete (in any order); the
+    results come back in input order. A trial that raises stops the experiment: the trials
+    not yet started are cancelled and the exception is re-raised naming the trial (its
+    ``name`` attribute, else its repr). A :class:`CeamclError` becomes a :class:`TrialError`
+    (one clean line on the command line); any other exception is re-raised as it is, with a
+    note naming the trial, so its traceback is kept.
+    """
+    from ceamcl.cli.common import make_progress
+
+    console = console if console is not None else Console(stderr=True)
+    results: list[Any] = [None] * len(items)
+    with make_progress(label, console, quiet=quiet) as progress:
+        task = progress.add_task(label, total=len(items))
+        futures: dict[Future[R], int] = {
+            executor.submit(fn, item): i for i, item in enumerate(items)
+        }
+        try:
+            for future in as_completed(futures):
+                i = futures[future]
+                exc = future.exception()
+                if exc is not None:
+                    name = _describe(items[i])
+                    if isinstance(exc, CeamclError):
+                        raise TrialError(f"trial {name} failed: {exc}") from exc
+                    exc.add_note(f"(in trial {name} of {label})")
+                    raise exc
+                results[i] = future.result()
+                progress.advance(task)
+        finally:
+            for future in futures:
+                future.cancel()
+    return results

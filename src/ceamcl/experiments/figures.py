@@ -1,0 +1,132 @@
+"""Figures of the experiments (matplotlib, Agg). Each takes numbers already measured
+(:class:`~ceamcl.experiments.common.Curve` and summaries), so measurement is tested apart."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+from matplotlib.axes import Axes
+
+from ceamcl.experiments.common import Curve
+
+
+def _save(fig: plt.Figure, path: str | os.PathLike[str]) -> Path:
+    out = Path(path)
+    tmp = out.with_name(out.stem + ".tmp" + out.suffix)
+    fig.tight_layout()
+    fig.savefig(tmp, dpi=110)
+    plt.close(fig)
+    os.replace(tmp, out)
+    return out
+
+
+def _draw(ax: Axes, curves: Sequence[Curve], *, band: bool = True) -> None:
+    for c in curves:
+        (line,) = ax.plot(c.times, c.centre, label=c.label, lw=1.4)
+        if band:
+            ax.fill_between(c.times, c.low, c.high, color=line.get_color(), alpha=0.15, lw=0)
+    ax.grid(alpha=0.3)
+    ax.set_xlabel("time (s)")
+    if curves:
+        ax.legend(fontsize=8)
+
+
+def plot_error_over_time(
+    estimate: Sequence[Curve], tracking: Sequence[Curve], path: str | os.PathLike[str], title: str
+) -> Path:
+    """Fig. 4: position error of the estimate, and of the hypothesis nearest the truth."""
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharex=True)
+    _draw(axes[0], estimate)
+    axes[0].set_ylabel("position error of the estimate (m)")
+    axes[0].set_title("estimate (median, inter-quartile band)", fontsize=9)
+    _draw(axes[1], tracking)
+    axes[1].set_ylabel("error of the nearest hypothesis (m)")
+    axes[1].set_yscale("log")
+    axes[1].set_title("nearest hypothesis to the truth", fontsize=9)
+    fig.suptitle(title)
+    return _save(fig, path)
+
+
+def plot_step_time(curves: Sequence[Curve], path: str | os.PathLike[str], title: str) -> Path:
+    """Fig. 5: computation time per iteration."""
+    fig, ax = plt.subplots(figsize=(7, 4))
+    _draw(ax, curves)
+    ax.set_ylabel("time per step (ms, median over trials)")
+    ax.set_yscale("log")
+    ax.set_title(title)
+    return _save(fig, path)
+
+
+def plot_resources(
+    samples: Sequence[Curve],
+    resources: Sequence[Curve],
+    path: str | os.PathLike[str],
+    title: str,
+) -> Path:
+    """Fig. 6: total sample size (every algorithm) and CEAMCL's total resources."""
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharex=True)
+    _draw(axes[0], samples)
+    axes[0].set_ylabel("total sample size (mean over trials)")
+    axes[0].set_yscale("log")
+    _draw(axes[1], resources)
+    axes[1].set_ylabel("total resources R (mean over trials)")
+    fig.suptitle(title)
+    return _save(fig, path)
+
+
+def plot_delta(curves: Sequence[Curve], path: str | os.PathLike[str], title: str) -> Path:
+    """Fig. 7: CEAMCL's total sample size over time for several delta."""
+    fig, ax = plt.subplots(figsize=(7, 4))
+    _draw(ax, curves)
+    ax.set_ylabel("total sample size (mean over trials)")
+    ax.set_title(title)
+    return _save(fig, path)
+
+
+def plot_shares(
+    shares: Mapping[str, Mapping[str, float]],
+    path: str | os.PathLike[str],
+    title: str,
+    ylabel: str,
+) -> Path:
+    """Grouped bars: ``shares[algorithm][group]`` in [0, 1]."""
+    algs = list(shares)
+    groups = list(dict.fromkeys(g for a in algs for g in shares[a]))
+    fig, ax = plt.subplots(figsize=(max(6.0, 1.2 * len(groups) * max(1, len(algs)) / 2), 4))
+    width = 0.8 / max(1, len(algs))
+    for i, alg in enumerate(algs):
+        xs = [g + (i - (len(algs) - 1) / 2) * width for g in range(len(groups))]
+        ax.bar(xs, [100 * shares[alg].get(g, float("nan")) for g in groups], width, label=alg)
+    ax.set_xticks(range(len(groups)), groups)
+    ax.set_ylim(0, 105)
+    ax.set_ylabel(ylabel)
+    ax.grid(axis="y", alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title(title)
+    return _save(fig, path)
+
+
+def plot_kidnapped(
+    curves: Sequence[Curve],
+    kidnap_s: float,
+    window_s: float,
+    path: str | os.PathLike[str],
+    title: str,
+) -> Path:
+    """Position error over time around the kidnap (median over trials)."""
+    fig, ax = plt.subplots(figsize=(8, 4))
+    _draw(ax, curves)
+    ax.axvline(kidnap_s, color="k", ls="--", lw=1, label="kidnap")
+    ax.axvspan(kidnap_s, kidnap_s + window_s, color="grey", alpha=0.1, label="recovery window")
+    ax.set_yscale("symlog", linthresh=0.1)
+    ax.set_ylim(bottom=0.0)
+    ax.set_ylabel("position error of the estimate (m)")
+    ax.legend(fontsize=8)
+    ax.set_title(title)
+    return _save(fig, path)

@@ -1,0 +1,127 @@
+"""marked-hall: how often each algorithm ends at the true pose once the mark breaks symmetry.
+
+A run counts when its final *estimate* (the one pose it reports) is within 0.5 m and 0.3 rad
+of the truth. Per start route, because only the routes that pass the mark (from room 0, and
+room 3 where the mark stands) give the robot the clue; the others can at best rule one room out.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from rich.console import Console
+from rich.table import Table
+
+from ceamcl.experiments.common import (
+    ExperimentSettings,
+    group_by,
+    make_trials,
+    markdown_table,
+    metadata_markdown,
+    pct,
+    run_trials,
+    trial_rows,
+    write_csv,
+    write_text,
+)
+from ceamcl.experiments.metrics import HEADING_TOL_RAD, POSITION_TOL_M
+from ceamcl.experiments.trials import TrialRecord
+from ceamcl.io.results import ensure_output_dir
+
+ALL_ROUTES = "all"
+
+
+@dataclass
+class MarkedResult:
+    settings: ExperimentSettings
+    records: list[TrialRecord]
+    #: shares[algorithm][route or "all"]: share of runs whose final estimate is right.
+    shares: dict[str, dict[str, float]]
+    runs: dict[str, dict[str, int]]
+
+
+def final_estimate_shares(
+    records: list[TrialRecord],
+) -> tuple[dict[str, dict[str, float]], dict[str, dict[str, int]]]:
+    shares: dict[str, dict[str, float]] = {}
+    runs: dict[str, dict[str, int]] = {}
+    for alg, rs in group_by(records, lambda r: r.algorithm).items():
+        shares[alg], runs[alg] = {}, {}
+        for route, rr in group_by(rs, lambda r: r.route).items():
+            shares[alg][route] = float(np.mean([r.metrics.final_estimate_ok for r in rr]))
+            runs[alg][route] = len(rr)
+        shares[alg][ALL_ROUTES] = float(np.mean([r.metrics.final_estimate_ok for r in rs]))
+        runs[alg][ALL_ROUTES] = len(rs)
+    return shares, runs
+
+
+def run_marked(
+    settings: ExperimentSettings, *, console: Console | None = None, quiet: bool = False
+) -> MarkedResult:
+    trials = make_trials("marked", settings)
+    records = run_trials(trials, settings, label="marked trials", console=console, quiet=quiet)
+    shares, runs = final_estimate_shares(records)
+    return MarkedResult(settings, records, shares, runs)
+
+
+def _columns(result: MarkedResult) -> list[str]:
+    return [r.name for r in result.settings.course.routes] + [ALL_ROUTES]
+
+
+def marked_markdown(result: MarkedResult, meta: dict[str, Any]) -> str:
+    cols = _columns(result)
+    rows = [
+        [alg, *(f"{pct(result.shares[alg].get(c))} of {result.runs[alg].get(c, 0)}" for c in cols)]
+        for alg in result.shares
+    ]
+    return "\n".join(
+        [
+            f"# Final estimate right on {result.settings.course.name}",
+            "",
+            f"Share of runs whose final estimate is within {POSITION_TOL_M} m and "
+            f"{HEADING_TOL_RAD} rad of the true pose, per start route.",
+            "",
+            markdown_table(["algorithm", *cols], rows),
+            metadata_markdown(meta, result.settings.skipped),
+        ]
+    )
+
+
+def write_marked(
+    result: MarkedResult, out: str | os.PathLike[str], meta: dict[str, Any]
+) -> list[Path]:
+    out_dir = ensure_output_dir(out)
+    from ceamcl.experiments.figures import plot_shares
+
+    rows = [
+        {"algorithm": alg, "route": c, "runs": result.runs[alg][c], "final_estimate_ok_rate": v}
+        for alg, by_route in result.shares.items()
+        for c, v in by_route.items()
+    ]
+    return [
+        write_csv(out_dir / "marked.csv", rows),
+        write_csv(out_dir / "trials.csv", trial_rows(result.records)),
+        plot_shares(
+            result.shares,
+            out_dir / "marked.png",
+            f"Final estimate within {POSITION_TOL_M} m and {HEADING_TOL_RAD} rad "
+            f"on {result.settings.course.name}",
+            "runs with the final estimate right (%)",
+        ),
+        write_text(out_dir / "marked.md", marked_markdown(result, meta)),
+    ]
+
+
+def marked_rich(result: MarkedResult) -> Table:
+    t = Table(title=f"final estimate right on {result.settings.course.name}")
+    t.add_column("algorithm")
+    cols = _columns(result)
+    for c in cols:
+        t.add_column(c, justify="right")
+    for alg, by_route in result.shares.items():
+        t.add_row(alg, *(pct(by_route.get(c)) for c in cols))
+    return t

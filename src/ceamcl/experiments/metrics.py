@@ -1,0 +1,163 @@
+"""The measures of the experiments, as pure functions of a trial's per-step record.
+
+Definitions (docs/experiments.md gives the reasons):
+
+* A hypothesis (or, for single-estimate algorithms, the estimate) *covers* a pose when it is
+  within :data:`POSITION_TOL_M` = 0.5 m and :data:`HEADING_TOL_RAD` = 0.3 rad of it.
+* *Converged* at the first step where every symmetric image of the true pose is covered and
+  the hypotheses that cover an image hold at least :data:`GATHERED_SHARE` = 90 % of the
+  weight (the samples have gathered at the images). Single-estimate algorithms: the first step
+  the estimate covers any image.
+* *Expired* at the first step after convergence where an image stops being covered for at
+  least :data:`HOLD_S` = 1 s (or until the end of the run); never otherwise. Single-estimate:
+  the estimate covers no image for that long.
+* *Success*: the true pose is covered at the last step (the goal).
+* *Kept all*: every image is covered at the last step (hypothesis algorithms only).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+POSITION_TOL_M = 0.5
+HEADING_TOL_RAD = 0.3
+GATHERED_SHARE = 0.9
+HOLD_S = 1.0
+
+
+def covers(
+    poses: NDArray[np.float64],
+    targets: NDArray[np.float64],
+    position_tol: float = POSITION_TOL_M,
+    heading_tol: float = HEADING_TOL_RAD,
+) -> NDArray[np.bool_]:
+    """``(P, T)``: does pose ``p`` lie within the tolerances of target ``t``?"""
+    p = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
+    t = np.asarray(targets, dtype=np.float64).reshape(-1, 3)
+    d = np.hypot(p[:, None, 0] - t[None, :, 0], p[:, None, 1] - t[None, :, 1])
+    dth = np.abs(np.angle(np.exp(1j * (p[:, None, 2] - t[None, :, 2]))))
+    return (d <= position_tol) & (dth <= heading_tol)
+
+
+def step_coverage(
+    hypotheses: NDArray[np.float64], images: NDArray[np.float64]
+) -> tuple[NDArray[np.bool_], float]:
+    """For one step: which images ``(K,)`` some hypothesis covers, and the weight share of the
+    hypotheses that cover some image. ``hypotheses`` is ``(H, >=4)``: x, y, theta, weight."""
+    if hypotheses.shape[0] == 0:
+        return np.zeros(images.shape[0], dtype=bool), 0.0
+    c = covers(hypotheses[:, :3], images)
+    w = hypotheses[:, 3]
+    total = float(w.sum())
+    gathered = float(w[c.any(axis=1)].sum() / total) if total > 0 else 0.0
+    any_cover: NDArray[np.bool_] = np.asarray(c.any(axis=0), dtype=bool)
+    return any_cover, gathered
+
+
+def converged_step(
+    covered: NDArray[np.bool_],
+    gathered: NDArray[np.float64],
+    *,
+    single_estimate: bool = False,
+    share: float = GATHERED_SHARE,
+) -> int | None:
+    """First step at which the filter has converged (module docstring), or ``None``."""
+    ok = covered.any(axis=1) if single_estimate else covered.all(axis=1) & (gathered >= share)
+    idx = np.flatnonzero(ok)
+    return int(idx[0]) if idx.size else None
+
+
+def expired_step(
+    covered: NDArray[np.bool_],
+    converged: int | None,
+    hold_steps: int,
+    *,
+    single_estimate: bool = False,
+) -> int | None:
+    """First step after ``converged`` that starts a gap of at least ``hold_steps`` steps (or
+    one running to the end) in the coverage of some image; ``None`` when there is none."""
+    if converged is None:
+        return None
+    hold = max(1, hold_steps)
+    lost: NDArray[np.bool_] = np.asarray(
+        ~covered.any(axis=1, keepdims=True) if single_estimate else ~covered, dtype=bool
+    )
+    n = lost.shape[0]
+    best: int | None = None
+    for j in range(lost.shape[1]):
+        run = 0
+        for k in range(converged + 1, n):
+            run = run + 1 if lost[k, j] else 0
+            if run >= hold or (run > 0 and k == n - 1):
+                start = k - run + 1
+                best = start if best is None else min(best, start)
+                break
+    return best
+
+
+def recovery_step(localised: NDArray[np.bool_], kidnapped: int, window_steps: int) -> int | None:
+    """Kidnapped robot: the first step ``r`` in ``[kidnapped, kidnapped + window_steps]`` from
+    which the estimate covers the truth at every later step; ``None`` when there is none."""
+    n = localised.shape[0]
+    if not 0 <= kidnapped < n:
+        return None
+    # stays[k]: localised at k and at every later step.
+    stays = np.flip(np.logical_and.accumulate(np.flip(localised)))
+    last = min(n - 1, kidnapped + window_steps)
+    idx = np.flatnonzero(stays[kidnapped : last + 1])
+    return kidnapped + int(idx[0]) if idx.size else None
+
+
+@dataclass(frozen=True)
+class TrialMetrics:
+    """The measures of one trial (times in seconds since the start of the run)."""
+
+    converged_s: float | None
+    expired_s: float | None
+    success: bool
+    kept_all: bool | None
+    final_position_error_m: float
+    final_heading_error_rad: float
+    final_estimate_ok: bool
+    mean_particles: float
+    final_particles: int
+    mean_step_ms: float
+    median_step_ms: float
+
+
+def trial_metrics(
+    times: NDArray[np.float64],
+    truth: NDArray[np.float64],
+    estimates: NDArray[np.float64],
+    covered: NDArray[np.bool_],
+    gathered: NDArray[np.float64],
+    n_particles: NDArray[np.int64],
+    step_ms: NDArray[np.float64],
+    *,
+    single_estimate: bool,
+    hold_s: float = HOLD_S,
+) -> TrialMetrics:
+    """Every measure of one trial from its per-step record."""
+    dt = float(np.median(np.diff(times))) if times.size > 1 else 1.0
+    hold_steps = max(1, round(hold_s / dt)) if dt > 0 else 1
+    conv = converged_step(covered, gathered, single_estimate=single_estimate)
+    exp = expired_step(covered, conv, hold_steps, single_estimate=single_estimate)
+    err = np.hypot(*(estimates[-1, :2] - truth[-1, :2]))
+    herr = abs(float(np.angle(np.exp(1j * (estimates[-1, 2] - truth[-1, 2])))))
+    steps = step_ms[1:] if step_ms.size > 1 else step_ms
+    return TrialMetrics(
+        converged_s=None if conv is None else float(times[conv] - times[0]),
+        expired_s=None if exp is None else float(times[exp] - times[0]),
+        success=bool(covered[-1, 0]),
+        kept_all=None if single_estimate else bool(covered[-1].all()),
+        final_position_error_m=float(err),
+        final_heading_error_rad=herr,
+        final_estimate_ok=bool(covers(estimates[-1], truth[-1])[0, 0]),
+        mean_particles=float(np.mean(n_particles)),
+        final_particles=int(n_particles[-1]),
+        mean_step_ms=float(np.mean(steps)),
+        median_step_ms=float(np.median(steps)),
+    )

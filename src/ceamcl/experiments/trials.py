@@ -1,0 +1,165 @@
+"""One trial: simulate a route from a seed, run one algorithm over it, record what is measured.
+
+:func:`run_trial` is the top-level, picklable function every executor runs. Its generators
+come from ``SeedSequence(seed, spawn_key=(route_index, repetition))``: the simulated log
+depends on the seed, the route and the repetition, never on the algorithm, so every
+algorithm of an experiment sees the same logs, and no executor can change a number.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ceamcl.experiments.algorithms import SINGLE_ESTIMATE, build_filter
+from ceamcl.experiments.metrics import TrialMetrics, step_coverage, trial_metrics
+from ceamcl.experiments.routes import Course
+from ceamcl.runner import run_filter
+from ceamcl.simulation.simulator import SimulatedLog
+
+
+@dataclass(frozen=True, eq=False)
+class Trial:
+    """One run of one algorithm on one route of a course, from one seed."""
+
+    experiment: str
+    algorithm: str
+    course: Course
+    route_index: int
+    repetition: int
+    seed: int
+    delta_per_m2: float | None = None
+    max_time_s: float | None = None
+
+    @property
+    def route(self) -> str:
+        return self.course.routes[self.route_index].name
+
+    @property
+    def name(self) -> str:
+        delta = "" if self.delta_per_m2 is None else f" delta={self.delta_per_m2:g}"
+        return (
+            f"{self.experiment}: {self.algorithm}{delta} on {self.route}, "
+            f"repetition {self.repetition} (seed {self.seed})"
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class TrialRecord:
+    """What a trial measured, step by step (``T`` steps, ``K`` symmetric images)."""
+
+    experiment: str
+    algorithm: str
+    route: str
+    route_index: int
+    repetition: int
+    seed: int
+    delta_per_m2: float | None
+    single_estimate: bool
+    times: NDArray[np.float64]  # (T,)
+    truth: NDArray[np.float64]  # (T, 3)
+    estimates: NDArray[np.float64]  # (T, 3)
+    covered: NDArray[np.bool_]  # (T, K): image k covered at step t (identity first)
+    gathered: NDArray[np.float64]  # (T,): weight share of hypotheses at some image
+    n_particles: NDArray[np.int64]  # (T,)
+    step_ms: NDArray[np.float64]  # (T,)
+    resources: NDArray[np.float64]  # (T,): CEAMCL's total resources; NaN for the others
+    n_hypotheses: NDArray[np.int64]  # (T,)
+    tracking_error: NDArray[np.float64]  # (T,): position error of the hypothesis nearest the truth
+    kidnapped_at: tuple[int, ...]
+    metrics: TrialMetrics
+
+    @property
+    def position_errors(self) -> NDArray[np.float64]:
+        return np.hypot(*(self.estimates[:, :2] - self.truth[:, :2]).T)
+
+
+def trial_generators(seed: int, route_index: int, repetition: int) -> list[np.random.Generator]:
+    """The simulator's and the filter's generators of one trial (algorithm-independent)."""
+    ss = np.random.SeedSequence(seed, spawn_key=(route_index, repetition))
+    return [np.random.default_rng(s) for s in ss.spawn(2)]
+
+
+def simulate_trial_log(trial: Trial) -> SimulatedLog:
+    """The simulated log of a trial (the same for every algorithm)."""
+    sim_rng, _ = trial_generators(trial.seed, trial.route_index, trial.repetition)
+    log = trial.course.scenario(trial.route_index).simulate(sim_rng, trial.course.grid())
+    if trial.max_time_s is not None:
+        n = int(np.searchsorted(log.times, log.times[0] + trial.max_time_s, side="right"))
+        n = max(2, min(n, len(log)))
+        log = dataclasses.replace(
+            log,
+            times=log.times[:n],
+            true_poses=log.true_poses[:n],
+            odometry=log.odometry[:n],
+            ranges=log.ranges[:n],
+            kidnapped_at=tuple(k for k in log.kidnapped_at if k < n),
+        )
+    return log
+
+
+def run_trial(trial: Trial) -> TrialRecord:
+    """Simulate, localise globally, and record coverage, errors, sample size and cost."""
+    log = simulate_trial_log(trial)
+    _, filter_rng = trial_generators(trial.seed, trial.route_index, trial.repetition)
+    grid = trial.course.grid()
+    f = build_filter(trial.algorithm, grid, filter_rng, delta_per_m2=trial.delta_per_m2)
+    result = run_filter(f, log)
+    single = trial.algorithm in SINGLE_ESTIMATE
+    n = result.steps
+    k_images = trial.course.n_images
+    covered = np.zeros((n, k_images), dtype=bool)
+    gathered = np.zeros(n)
+    tracking = np.zeros(n)
+    truth = np.asarray(log.true_poses, dtype=np.float64)
+    for k in range(n):
+        images = trial.course.images(truth[k])
+        if single:
+            hyps = np.array([[*result.estimates[k], 1.0]])
+        else:
+            hyps = result.hypotheses[k]
+        covered[k], gathered[k] = step_coverage(hyps, images)
+        near = hyps if hyps.shape[0] else result.estimates[k : k + 1]
+        tracking[k] = float(np.min(np.hypot(near[:, 0] - truth[k, 0], near[:, 1] - truth[k, 1])))
+    diags = result.diagnostics
+    n_particles = np.array([d.n_particles for d in diags], dtype=np.int64)
+    step_ms = np.array([d.step_ms for d in diags], dtype=np.float64)
+    resources = np.array(
+        [sum(s.resources for s in d.species) if d.species else np.nan for d in diags]
+    )
+    n_hyp = np.array([h.shape[0] for h in result.hypotheses], dtype=np.int64)
+    metrics = trial_metrics(
+        result.times,
+        truth,
+        result.estimates,
+        covered,
+        gathered,
+        n_particles,
+        step_ms,
+        single_estimate=single,
+    )
+    return TrialRecord(
+        experiment=trial.experiment,
+        algorithm=trial.algorithm,
+        route=trial.route,
+        route_index=trial.route_index,
+        repetition=trial.repetition,
+        seed=trial.seed,
+        delta_per_m2=trial.delta_per_m2,
+        single_estimate=single,
+        times=result.times,
+        truth=truth,
+        estimates=result.estimates,
+        covered=covered,
+        gathered=gathered,
+        n_particles=n_particles,
+        step_ms=step_ms,
+        resources=resources,
+        n_hypotheses=n_hyp,
+        tracking_error=tracking,
+        kidnapped_at=tuple(log.kidnapped_at),
+        metrics=metrics,
+    )

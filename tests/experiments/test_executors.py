@@ -1,0 +1,56 @@
+"""open_executor / map_trials: every spec gives the same results in input order; failures name
+the trial; bad specs are clear errors."""
+
+from __future__ import annotations
+
+import functools
+import math
+import operator
+
+import pytest
+
+from ceamcl.errors import ConfigError
+from ceamcl.experiments.executors import SerialExecutor, TrialError, map_trials, open_executor
+from ceamcl.filters import make_sensor
+
+
+def test_serial_map_keeps_input_order() -> None:
+    with open_executor("serial") as ex:
+        assert isinstance(ex, SerialExecutor)
+        out = map_trials(ex, operator.neg, [3, 1, 2], label="t", quiet=True)
+    assert out == [-3, -1, -2]
+
+
+def test_local_processes_give_the_same_results_as_serial() -> None:
+    items = [0.5 * k for k in range(7)]
+    with open_executor("serial") as ex:
+        serial = map_trials(ex, math.exp, items, label="serial", quiet=True)
+    with open_executor("local", workers=2) as ex:
+        local = map_trials(ex, math.exp, items, label="local", quiet=True)
+    assert local == serial
+
+
+def test_failing_trial_is_named_and_keeps_its_type() -> None:
+    with (
+        open_executor("serial") as ex,
+        pytest.raises(ValueError, match="math domain error") as info,
+    ):
+        map_trials(ex, math.sqrt, [1.0, -1.0], label="roots", quiet=True)
+    assert any("-1.0" in note for note in info.value.__notes__)
+
+
+def test_failing_trial_with_project_error_becomes_trial_error() -> None:
+    with open_executor("serial") as ex, pytest.raises(TrialError, match="trial 'sonar'"):
+        unknown_sensor = functools.partial(make_sensor, grid=None)
+        map_trials(ex, unknown_sensor, ["sonar"], label="sensors", quiet=True)
+
+
+@pytest.mark.parametrize("spec", ["threads", "dask://nohost", "dask://host:port", ""])
+def test_unknown_spec_is_a_config_error(spec: str) -> None:
+    with pytest.raises(ConfigError, match="executor"), open_executor(spec):
+        pass
+
+
+def test_bad_worker_count_is_a_config_error() -> None:
+    with pytest.raises(ConfigError, match="workers"), open_executor("local", workers=0):
+        pass

@@ -1,0 +1,157 @@
+"""Trials and experiments: seeds, executors (incl. a real Dask cluster) and a smoke run of every
+``ceamcl experiment`` (short runs: one start, two algorithms, runs cut after a few seconds)."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ceamcl.cli import main
+from ceamcl.errors import ConfigError
+from ceamcl.experiments.algorithms import all_algorithms, resolve_algorithms
+from ceamcl.experiments.common import ExperimentSettings, trial_rows
+from ceamcl.experiments.routes import paper_course
+from ceamcl.experiments.table1 import run_table1
+from ceamcl.experiments.trials import Trial, run_trial, simulate_trial_log
+
+
+def test_every_algorithm_sees_the_same_log_and_repetitions_differ() -> None:
+    course = paper_course()
+    a = simulate_trial_log(Trial("t", "ceamcl", course, 1, 0, 7, max_time_s=2.0))
+    b = simulate_trial_log(Trial("t", "mcl", course, 1, 0, 7, max_time_s=2.0))
+    c = simulate_trial_log(Trial("t", "mcl", course, 1, 1, 7, max_time_s=2.0))
+    assert np.array_equal(a.ranges, b.ranges) and np.array_equal(a.odometry, b.odometry)
+    assert not np.array_equal(a.ranges, c.ranges)
+    assert a.times[-1] == pytest.approx(2.0)
+
+
+def test_a_trial_is_reproducible_bit_for_bit() -> None:
+    trial = Trial("t", "mcl", paper_course(), 2, 0, 3, max_time_s=1.5)
+    r1, r2 = run_trial(trial), run_trial(trial)
+    assert np.array_equal(r1.estimates, r2.estimates)
+    assert np.array_equal(r1.covered, r2.covered)
+
+
+def test_unknown_algorithm_is_a_config_error() -> None:
+    with pytest.raises(ConfigError, match="algorithms"):
+        resolve_algorithms(["ceamcl", "ekf"])
+    run, skipped = resolve_algorithms(None)
+    assert set(run) | set(skipped) == set(all_algorithms())
+
+
+_TIMING = {"mean_step_ms", "median_step_ms"}
+
+
+def _numbers(settings: ExperimentSettings) -> tuple[list[dict[str, object]], list[np.ndarray]]:
+    result = run_table1(settings, quiet=True)
+    rows = [
+        {k: v for k, v in row.items() if k not in _TIMING} for row in trial_rows(result.records)
+    ]
+    return rows, [r.estimates for r in result.records]
+
+
+def test_dask_cluster_gives_the_same_numbers_as_local_processes() -> None:
+    pytest.importorskip("distributed")
+    base = ExperimentSettings(
+        course=paper_course().select([3]),
+        algorithms=("ceamcl",),
+        trials=2,
+        seed=11,
+        max_time_s=2.0,
+    )
+    local_rows, local_est = _numbers(
+        ExperimentSettings(**{**base.__dict__, "executor": "local", "workers": 2})
+    )
+    dask_rows, dask_est = _numbers(
+        ExperimentSettings(**{**base.__dict__, "executor": "dask", "workers": 1})
+    )
+    assert len(local_rows) == 2
+    assert dask_rows == local_rows
+    assert all(np.array_equal(a, b) for a, b in zip(local_est, dask_est, strict=True))
+
+
+def _read_csv(path: Path) -> list[dict[str, str]]:
+    with path.open() as fh:
+        return list(csv.DictReader(fh))
+
+
+_SMOKE = ["--trials", "1", "--starts", "0", "--executor", "serial", "--quiet"]
+
+
+def test_table1_smoke(tmp_path: Path) -> None:
+    out = tmp_path / "t1"
+    args = ["experiment", "table1", *_SMOKE, "--algorithms", "ceamcl,mcl", "--max-time", "4"]
+    assert main([*args, "--out", str(out)]) == 0
+    rows = _read_csv(out / "table1.csv")
+    assert [r["algorithm"] for r in rows] == ["ceamcl", "mcl"]
+    assert rows[0]["paper_converged_s"] == "6.87"
+    assert len(_read_csv(out / "trials.csv")) == 2
+    for name in ("table1.md", "fig4_error.png", "fig5_step_time.png", "fig6_resources.png"):
+        assert (out / name).stat().st_size > 0
+    assert "| ceamcl |" in (out / "table1.md").read_text()
+    assert not list(out.glob("*.tmp*"))
+
+
+def test_delta_smoke(tmp_path: Path) -> None:
+    out = tmp_path / "d"
+    args = ["experiment", "delta", *_SMOKE, "--deltas", "20,160", "--max-time", "3"]
+    assert main([*args, "--out", str(out)]) == 0
+    rows = _read_csv(out / "delta.csv")
+    assert [float(r["delta_per_m2"]) for r in rows] == [20.0, 160.0]
+    # More resources per m^2 leave room for more samples (section 4 of the paper).
+    assert float(rows[1]["mean_particles"]) > float(rows[0]["mean_particles"])
+    assert (out / "fig7_delta.png").stat().st_size > 0
+
+
+def test_marked_smoke(tmp_path: Path) -> None:
+    out = tmp_path / "m"
+    args = ["experiment", "marked", *_SMOKE, "--algorithms", "mcl", "--max-time", "3"]
+    assert main([*args, "--out", str(out)]) == 0
+    rows = _read_csv(out / "marked.csv")
+    assert {(r["algorithm"], r["route"]) for r in rows} == {("mcl", "room0"), ("mcl", "all")}
+    assert "marked-hall" in (out / "marked.md").read_text()
+
+
+def test_kidnapped_smoke(tmp_path: Path) -> None:
+    out = tmp_path / "k"
+    args = ["experiment", "kidnapped", "--trials", "1", "--executor", "serial", "--quiet"]
+    args += ["--algorithms", "mcl", "--max-time", "30", "--recovery-window", "4"]
+    assert main([*args, "--out", str(out)]) == 0
+    trials = _read_csv(out / "trials.csv")
+    assert len(trials) == 1 and float(trials[0]["kidnap_s"]) == pytest.approx(25.0)
+    assert (out / "kidnapped.png").stat().st_size > 0
+
+
+def test_cli_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = str(tmp_path / "x")
+    assert main(["experiment", "table1", "--algorithms", "ekf", "--out", out]) == 2
+    assert main(["experiment", "table1", *_SMOKE, "--executor", "spark", "--out", out]) == 2
+    assert main(["experiment", "kidnapped", "--world", "symmetric-hall", "--out", out]) == 2
+    err = capsys.readouterr().err
+    assert err.count("ceamcl: error:") == 3 and "Traceback" not in err
+
+
+def test_table1_on_a_users_ros_map_with_a_route_file(tmp_path: Path) -> None:
+    from ceamcl.maps.ros_io import save_map
+    from ceamcl.maps.worlds import get_world
+
+    save_map(get_world("small-office"), tmp_path / "office.yaml")
+    routes = tmp_path / "office-routes.yaml"
+    routes.write_text(
+        "map: office.yaml\n"
+        "routes:\n"
+        "  - name: corridor\n"
+        "    start: [1.5, 4.25, 0.0]\n"
+        "    waypoints: [[3.8, 4.25]]\n"
+    )
+    out = tmp_path / "own"
+    args = ["experiment", "table1", "--routes", str(routes), "--trials", "2"]
+    args += ["--algorithms", "mcl", "--executor", "serial", "--quiet", "--max-time", "3"]
+    assert main([*args, "--out", str(out)]) == 0
+    trials = _read_csv(out / "trials.csv")
+    assert [(t["route"], t["repetition"]) for t in trials] == [("corridor", "0"), ("corridor", "1")]
+    assert "office-routes" in (out / "table1.md").read_text()
+    assert "kept all 1" in (out / "table1.md").read_text()
