@@ -22,6 +22,7 @@ from ceamcl.filters.ceamcl.competition import (
     lotka_volterra_increments,
     resources,
     simulate_competition,
+    step_increments,
 )
 
 
@@ -202,3 +203,32 @@ def test_increment_with_non_positive_capacity_shrinks_without_inf() -> None:
     assert dn[3] == pytest.approx(0.2 * 5.0 * (1 - 5.0 / 50.0))
     traj = simulate_competition(n, k, alpha, 0.2, 200)
     assert np.all(np.isfinite(traj)) and np.all(traj >= 0.0)
+
+
+def test_step_increments_never_overshoot_and_keep_the_direction() -> None:
+    rng = np.random.default_rng(5)
+    for _ in range(200):
+        s = int(rng.integers(1, 6))
+        n = rng.uniform(1.0, 2000.0, s)
+        w = rng.uniform(0.01, 1.0, s)
+        cap = carrying_capacity(w, float(rng.uniform(1.0, 3000.0)))
+        euler = lotka_volterra_increments(n, cap, competition_coefficients(w), 0.2)
+        dn = step_increments(n, cap, competition_coefficients(w), 0.2)
+        assert np.all(n + dn >= 0)  # never a negative size
+        # A decline follows the exact solution at eq. 9's per-capita rate over the step
+        # (Euler would go below zero once that rate is below -1).
+        rho = euler / n
+        np.testing.assert_allclose(
+            (n + dn)[rho < 0], (n * np.exp(rho))[rho < 0], rtol=1e-9, atol=1e-9
+        )
+        assert np.array_equal(np.sign(dn), np.sign(euler))  # Fig. 1's outcomes unchanged
+        grow = euler >= 0
+        assert np.array_equal(dn[grow], euler[grow])  # growth is eq. 9 as printed
+        assert np.all(dn[~grow] >= euler[~grow])  # a decline is never steeper than Euler's
+
+
+def test_step_increments_match_eq9_for_a_gentle_decline() -> None:
+    n = np.array([100.0])
+    cap = np.array([90.0])  # 10 % over capacity: per-capita rate -0.2 * 0.111
+    euler = lotka_volterra_increments(n, cap, np.zeros((1, 1)), 0.2)
+    assert step_increments(n, cap, np.zeros((1, 1)), 0.2) == pytest.approx(euler, rel=0.02)

@@ -34,6 +34,13 @@ class CEAMCLConfig:
         max_samples: safety cap on the total sample size.
         tracking_samples: sample size of the single species of ``initialise_pose``.
         test_batch: test poses weighted per likelihood call (bounds memory).
+
+    Not in the paper (kidnapped robot, docs/ceamcl.md):
+        recovery: re-run the initial species generation when the fitness collapses.
+        recovery_ratio, recovery_alpha_fast, recovery_alpha_slow: collapse means the fast
+            running average of the fittest species' fitness below ``recovery_ratio`` times the
+            slow one.
+        recovery_warmup_steps: steps after any initialisation before collapse is tested.
     """
 
     n_test: int = 1_000_000
@@ -55,6 +62,11 @@ class CEAMCLConfig:
     max_samples: int = 20_000
     tracking_samples: int = 300
     test_batch: int = 250_000
+    recovery: bool = True
+    recovery_ratio: float = 0.5
+    recovery_alpha_fast: float = 0.3
+    recovery_alpha_slow: float = 0.02
+    recovery_warmup_steps: int = 20
 
     def __post_init__(self) -> None:
         checks = {
@@ -76,6 +88,10 @@ class CEAMCLConfig:
             "max_samples": self.max_samples >= self.min_species_size,
             "tracking_samples": self.tracking_samples >= self.min_species_size,
             "test_batch": self.test_batch >= 1,
+            "recovery_ratio": 0 < self.recovery_ratio < 1,
+            "recovery_alpha_fast": 0 < self.recovery_alpha_fast <= 1,
+            "recovery_alpha_slow": 0 < self.recovery_alpha_slow < self.recovery_alpha_fast,
+            "recovery_warmup_steps": self.recovery_warmup_steps >= 0,
         }
         for name, ok in checks.items():
             if not ok:

@@ -45,8 +45,8 @@ from ceamcl.filters.base import (
 from ceamcl.filters.ceamcl.competition import (
     carrying_capacity,
     competition_coefficients,
-    lotka_volterra_increments,
     resources,
+    step_increments,
 )
 from ceamcl.filters.ceamcl.config import CEAMCLConfig
 from ceamcl.filters.ceamcl.initialisation import InitialSpecies, generate_initial_species
@@ -110,6 +110,9 @@ class CEAMCL:
         self._evaluations = 0
         self._events: dict[str, float] = {}
         self._targets: dict[int, int] = {}
+        self._fit_fast: float | None = None
+        self._fit_slow: float | None = None
+        self._steps_since_init = 0
 
     # ================================================================== initialisation
     def initialise_global(self, scan: LaserScan) -> StepDiagnostics:
@@ -123,6 +126,8 @@ class CEAMCL:
         """Section 3.1. Without a usable beam (``prepared`` None or empty) every test pose is
         equally fit, so the species spread uniformly over free space."""
         self._reset_events()
+        self._fit_fast = self._fit_slow = None
+        self._steps_since_init = 0
         cfg = self.config
         test = self.grid.sample_free_poses(cfg.n_test, self.rng)
         if prepared is None or prepared.n_beams == 0:
@@ -208,8 +213,30 @@ class CEAMCL:
             return self._restart(scan, start)  # every particle impossible under this scan
         self._evolve()
         self._split_and_merge()  # leaves self.stats fresh
+        if self._fitness_collapsed():
+            self._events["recoveries"] = 1.0
+            return self._restart(scan, start)  # kidnapped: no species explains the scans
         self._compete()
         return self._diagnostics(start, reinitialised=False)
+
+    def _fitness_collapsed(self) -> bool:
+        """Kidnap detection (docs/ceamcl.md): fast and slow running averages of the fittest
+        species' fitness, as augmented MCL keeps of the mean weight; the robot is lost when
+        the fast one falls below ``recovery_ratio`` times the slow one. Fitness lies in (0, 1]
+        and is comparable between steps, so the test does not depend on the scan's size."""
+        cfg = self.config
+        best = max((s.fitness for s in self.stats.values()), default=0.0)
+        self._steps_since_init += 1
+        if self._fit_slow is None or self._fit_fast is None:
+            self._fit_slow = self._fit_fast = best
+            return False
+        self._fit_fast += cfg.recovery_alpha_fast * (best - self._fit_fast)
+        self._fit_slow += cfg.recovery_alpha_slow * (best - self._fit_slow)
+        return (
+            cfg.recovery
+            and self._steps_since_init > cfg.recovery_warmup_steps
+            and self._fit_fast < cfg.recovery_ratio * self._fit_slow
+        )
 
     def _restart(self, scan: LaserScan | None, start: float) -> StepDiagnostics:
         """Every species died out (or every particle is impossible): global initialisation
@@ -399,9 +426,7 @@ class CEAMCL:
         n = np.array([self.stats[s].n for s in ids], dtype=np.float64)
         fit = np.array([max(self.stats[s].fitness, 1e-12) for s in ids])
         cap = np.array([self.competition.capacity[s] for s in ids])
-        dn = lotka_volterra_increments(
-            n, cap, competition_coefficients(fit), self.config.growth_rate
-        )
+        dn = step_increments(n, cap, competition_coefficients(fit), self.config.growth_rate)
         self.competition.dn = dict(zip(ids, dn.tolist(), strict=True))
 
     # ------------------------------------------------------------------ bookkeeping
