@@ -23,6 +23,9 @@ COMMAND_MODULES: tuple[str, ...] = (
     "soak",
     "bench",
     "experiment",
+    "run",
+    "map_from_log",
+    "evaluate_log",
 )
 
 

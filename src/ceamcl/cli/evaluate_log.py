@@ -1,0 +1,149 @@
+"""``ceamcl evaluate-log``: global localisation from many start points of a real log, scored
+per algorithm (success rate, time to converge, RMSE, particles, step time)."""
+
+from __future__ import annotations
+
+import argparse
+
+from rich.console import Console
+from rich.table import Table
+
+from ceamcl.cli.common import positive_float, positive_int
+from ceamcl.cli.run import add_log_arguments, add_truth_arguments, log_path, open_kwargs
+
+
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add ``ceamcl evaluate-log``."""
+    from ceamcl.experiments.algorithms import all_algorithms
+    from ceamcl.experiments.evaluate_log import DEFAULT_WINDOW_M, HOLD_STEPS
+
+    p = sub.add_parser(
+        "evaluate-log",
+        help="score global localisation from many start points of a real log",
+        description="Global localisation from K start points spread over a SLAM-corrected "
+        "log, each run over a window of the log, with every algorithm; writes evaluate.csv, "
+        "evaluate.md, errors.png and success.png.",
+    )
+    add_log_arguments(p)
+    p.add_argument(
+        "--map", default=None, metavar="MAP.yaml", help="ROS map (default: built from the log)"
+    )
+    p.add_argument(
+        "--resolution", type=positive_float, default=0.05, help="cell side of a built map [m]"
+    )
+    p.add_argument("--starts", type=positive_int, default=20, metavar="K", help="start points")
+    p.add_argument(
+        "--algorithms",
+        nargs="+",
+        choices=all_algorithms(),
+        default=None,
+        metavar="A",
+        help=f"algorithms to run (default all: {', '.join(all_algorithms())})",
+    )
+    window = p.add_mutually_exclusive_group()
+    window.add_argument(
+        "--window-m",
+        type=positive_float,
+        default=None,
+        metavar="M",
+        help=f"each run covers M metres of travel (default {DEFAULT_WINDOW_M:g})",
+    )
+    window.add_argument(
+        "--window-s",
+        type=positive_float,
+        default=None,
+        metavar="S",
+        help="each run covers S seconds of the log",
+    )
+    window.add_argument(
+        "--scans", type=positive_int, default=None, metavar="N", help="each run covers N scans"
+    )
+    p.add_argument(
+        "--hold",
+        type=positive_int,
+        default=HOLD_STEPS,
+        help="steps a run must stay within tolerance at the end to count as a success",
+    )
+    add_truth_arguments(p)
+    p.add_argument(
+        "--executor",
+        default="local",
+        metavar="SPEC",
+        help="where runs go: local (processes, default), serial, dask or dask://HOST:PORT",
+    )
+    p.add_argument(
+        "--workers",
+        type=positive_int,
+        default=None,
+        help="worker processes for local/dask (default: CPU count)",
+    )
+    p.add_argument("--out", default="evaluate-out", help="folder for the results")
+    p.add_argument("--quiet", action="store_true", help="no progress bar or table")
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace, console: Console) -> int:
+    from ceamcl.errors import ConfigError
+    from ceamcl.experiments.algorithms import resolve_algorithms
+    from ceamcl.experiments.evaluate_log import evaluate_log, obtain_map, prepare_log
+
+    algos, skipped = resolve_algorithms(args.algorithms)
+    if not algos:
+        raise ConfigError("algorithms: none of the chosen algorithms can run here")
+    prepared = prepare_log(log_path(args), seed=args.seed, truth=args.truth, **open_kwargs(args))
+    grid, map_source = obtain_map(prepared.log, args.map, args.resolution)
+    if not args.quiet:
+        console.print(f"map: {map_source}")
+        for name, why in skipped.items():
+            console.print(f"[yellow]{name} skipped[/]: {why}")
+    ev = evaluate_log(
+        prepared,
+        grid,
+        algos,
+        starts=args.starts,
+        scans=args.scans,
+        window_s=args.window_s,
+        window_m=args.window_m,
+        hold=args.hold,
+        map_source=map_source,
+        executor=args.executor,
+        workers=args.workers,
+        out=args.out,
+        console=console,
+        quiet=args.quiet,
+        skipped=skipped,
+    )
+    if not args.quiet:
+        table = Table(
+            title=f"evaluate-log {prepared.log.name}: {len(ev.windows)} starts, "
+            f"windows of {ev.window}"
+        )
+        for col in (
+            "algorithm",
+            "success",
+            "t conv [s]",
+            "scans conv",
+            "pos RMSE [m]",
+            "head RMSE [rad]",
+            "particles",
+            "step [ms]",
+        ):
+            table.add_column(col, justify="left" if col == "algorithm" else "right")
+
+        def f(v: float, d: int) -> str:
+            return "-" if v != v else f"{v:.{d}f}"
+
+        for row in ev.table:
+            table.add_row(
+                row["algorithm"],
+                f"{100 * row['success_rate']:.0f}%",
+                f(row["time_to_converge_s"], 1),
+                f(row["scans_to_converge"], 1),
+                f(row["position_rmse_m"], 3),
+                f(row["heading_rmse_rad"], 3),
+                f(row["mean_particles"], 0),
+                f(row["mean_step_ms"], 1),
+            )
+        console.print(table)
+        console.print(f"results written to [bold]{ev.out_dir}[/]")
+    return 0

@@ -1,0 +1,168 @@
+"""``ceamcl run``: replay a real log (CARMEN or ROS bag) through a filter from global
+localisation, and write its trajectory, summary, diagnostics and plot."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from rich.console import Console
+from rich.table import Table
+
+from ceamcl.cli.common import make_progress, non_negative_int, positive_float, positive_int
+from ceamcl.errors import ConfigError
+
+DEFAULT_ALGORITHM = "ceamcl"
+
+
+def log_path(args: argparse.Namespace) -> str:
+    """The log named positionally or with ``--log`` (exactly one of the two)."""
+    given = [v for v in (args.log, args.log_option) if v is not None]
+    if len(given) != 1:
+        raise ConfigError(
+            "log: give the log once, as LOG or --log LOG"
+            + ("" if given else " (none given)")
+        )
+    return str(given[0])
+
+
+def add_log_arguments(p: argparse.ArgumentParser) -> None:
+    """Options shared by the commands that read a log (run, map-from-log, evaluate-log)."""
+    p.add_argument(
+        "log",
+        metavar="LOG",
+        nargs="?",
+        default=None,
+        help="CARMEN log (.log/.clf, plain or .gz), ROS 1 .bag file or ROS 2 bag folder "
+        "(or give it as --log LOG)",
+    )
+    p.add_argument("--log", dest="log_option", metavar="LOG", default=None, help=argparse.SUPPRESS)
+    p.add_argument(
+        "--laser",
+        type=positive_int,
+        default=1,
+        help="CARMEN: which laser (1 front: FLASER/ROBOTLASER1/RAWLASER1, 2 rear, 3, 4)",
+    )
+    p.add_argument(
+        "--max-range",
+        type=positive_float,
+        default=None,
+        metavar="M",
+        help="sensor maximum in metres: readings at or beyond it are no-return "
+        "(default: from the log; 80 m for old-style CARMEN lasers)",
+    )
+    p.add_argument("--scan-topic", default=None, help="bag: sensor_msgs/LaserScan topic")
+    p.add_argument(
+        "--odom-topic",
+        default=None,
+        help="bag: nav_msgs/Odometry topic (default: the only one; else the odom->base TF)",
+    )
+    p.add_argument("--odom-frame", default="odom", help="bag: TF parent frame of the odometry")
+    p.add_argument("--base-frame", default="base_link", help="bag: TF child frame (robot base)")
+
+
+def add_truth_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--truth",
+        choices=("auto", "yes", "no"),
+        default="auto",
+        help="are the log's poses SLAM-corrected ground truth? auto: when the file name says "
+        "'corrected'. With truth the filter gets synthetic odometry drawn from it",
+    )
+    p.add_argument("--seed", type=non_negative_int, default=0)
+
+
+def open_kwargs(args: argparse.Namespace) -> dict[str, Any]:
+    return {
+        "laser": args.laser,
+        "max_range_m": args.max_range,
+        "scan_topic": args.scan_topic,
+        "odom_topic": args.odom_topic,
+        "odom_frame": args.odom_frame,
+        "base_frame": args.base_frame,
+    }
+
+
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add ``ceamcl run``."""
+    from ceamcl.experiments.algorithms import all_algorithms
+
+    p = sub.add_parser(
+        "run",
+        help="replay a real log through a filter from global localisation",
+        description="Replay a CARMEN log or ROS bag through a filter, starting with no idea of "
+        "the pose. Without --map the map is built from the log itself.",
+    )
+    add_log_arguments(p)
+    p.add_argument(
+        "--map", default=None, metavar="MAP.yaml", help="ROS map (default: built from the log)"
+    )
+    p.add_argument(
+        "--resolution", type=positive_float, default=0.05, help="cell side of a built map [m]"
+    )
+    p.add_argument("--algorithm", choices=all_algorithms(), default=DEFAULT_ALGORITHM)
+    add_truth_arguments(p)
+    p.add_argument("--out", default="run-out", help="folder for the results")
+    p.add_argument("--quiet", action="store_true", help="no progress bar or table")
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace, console: Console) -> int:
+    from ceamcl.experiments.algorithms import resolve_algorithms
+    from ceamcl.experiments.evaluate_log import obtain_map, prepare_log, replay_log
+
+    algos, skipped = resolve_algorithms([args.algorithm])
+    if not algos:
+        from ceamcl.errors import ConfigError
+
+        raise ConfigError(f"algorithm: {args.algorithm} cannot run here: {skipped[args.algorithm]}")
+    prepared = prepare_log(log_path(args), seed=args.seed, truth=args.truth, **open_kwargs(args))
+    grid, map_source = obtain_map(prepared.log, args.map, args.resolution)
+    if not args.quiet:
+        console.print(f"map: {map_source}")
+        if prepared.noise is not None:
+            n = prepared.noise
+            console.print(
+                f"odometry: synthetic, drawn from the log's corrected poses with alpha1..4 = "
+                f"{n.alpha1:g}, {n.alpha2:g}, {n.alpha3:g}, {n.alpha4:g} (seed {args.seed})"
+            )
+    progress = make_progress(
+        f"[bold]{args.algorithm}[/] on {prepared.log.name}", console, quiet=args.quiet
+    )
+    with progress:
+        task = progress.add_task("scans", total=None)
+        outcome = replay_log(
+            prepared,
+            grid,
+            args.algorithm,
+            map_source=map_source,
+            out=args.out,
+            on_start=lambda total: progress.update(task, total=total),
+            on_step=lambda k: progress.update(task, completed=k + 1),
+        )
+    if not args.quiet:
+        table = Table(title=f"ceamcl run ({args.algorithm}, seed {args.seed})")
+        table.add_column("measure")
+        table.add_column("value", justify="right")
+        s = outcome.summary
+        for key in (
+            "scans",
+            "duration_s",
+            "path_length_m",
+            "converged",
+            "scans_to_converge",
+            "time_to_converge_s",
+            "position_rmse_after_convergence_m",
+            "heading_rmse_after_convergence_rad",
+            "final_position_error_m",
+            "final_heading_error_rad",
+            "initialisation_ms",
+            "mean_step_ms",
+            "mean_particles",
+        ):
+            if key in s and s[key] is not None:
+                v = s[key]
+                table.add_row(key, f"{v:.3f}" if isinstance(v, float) else str(v))
+        console.print(table)
+        console.print(f"results written to [bold]{outcome.out_dir}[/]")
+    return 0

@@ -1,0 +1,504 @@
+"""CARMEN log files (``.log``, ``.clf``, optionally gzip-compressed), read line by line.
+
+The format is that of CARMEN's logger and ``carmen/src/global/readlog.c``: one message per
+line, the message name first, fields separated by white space. This module reads:
+
+``FLASER n r_1 .. r_n x y theta odom_x odom_y odom_theta [timestamp [host [logger_timestamp]]]``
+``RLASER ...`` (the same for the rear laser)
+    Old-style laser messages. ``x y theta`` is the laser's pose in the world, ``odom_*`` the
+    robot's. The geometry is not in the line; CARMEN guesses it from the beam count
+    (``carmen_laser_guess_fov`` / ``carmen_laser_guess_angle_increment``): the first beam
+    points to the right, at ``-pi/2``, and
+
+    ====  ===============  ============
+    n     field of view    increment
+    ====  ===============  ============
+    180   179 deg          1 deg
+    181   180 deg          1 deg
+    360   179.5 deg        0.5 deg
+    361   180 deg          0.5 deg
+    400   99.75 deg        0.25 deg
+    401   100 deg          0.25 deg
+    other 180 deg          fov / (n - 1)
+    ====  ===============  ============
+
+    CARMEN gives these messages a maximum range of 80 m; a ``PARAM robot_front_laser_max``
+    (or ``robot_rear_laser_max``) line overrides it. The sensor reports "no return" with a
+    reading at or beyond that maximum (81.91 m, 81.83 m in the Radish logs); such readings
+    are kept as they are and a :class:`~ceamcl.sensors.scan.LaserScan` classifies them as
+    max-range readings.
+
+``ROBOTLASER<id> type start_angle fov resolution max_range accuracy remission_mode n r_1..r_n
+m e_1..e_m lx ly ltheta x y theta tv rv forward_safety side_safety turn_axis timestamp host
+logger_timestamp``
+    New-style laser message with explicit geometry: beam ``i`` at ``start_angle + i *
+    resolution``, readings ``>= max_range`` are no-return. ``lx ly ltheta`` is the laser's
+    pose in the world, ``x y theta`` the robot's.
+
+``RAWLASER<id> type start_angle fov resolution max_range accuracy remission_mode n r_1..r_n
+m e_1..e_m timestamp host logger_timestamp``
+    The same without poses (the pose then comes from ``ODOM``, see :mod:`ceamcl.io.logs`).
+
+``ODOM x y theta tv rv accel [timestamp [host [logger_timestamp]]]``, ``PARAM name value ...``
+and ``#`` comment lines.
+
+Every other message (``NEFF``, ``SYNC``, ``TRUEPOS``, ``SONAR``, ...) is skipped and counted.
+Trailing fields after the timestamp (host, logger timestamp) are optional, so logs written
+without host names read as well. A malformed line raises
+:class:`~ceamcl.errors.LogFormatError` naming the file, the line and what was expected.
+
+Files are read as a stream (:func:`iter_carmen`): only the scans of the chosen laser and the
+odometry are kept in memory, as arrays (:func:`read_carmen`).
+"""
+
+from __future__ import annotations
+
+import gzip
+import io
+import math
+import os
+import re
+import zlib
+from collections import Counter
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ceamcl.errors import LogFormatError
+from ceamcl.io.logs import RecordedLog, interpolate_poses
+
+__all__ = [
+    "CARMEN_DEFAULT_MAX_RANGE_M",
+    "CarmenComment",
+    "CarmenLaser",
+    "CarmenOdometry",
+    "CarmenParam",
+    "CarmenSkipped",
+    "guess_angle_increment",
+    "guess_fov",
+    "iter_carmen",
+    "read_carmen",
+]
+
+#: The maximum range CARMEN assumes for old-style laser messages (readlog.c).
+CARMEN_DEFAULT_MAX_RANGE_M = 80.0
+
+_LASER_ID = {"FLASER": 1, "RLASER": 2}
+_NUMBERED = re.compile(r"^(ROBOTLASER|RAWLASER)(\d+)$")
+
+
+# ------------------------------------------------------------------------------ messages
+@dataclass(frozen=True, eq=False)
+class CarmenLaser:
+    """One laser message. ``laser_pose``/``robot_pose`` are world poses (``None`` for RAWLASER).
+
+    ``max_range`` is ``nan`` for old-style messages (CARMEN's default or a PARAM applies,
+    decided by :func:`read_carmen`).
+    """
+
+    kind: str
+    laser_id: int
+    ranges: NDArray[np.float64]
+    start_angle: float
+    fov: float
+    angle_increment: float
+    max_range: float
+    laser_pose: tuple[float, float, float] | None
+    robot_pose: tuple[float, float, float] | None
+    timestamp: float
+    line: int
+
+
+@dataclass(frozen=True)
+class CarmenOdometry:
+    x: float
+    y: float
+    theta: float
+    tv: float
+    rv: float
+    accel: float
+    timestamp: float
+    line: int
+
+
+@dataclass(frozen=True)
+class CarmenParam:
+    name: str
+    value: str
+    line: int
+
+
+@dataclass(frozen=True)
+class CarmenComment:
+    text: str
+    line: int
+
+
+@dataclass(frozen=True)
+class CarmenSkipped:
+    """A message this reader does not use (its name only)."""
+
+    kind: str
+    line: int
+
+
+CarmenMessage = CarmenLaser | CarmenOdometry | CarmenParam | CarmenComment | CarmenSkipped
+
+
+# ------------------------------------------------------------------------------ geometry
+def guess_fov(n_beams: int) -> float:
+    """Field of view (rad) CARMEN assumes for an old-style scan of ``n_beams`` readings."""
+    deg = {181: 180.0, 180: 179.0, 361: 180.0, 360: 179.5, 401: 100.0, 400: 99.75}
+    return math.radians(deg.get(n_beams, 180.0))
+
+
+def guess_angle_increment(n_beams: int) -> float:
+    """Angle (rad) between beams CARMEN assumes for an old-style scan of ``n_beams`` readings."""
+    if n_beams in (180, 181):
+        return math.pi / 180.0
+    if n_beams in (360, 361):
+        return math.pi / 360.0
+    if n_beams in (400, 401):
+        return math.pi / 720.0
+    return guess_fov(n_beams) / (n_beams - 1) if n_beams > 1 else 0.0
+
+
+# ------------------------------------------------------------------------------ parsing
+class _Line:
+    """Tokens of one line with a cursor; every read names the field on failure."""
+
+    def __init__(self, path: str, lineno: int, kind: str, tokens: list[str]) -> None:
+        self.path, self.lineno, self.kind, self.tokens, self.pos = path, lineno, kind, tokens, 1
+
+    def error(self, what: str) -> LogFormatError:
+        return LogFormatError(f"{self.path}:{self.lineno}: {self.kind}: {what}")
+
+    def _take(self, count: int, what: str) -> list[str]:
+        end = self.pos + count
+        if end > len(self.tokens):
+            got = len(self.tokens) - self.pos
+            raise self.error(f"expected {what} ({count} value(s)), the line ends after {got}")
+        out = self.tokens[self.pos : end]
+        self.pos = end
+        return out
+
+    def number(self, what: str) -> float:
+        tok = self._take(1, what)[0]
+        try:
+            return float(tok)
+        except ValueError:
+            raise self.error(f"{what}: expected a number, got {tok!r}") from None
+
+    def count(self, what: str) -> int:
+        tok = self._take(1, what)[0]
+        try:
+            value = int(tok)
+        except ValueError:
+            try:
+                f = float(tok)
+            except ValueError:
+                f = math.nan
+            if not f.is_integer():
+                raise self.error(f"{what}: expected a whole number, got {tok!r}") from None
+            value = int(f)
+        if value < 0:
+            raise self.error(f"{what}: expected a non-negative count, got {value}")
+        return value
+
+    def numbers(self, count: int, what: str) -> NDArray[np.float64]:
+        toks = self._take(count, what)
+        try:
+            return np.array([float(t) for t in toks], dtype=np.float64)
+        except ValueError:
+            bad = next(t for t in toks if not _is_number(t))
+            raise self.error(f"{what}: expected numbers, got {bad!r}") from None
+
+    def pose(self, what: str) -> tuple[float, float, float]:
+        v = self.numbers(3, what)
+        return float(v[0]), float(v[1]), float(v[2])
+
+    def timestamp(self) -> float:
+        """The IPC timestamp if the line has one (host and logger time may follow)."""
+        if self.pos >= len(self.tokens):
+            return math.nan
+        return self.number("timestamp")
+
+
+def _is_number(tok: str) -> bool:
+    try:
+        float(tok)
+    except ValueError:
+        return False
+    return True
+
+
+def _parse_old_laser(ln: _Line) -> CarmenLaser:
+    n = ln.count("beam count")
+    ranges = ln.numbers(n, f"{n} ranges")
+    laser_pose = ln.pose("laser pose x y theta")
+    robot_pose = ln.pose("robot pose odom_x odom_y odom_theta")
+    ts = ln.timestamp()
+    return CarmenLaser(
+        kind=ln.kind,
+        laser_id=_LASER_ID[ln.kind],
+        ranges=ranges,
+        start_angle=-math.pi / 2.0,
+        fov=guess_fov(n),
+        angle_increment=guess_angle_increment(n),
+        max_range=math.nan,
+        laser_pose=laser_pose,
+        robot_pose=robot_pose,
+        timestamp=ts,
+        line=ln.lineno,
+    )
+
+
+def _parse_new_laser(ln: _Line, kind: str, laser_id: int) -> CarmenLaser:
+    ln.count("laser type")
+    start = ln.number("start_angle")
+    fov = ln.number("fov")
+    res = ln.number("angular_resolution")
+    max_range = ln.number("maximum_range")
+    ln.number("accuracy")
+    ln.count("remission_mode")
+    n = ln.count("beam count")
+    ranges = ln.numbers(n, f"{n} ranges")
+    m = ln.count("remission count")
+    ln.numbers(m, f"{m} remissions")
+    laser_pose = robot_pose = None
+    if kind == "ROBOTLASER":
+        laser_pose = ln.pose("laser pose x y theta")
+        robot_pose = ln.pose("robot pose x y theta")
+        ln.numbers(5, "tv rv forward_safety_dist side_safety_dist turn_axis")
+    ts = ln.timestamp()
+    if not (math.isfinite(max_range) and max_range > 0):
+        raise ln.error(f"maximum_range: expected a positive number, got {max_range}")
+    return CarmenLaser(
+        kind=f"{kind}{laser_id}",
+        laser_id=laser_id,
+        ranges=ranges,
+        start_angle=start,
+        fov=fov,
+        angle_increment=res,
+        max_range=max_range,
+        laser_pose=laser_pose,
+        robot_pose=robot_pose,
+        timestamp=ts,
+        line=ln.lineno,
+    )
+
+
+def _parse_odom(ln: _Line) -> CarmenOdometry:
+    x, y, theta, tv, rv, accel = (float(a) for a in ln.numbers(6, "x y theta tv rv accel"))
+    return CarmenOdometry(x, y, theta, tv, rv, accel, timestamp=ln.timestamp(), line=ln.lineno)
+
+
+def parse_line(text: str, path: str = "<string>", lineno: int = 1) -> CarmenMessage | None:
+    """One line of a CARMEN log; ``None`` for a blank line."""
+    stripped = text.strip()
+    if not stripped:
+        return None
+    if stripped.startswith("#"):
+        return CarmenComment(stripped[1:].strip(), lineno)
+    tokens = stripped.split()
+    kind = tokens[0]
+    ln = _Line(path, lineno, kind, tokens)
+    if kind in _LASER_ID:
+        return _parse_old_laser(ln)
+    if kind == "ODOM":
+        return _parse_odom(ln)
+    if kind == "PARAM":
+        if len(tokens) < 3:
+            raise ln.error("expected a parameter name and a value")
+        return CarmenParam(tokens[1], tokens[2], lineno)
+    numbered = _NUMBERED.match(kind)
+    if numbered:
+        return _parse_new_laser(ln, numbered.group(1), int(numbered.group(2)))
+    return CarmenSkipped(kind, lineno)
+
+
+def _open_text(path: Path) -> io.TextIOBase:
+    """A text stream over the file, gunzipped on the fly when it starts with the gzip magic."""
+    try:
+        with path.open("rb") as fh:
+            magic = fh.read(2)
+    except FileNotFoundError:
+        raise LogFormatError(f"{path}: log file not found") from None
+    except OSError as exc:
+        raise LogFormatError(f"{path}: cannot read the log: {exc.strerror or exc}") from None
+    if magic == b"\x1f\x8b":
+        return io.TextIOWrapper(gzip.open(path, "rb"), encoding="ascii", errors="replace")
+    return io.TextIOWrapper(path.open("rb"), encoding="ascii", errors="replace")
+
+
+def iter_carmen(path: str | os.PathLike[str]) -> Iterator[CarmenMessage]:
+    """Every message of a CARMEN log, in file order, read as a stream (gzip or plain text)."""
+    p = Path(path)
+    lineno = 0
+    with _open_text(p) as fh:
+        try:
+            for lineno, text in enumerate(fh, start=1):
+                msg = parse_line(text, str(p), lineno)
+                if msg is not None:
+                    yield msg
+        except (EOFError, gzip.BadGzipFile, zlib.error) as exc:
+            raise LogFormatError(
+                f"{p}:{lineno + 1}: the compressed file is damaged or truncated ({exc})"
+            ) from None
+
+
+# ------------------------------------------------------------------------------ whole log
+@dataclass
+class _Stream:
+    """Scans of one laser collected from the log."""
+
+    times: list[float] = field(default_factory=list)
+    ranges: list[NDArray[np.float64]] = field(default_factory=list)
+    start: list[float] = field(default_factory=list)
+    inc: list[float] = field(default_factory=list)
+    max_range: list[float] = field(default_factory=list)
+    laser_pose: list[tuple[float, float, float]] = field(default_factory=list)
+    robot_pose: list[tuple[float, float, float]] = field(default_factory=list)
+
+    def add(self, m: CarmenLaser) -> None:
+        self.times.append(m.timestamp)
+        self.ranges.append(m.ranges)
+        self.start.append(m.start_angle)
+        self.inc.append(m.angle_increment)
+        self.max_range.append(m.max_range)
+        if m.laser_pose is not None and m.robot_pose is not None:
+            self.laser_pose.append(m.laser_pose)
+            self.robot_pose.append(m.robot_pose)
+
+    def __len__(self) -> int:
+        return len(self.times)
+
+
+def read_carmen(
+    path: str | os.PathLike[str],
+    *,
+    laser: int = 1,
+    max_range_m: float | None = None,
+) -> RecordedLog:
+    """The scans of one laser of a CARMEN log with the robot's pose at each scan.
+
+    Args:
+        path: the log (plain or gzip-compressed).
+        laser: 1 = front (``FLASER``, ``ROBOTLASER1``, ``RAWLASER1``), 2 = rear (``RLASER``,
+            ``ROBOTLASER2``, ...), 3 and 4 the numbered lasers.
+        max_range_m: the sensor's maximum; readings at or beyond it mean no return. Default:
+            the message's own field (ROBOTLASER/RAWLASER), else ``PARAM
+            robot_front_laser_max``/``robot_rear_laser_max``, else CARMEN's 80 m.
+
+    Messages with poses (FLASER/RLASER/ROBOTLASER) are used when the log has them; a log with
+    only RAWLASER messages takes the robot's pose from ODOM, interpolated at each scan's time.
+    The robot's pose at a scan is the message's robot (odometry) pose; the laser's mounting
+    pose on the robot is the difference of the two poses the message holds.
+
+    ``info`` of the result holds the message counts, the skipped message names and the
+    parameters.
+    """
+    p = Path(path)
+    with_pose, raw = _Stream(), _Stream()
+    odom: list[tuple[float, float, float, float]] = []
+    counts: Counter[str] = Counter()
+    skipped: Counter[str] = Counter()
+    params: dict[str, str] = {}
+    for msg in iter_carmen(p):
+        if isinstance(msg, CarmenLaser):
+            counts[msg.kind] += 1
+            if msg.laser_id == laser:
+                (with_pose if msg.laser_pose is not None else raw).add(msg)
+        elif isinstance(msg, CarmenOdometry):
+            counts["ODOM"] += 1
+            odom.append((msg.timestamp, msg.x, msg.y, msg.theta))
+        elif isinstance(msg, CarmenParam):
+            counts["PARAM"] += 1
+            params[msg.name] = msg.value
+        elif isinstance(msg, CarmenComment):
+            counts["#"] += 1
+        else:
+            skipped[msg.kind] += 1
+
+    stream = with_pose if len(with_pose) else raw
+    if not len(stream):
+        found = ", ".join(f"{k} x{v}" for k, v in sorted(counts.items())) or "nothing"
+        raise LogFormatError(
+            f"{p}: no scan of laser {laser} (FLASER/RLASER/ROBOTLASER{laser}/RAWLASER{laser}); "
+            f"the log holds: {found}"
+        )
+    n = len(stream)
+    times = np.asarray(stream.times, dtype=np.float64)
+    if np.isnan(times).any():
+        # Lines without a timestamp: number the scans instead.
+        times = np.where(np.isnan(times), np.arange(n, dtype=np.float64), times)
+
+    if stream is with_pose:
+        robot = np.asarray(stream.robot_pose, dtype=np.float64)
+        laser_world = np.asarray(stream.laser_pose, dtype=np.float64)
+        mount = _relative_poses(robot, laser_world)
+    else:
+        if not odom:
+            raise LogFormatError(
+                f"{p}: RAWLASER{laser} scans carry no pose and the log has no ODOM line"
+            )
+        o = np.asarray(odom, dtype=np.float64)
+        robot = interpolate_poses(o[:, 0], o[:, 1:], times)
+        mount = np.zeros((n, 3))
+
+    default_max = _param_max_range(params, laser, p)
+    per_msg = np.asarray(stream.max_range, dtype=np.float64)
+    if max_range_m is not None:
+        range_max = np.full(n, float(max_range_m))
+    else:
+        range_max = np.where(np.isnan(per_msg), default_max, per_msg)
+
+    lengths = np.array([r.size for r in stream.ranges], dtype=np.intp)
+    offsets = np.concatenate([[0], np.cumsum(lengths)]).astype(np.intp)
+    info = {
+        "format": "carmen",
+        "laser": laser,
+        "scan_messages": sorted({k for k in counts if k not in ("ODOM", "PARAM", "#")}),
+        "message_counts": dict(sorted(counts.items())),
+        "skipped_messages": dict(sorted(skipped.items())),
+        "poses_from": "laser messages" if stream is with_pose else "ODOM (interpolated)",
+        "params": params,
+    }
+    return RecordedLog(
+        path=str(p),
+        times=times,
+        poses=robot,
+        ranges_flat=np.concatenate(stream.ranges) if n else np.zeros(0),
+        offsets=offsets,
+        angle_min=np.asarray(stream.start, dtype=np.float64),
+        angle_increment=np.asarray(stream.inc, dtype=np.float64),
+        range_min=np.zeros(n),
+        range_max=range_max,
+        laser_mount=mount,
+        info=info,
+    )
+
+
+def _param_max_range(params: dict[str, str], laser: int, path: Path) -> float:
+    key = {1: "robot_front_laser_max", 2: "robot_rear_laser_max"}.get(laser)
+    if key is None or key not in params:
+        return CARMEN_DEFAULT_MAX_RANGE_M
+    try:
+        value = float(params[key])
+    except ValueError:
+        raise LogFormatError(
+            f"{path}: PARAM {key}: expected a number, got {params[key]!r}"
+        ) from None
+    return value if value > 0 else CARMEN_DEFAULT_MAX_RANGE_M
+
+
+def _relative_poses(base: NDArray[np.float64], other: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Pose of ``other`` in the frame of ``base`` (both world poses ``(N, 3)``)."""
+    dx = other[:, 0] - base[:, 0]
+    dy = other[:, 1] - base[:, 1]
+    c, s = np.cos(base[:, 2]), np.sin(base[:, 2])
+    dth = np.angle(np.exp(1j * (other[:, 2] - base[:, 2])))
+    return np.column_stack([c * dx + s * dy, -s * dx + c * dy, dth])

@@ -1,0 +1,228 @@
+"""The CARMEN reader on small handwritten logs: every message type, geometry, errors."""
+
+from __future__ import annotations
+
+import gzip
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ceamcl.errors import LogFormatError
+from ceamcl.io.carmen import (
+    CarmenComment,
+    CarmenLaser,
+    CarmenOdometry,
+    CarmenParam,
+    CarmenSkipped,
+    guess_angle_increment,
+    guess_fov,
+    iter_carmen,
+    read_carmen,
+)
+from ceamcl.io.logs import open_log
+
+
+def flaser(
+    n: int,
+    r: float,
+    pose: tuple[float, float, float],
+    t: float,
+    kind: str = "FLASER",
+    host: bool = True,
+) -> str:
+    ranges = " ".join([f"{r:g}"] * n)
+    p = " ".join(f"{v:g}" for v in pose)
+    tail = f"{t} nohost {t}" if host else f"{t}"
+    return f"{kind} {n} {ranges} {p} {p} {tail}"
+
+
+def write(tmp_path: Path, lines: list[str], name: str = "run.log", gz: bool = False) -> Path:
+    text = "\n".join(lines) + "\n"
+    path = tmp_path / name
+    if gz:
+        with gzip.open(path, "wt") as fh:
+            fh.write(text)
+    else:
+        path.write_text(text)
+    return path
+
+
+def test_every_message_type(tmp_path: Path) -> None:
+    lines = [
+        "# message formats defined: PARAM SYNC ODOM FLASER RLASER TRUEPOS",
+        "PARAM robot_front_laser_max 50.0 nohost 0",
+        "ODOM 0 0 0 0.1 0.0 0 0.5 nohost 0.5",
+        flaser(180, 2.0, (1.0, 2.0, 0.5), 1.0),
+        flaser(181, 3.0, (0.0, 0.0, 0.0), 1.5, kind="RLASER"),
+        "NEFF 15",
+        "SYNC 1 nohost 1",
+        "",
+        "ROBOTLASER1 0 -1.5 3.0 0.5 20.0 0.01 0 7 1 2 3 4 5 6 20 0 "
+        "1.1 2.0 0.1 1.0 2.0 0.1 0 0 0.5 0.3 0 2.0 host 2.0",
+        "RAWLASER2 0 -1.0 2.0 1.0 8.0 0.01 0 3 1 2 8 2 5 5 2.5 host 2.5",
+    ]
+    msgs = list(iter_carmen(write(tmp_path, lines)))
+    kinds = [type(m) for m in msgs]
+    assert kinds == [
+        CarmenComment,
+        CarmenParam,
+        CarmenOdometry,
+        CarmenLaser,
+        CarmenLaser,
+        CarmenSkipped,
+        CarmenSkipped,
+        CarmenLaser,
+        CarmenLaser,
+    ]
+    f, r, robot, raw = (m for m in msgs if isinstance(m, CarmenLaser))
+    assert (f.kind, f.laser_id, f.ranges.size, f.line) == ("FLASER", 1, 180, 4)
+    assert f.laser_pose == (1.0, 2.0, 0.5) and f.timestamp == 1.0
+    assert (r.kind, r.laser_id, r.ranges.size) == ("RLASER", 2, 181)
+    assert (robot.kind, robot.laser_id, robot.max_range) == ("ROBOTLASER1", 1, 20.0)
+    assert robot.start_angle == -1.5 and robot.angle_increment == 0.5 and robot.fov == 3.0
+    assert robot.laser_pose == (1.1, 2.0, 0.1) and robot.robot_pose == (1.0, 2.0, 0.1)
+    assert robot.timestamp == 2.0
+    assert (raw.kind, raw.laser_id, raw.laser_pose, raw.timestamp) == ("RAWLASER2", 2, None, 2.5)
+    odom = next(m for m in msgs if isinstance(m, CarmenOdometry))
+    assert (odom.tv, odom.timestamp) == (0.1, 0.5)
+
+
+@pytest.mark.parametrize(
+    ("n", "fov_deg", "inc_deg"),
+    [(180, 179.0, 1.0), (181, 180.0, 1.0), (360, 179.5, 0.5), (361, 180.0, 0.5)],
+)
+def test_flaser_geometry_as_carmen_defines_it(
+    tmp_path: Path, n: int, fov_deg: float, inc_deg: float
+) -> None:
+    assert guess_fov(n) == pytest.approx(math.radians(fov_deg))
+    assert guess_angle_increment(n) == pytest.approx(math.radians(inc_deg))
+    log = read_carmen(write(tmp_path, [flaser(n, 1.0, (0, 0, 0), 0.0)]))
+    scan = log.scan(0)
+    assert scan.n_beams == n
+    assert scan.angles[0] == pytest.approx(-math.pi / 2)
+    # the last beam: -90 deg + the field of view
+    assert scan.angles[-1] == pytest.approx(-math.pi / 2 + math.radians(fov_deg))
+
+
+def test_read_carmen_counts_and_poses(tmp_path: Path) -> None:
+    lines = ["# comment"] + [
+        flaser(180, 81.91 if k == 1 else 2.0, (k * 0.5, 0.0, 0.1 * k), float(k)) for k in range(4)
+    ]
+    lines += ["NEFF 3", "ODOM 0 0 0 0 0 0 0 h 0", "RLASER 1 1.0 0 0 0 0 0 0 0.2 h 0.2"]
+    log = read_carmen(write(tmp_path, lines))
+    assert len(log) == 4
+    assert log.info["message_counts"]["FLASER"] == 4
+    assert log.info["message_counts"]["RLASER"] == 1
+    assert log.info["skipped_messages"] == {"NEFF": 1}
+    np.testing.assert_allclose(log.times, [0, 1, 2, 3])
+    np.testing.assert_allclose(log.poses[:, 0], [0, 0.5, 1.0, 1.5])
+    np.testing.assert_allclose(log.laser_mount, 0.0)
+    # 81.91 m is at or beyond CARMEN's 80 m maximum: a no-return reading
+    scan = log.scan(1)
+    assert scan.range_max == 80.0
+    assert np.all(scan.ranges >= scan.range_max)
+    assert np.all(log.scan(0).ranges < log.scan(0).range_max)
+
+
+def test_param_sets_max_range_and_rear_laser_is_selectable(tmp_path: Path) -> None:
+    lines = [
+        "PARAM robot_front_laser_max 40.0",
+        flaser(180, 1.0, (0, 0, 0), 0.0),
+        flaser(361, 1.0, (0, 0, 0), 0.1, kind="RLASER"),
+    ]
+    path = write(tmp_path, lines)
+    assert read_carmen(path).range_max[0] == 40.0
+    rear = read_carmen(path, laser=2)
+    assert len(rear) == 1 and rear.scan(0).n_beams == 361 and rear.range_max[0] == 80.0
+    assert read_carmen(path, max_range_m=8.0).range_max[0] == 8.0
+
+
+def test_flaser_without_hostname_or_timestamp_tail(tmp_path: Path) -> None:
+    lines = [flaser(180, 1.0, (1, 2, 0), 7.5, host=False), flaser(180, 1.0, (1, 2, 0), 8.5)]
+    log = read_carmen(write(tmp_path, lines))
+    np.testing.assert_allclose(log.times, [7.5, 8.5])
+
+
+def test_robotlaser_gives_mount_and_max_range(tmp_path: Path) -> None:
+    line = (
+        "ROBOTLASER1 0 -1.5 3.0 0.5 20.0 0.01 0 7 1 2 3 4 5 6 25 0 "
+        "1.0 2.0 1.5707963 1.0 1.8 1.5707963 0 0 0.5 0.3 0 2.0 host 2.0"
+    )
+    log = read_carmen(write(tmp_path, [line]))
+    scan = log.scan(0)
+    assert scan.angle_min == -1.5 and scan.angle_increment == 0.5 and scan.range_max == 20.0
+    # laser 0.2 m to the robot's left in the world = 0.2 m ahead of a robot facing +y
+    assert scan.pose == pytest.approx((0.2, 0.0, 0.0), abs=1e-6)
+    assert scan.ranges[-1] >= scan.range_max  # 25 m > 20 m: no return
+
+
+def test_rawlaser_only_takes_pose_from_odom(tmp_path: Path) -> None:
+    lines = [
+        "ODOM 0 0 0 0 0 0 0.0 h 0",
+        "RAWLASER1 0 -1.57 3.14 0.0174 80.0 0.01 0 3 1 2 3 0 0.5 h 0.5",
+        "ODOM 1 0 0.2 0 0 0 1.0 h 1",
+    ]
+    log = read_carmen(write(tmp_path, lines))
+    assert log.info["poses_from"] == "ODOM (interpolated)"
+    np.testing.assert_allclose(log.poses[0], [0.5, 0.0, 0.1], atol=1e-12)
+
+
+def test_gzip_is_read_transparently(tmp_path: Path) -> None:
+    lines = [flaser(180, 1.0, (0, 0, 0), float(k)) for k in range(3)]
+    plain = read_carmen(write(tmp_path, lines))
+    packed = open_log(write(tmp_path, lines, name="run.log.gz", gz=True))
+    assert len(packed) == 3
+    np.testing.assert_array_equal(packed.ranges_flat, plain.ranges_flat)
+
+
+@pytest.mark.parametrize(
+    ("line", "message"),
+    [
+        ("FLASER 180 1 2 3", r"run\.log:2: FLASER: expected 180 ranges"),
+        ("FLASER abc 1 2", r"run\.log:2: FLASER: beam count: expected a whole number, got 'abc'"),
+        (
+            "FLASER 3 1 2 x 0 0 0 0 0 0 1 h 1",
+            r"run\.log:2: FLASER: 3 ranges: expected numbers, got 'x'",
+        ),
+        ("FLASER 3 1 2 3 0 0", r"run\.log:2: FLASER: expected laser pose"),
+        ("ODOM 1 2", r"run\.log:2: ODOM: expected x y theta tv rv accel"),
+        ("ODOM 1 2 3 4 5 6 when h 0", r"run\.log:2: ODOM: timestamp: expected a number"),
+        ("PARAM lonely", r"run\.log:2: PARAM: expected a parameter name and a value"),
+        (
+            "ROBOTLASER1 0 -1.5 3.0 0.5 20.0 0.01 0 2 1 2 0 1 1",
+            r"run\.log:2: ROBOTLASER1: expected laser pose",
+        ),
+        ("FLASER -2 1 2", r"run\.log:2: FLASER: beam count: expected a non-negative count"),
+    ],
+)
+def test_malformed_line_names_file_and_line(tmp_path: Path, line: str, message: str) -> None:
+    path = write(tmp_path, ["# ok", line])
+    with pytest.raises(LogFormatError, match=message):
+        read_carmen(path)
+
+
+def test_no_scans_and_missing_file(tmp_path: Path) -> None:
+    with pytest.raises(LogFormatError, match=r"no scan of laser 1.*ODOM x1"):
+        read_carmen(write(tmp_path, ["ODOM 0 0 0 0 0 0 0 h 0"]))
+    with pytest.raises(LogFormatError, match="not found"):
+        read_carmen(tmp_path / "absent.log")
+
+
+def test_truncated_gzip_names_file(tmp_path: Path) -> None:
+    lines = [flaser(180, 1.0, (0, 0, 0), float(k)) for k in range(200)]
+    path = write(tmp_path, lines, name="cut.log.gz", gz=True)
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+    with pytest.raises(LogFormatError, match=r"cut\.log\.gz:\d+: the compressed file is damaged"):
+        read_carmen(path)
+
+
+def test_streaming_reads_lazily(tmp_path: Path) -> None:
+    # A malformed line far down is not reached when only the first messages are taken.
+    lines = [flaser(180, 1.0, (0, 0, 0), 0.0), "FLASER broken"]
+    it = iter_carmen(write(tmp_path, lines))
+    assert isinstance(next(it), CarmenLaser)
+    with pytest.raises(LogFormatError):
+        next(it)

@@ -1,0 +1,179 @@
+"""The ROS bag reader on small ROS 1 and ROS 2 bags written with ``rosbags``."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from ceamcl.errors import LogFormatError
+from ceamcl.io.logs import log_format, open_log
+from ceamcl.io.rosbag import read_bag
+
+rosbags = pytest.importorskip("rosbags")
+from rosbags.rosbag1 import Writer as Writer1  # noqa: E402
+from rosbags.rosbag2 import Writer as Writer2  # noqa: E402
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore  # noqa: E402
+
+N_SCANS = 5
+N_BEAMS = 9
+
+
+def _msgs(ts: Any) -> dict[str, Any]:
+    T = ts.types
+    return {
+        "Time": T["builtin_interfaces/msg/Time"],
+        "Header": T["std_msgs/msg/Header"],
+        "LaserScan": T["sensor_msgs/msg/LaserScan"],
+        "Odometry": T["nav_msgs/msg/Odometry"],
+        "Pose": T["geometry_msgs/msg/Pose"],
+        "PoseWC": T["geometry_msgs/msg/PoseWithCovariance"],
+        "Twist": T["geometry_msgs/msg/Twist"],
+        "TwistWC": T["geometry_msgs/msg/TwistWithCovariance"],
+        "Point": T["geometry_msgs/msg/Point"],
+        "Quat": T["geometry_msgs/msg/Quaternion"],
+        "Vec": T["geometry_msgs/msg/Vector3"],
+        "TF": T["tf2_msgs/msg/TFMessage"],
+        "TS": T["geometry_msgs/msg/TransformStamped"],
+        "Transform": T["geometry_msgs/msg/Transform"],
+    }
+
+
+def _header(m: dict[str, Any], t: float, frame: str, ros1: bool) -> Any:
+    stamp = m["Time"](sec=int(t), nanosec=round((t % 1) * 1e9))
+    if ros1:
+        return m["Header"](seq=0, stamp=stamp, frame_id=frame)
+    return m["Header"](stamp=stamp, frame_id=frame)
+
+
+def _quat(m: dict[str, Any], yaw: float) -> Any:
+    return m["Quat"](x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2))
+
+
+def _true_pose(t: float) -> tuple[float, float, float]:
+    return 0.5 * t, 0.1 * t, 0.2 * t
+
+
+def write_bag(path: Path, ros1: bool, *, odom: str = "topic", scan_topic: str = "/scan") -> Path:
+    ts = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
+    if "tf2_msgs/msg/TFMessage" not in ts.types:  # the Noetic store lacks it
+        ts.register(
+            get_types_from_msg(
+                "geometry_msgs/TransformStamped[] transforms", "tf2_msgs/msg/TFMessage"
+            )
+        )
+    m = _msgs(ts)
+    ser = ts.serialize_ros1 if ros1 else ts.serialize_cdr
+    writer = Writer1(path) if ros1 else Writer2(path, version=9)
+    with writer:
+        c_scan = writer.add_connection(scan_topic, m["LaserScan"].__msgtype__, typestore=ts)
+        c_odom = (
+            writer.add_connection("/odom", m["Odometry"].__msgtype__, typestore=ts)
+            if odom == "topic"
+            else None
+        )
+        c_tf = writer.add_connection("/tf", m["TF"].__msgtype__, typestore=ts)
+        # laser 0.2 m ahead of the base, on /tf (once)
+        link = m["TS"](
+            header=_header(m, 0.05, "base_link", ros1),
+            child_frame_id="laser",
+            transform=m["Transform"](
+                translation=m["Vec"](x=0.2, y=0.0, z=0.0), rotation=_quat(m, 0.0)
+            ),
+        )
+        writer.write(c_tf, 50_000_000, ser(m["TF"](transforms=[link]), m["TF"].__msgtype__))
+        for i in range(11):  # odometry at 10 Hz over 1 s
+            t = 0.1 * i
+            x, y, yaw = _true_pose(t)
+            if c_odom is not None:
+                msg = m["Odometry"](
+                    header=_header(m, t, "odom", ros1),
+                    child_frame_id="base_link",
+                    pose=m["PoseWC"](
+                        pose=m["Pose"](
+                            position=m["Point"](x=x, y=y, z=0.0), orientation=_quat(m, yaw)
+                        ),
+                        covariance=np.zeros(36),
+                    ),
+                    twist=m["TwistWC"](
+                        twist=m["Twist"](
+                            linear=m["Vec"](x=0.0, y=0.0, z=0.0),
+                            angular=m["Vec"](x=0.0, y=0.0, z=0.0),
+                        ),
+                        covariance=np.zeros(36),
+                    ),
+                )
+                writer.write(c_odom, int(t * 1e9) + 1, ser(msg, m["Odometry"].__msgtype__))
+            else:
+                tfm = m["TS"](
+                    header=_header(m, t, "odom", ros1),
+                    child_frame_id="base_link",
+                    transform=m["Transform"](
+                        translation=m["Vec"](x=x, y=y, z=0.0), rotation=_quat(m, yaw)
+                    ),
+                )
+                writer.write(
+                    c_tf, int(t * 1e9) + 1, ser(m["TF"](transforms=[tfm]), m["TF"].__msgtype__)
+                )
+        for k in range(N_SCANS):
+            t = 0.15 + 0.2 * k
+            ranges = np.full(N_BEAMS, 1.0 + k, dtype=np.float32)
+            ranges[0] = np.inf
+            scan = m["LaserScan"](
+                header=_header(m, t, "laser", ros1),
+                angle_min=-1.0,
+                angle_max=1.0,
+                angle_increment=0.25,
+                time_increment=0.0,
+                scan_time=0.1,
+                range_min=0.1,
+                range_max=10.0,
+                ranges=ranges,
+                intensities=np.zeros(0, dtype=np.float32),
+            )
+            writer.write(c_scan, int(t * 1e9) + 2, ser(scan, m["LaserScan"].__msgtype__))
+    return path
+
+
+@pytest.mark.parametrize("ros1", [True, False], ids=["ros1", "ros2"])
+@pytest.mark.parametrize("odom", ["topic", "tf"])
+def test_bag_round_trip(tmp_path: Path, ros1: bool, odom: str) -> None:
+    bag = write_bag(tmp_path / ("run.bag" if ros1 else "run"), ros1, odom=odom)
+    assert log_format(bag) == ("ros1" if ros1 else "ros2")
+    log = open_log(bag)
+    assert len(log) == N_SCANS
+    assert log.info["format"] == ("ros1" if ros1 else "ros2")
+    expected_t = 0.15 + 0.2 * np.arange(N_SCANS)
+    np.testing.assert_allclose(log.times, expected_t, atol=1e-6)
+    # odometry interpolated at the scan stamps (the path is linear in t, yaw too)
+    truth = np.array([_true_pose(t) for t in expected_t])
+    np.testing.assert_allclose(log.poses, truth, atol=1e-6)
+    scan = log.scan(2)
+    assert scan.n_beams == N_BEAMS
+    assert scan.angle_min == pytest.approx(-1.0)
+    assert scan.angle_increment == pytest.approx(0.25)
+    assert scan.range_max == pytest.approx(10.0)
+    assert scan.ranges[1] == pytest.approx(3.0)
+    assert np.isinf(scan.ranges[0])
+    assert scan.pose == pytest.approx((0.2, 0.0, 0.0))  # from the base_link -> laser TF
+
+
+def test_missing_scan_topic_lists_topics(tmp_path: Path) -> None:
+    bag = write_bag(tmp_path / "run.bag", True)
+    with pytest.raises(LogFormatError, match=r"'/front_scan'.*/scan \(sensor_msgs/msg/LaserScan\)"):
+        read_bag(bag, scan_topic="/front_scan")
+
+
+def test_missing_odom_topic_lists_topics(tmp_path: Path) -> None:
+    bag = write_bag(tmp_path / "run", False)
+    with pytest.raises(LogFormatError, match=r"/wheel_odom.*/odom \(nav_msgs/msg/Odometry\)"):
+        read_bag(bag, odom_topic="/wheel_odom")
+
+
+def test_missing_tf_pair_lists_transforms(tmp_path: Path) -> None:
+    bag = write_bag(tmp_path / "run.bag", True, odom="tf")
+    with pytest.raises(LogFormatError, match=r"odom -> base_footprint.*odom -> base_link"):
+        read_bag(bag, base_frame="base_footprint")

@@ -1,0 +1,157 @@
+"""The real CARMEN logs of ``../shared/data/carmen``: parsing, mapping, global localisation,
+and the three commands end to end. Skipped, saying why, where the data is absent."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ceamcl.cli import main
+from ceamcl.experiments.evaluate_log import (
+    _build,
+    _filter_rng,
+    obtain_map,
+    prepare_log,
+    start_windows,
+)
+from ceamcl.io.logs import open_log
+from ceamcl.io.tum import read_tum
+from ceamcl.mapping import map_from_log
+from ceamcl.maps.ros_io import load_map
+from ceamcl.runner import run_filter
+
+DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "carmen"
+LOGS = {
+    # name: (scans, beams per scan, ODOM lines)
+    "intel": (910, 180, 14541),
+    "freiburg-079": (4791, 360, 9725),
+    "fhw": (488, 180, 13935),
+}
+
+
+def log_path(name: str) -> Path:
+    path = DATA / f"{name}-corrected.log.gz"
+    if not path.is_file():
+        pytest.skip(f"real log {path} is absent (the shared data folder is not mounted)")
+    return path
+
+
+@pytest.mark.parametrize("name", list(LOGS))
+def test_log_parses_with_the_right_counts(name: str) -> None:
+    scans, beams, odom = LOGS[name]
+    log = open_log(log_path(name))
+    assert len(log) == scans
+    assert set(log.beam_counts.tolist()) == {beams}
+    assert log.info["message_counts"]["FLASER"] == scans
+    assert log.info["message_counts"]["ODOM"] == odom
+    assert log.info["skipped_messages"] == {"NEFF": scans}
+    # timestamps run forward (intel has 4 small steps back, up to 0.86 s: kept as recorded)
+    assert np.mean(np.diff(log.times) >= 0) > 0.99
+    # FLASER geometry: first beam to the right, 1 or 0.5 degree apart (CARMEN's guess)
+    assert log.angle_min[0] == pytest.approx(-np.pi / 2)
+    assert log.angle_increment[0] == pytest.approx(np.pi / beams)
+
+
+def test_no_return_readings_are_classified_as_max_range() -> None:
+    log = open_log(log_path("freiburg-079"))
+    r = log.ranges_flat
+    no_return = r >= 81.9  # the SICK's 81.91 m code
+    assert no_return.sum() > 1000
+    assert np.all(r[no_return] >= log.range_max[0])
+    assert np.all(r[~no_return] < log.range_max[0])
+
+
+@pytest.fixture(scope="module")
+def intel() -> tuple[object, object]:
+    prepared = prepare_log(log_path("intel"), seed=0)
+    grid, _ = obtain_map(prepared.log, None)
+    return prepared, grid
+
+
+def test_intel_map_has_plausible_size_and_free_area(intel: tuple[object, object]) -> None:
+    prepared, grid = intel
+    log = prepared.log  # type: ignore[attr-defined]
+    w, h = grid.size_m  # type: ignore[attr-defined]
+    # the Intel lab is a building of roughly 30 x 30 m
+    assert 30 < w < 70 and 30 < h < 70
+    assert 250 < grid.free_area_m2 < 1200  # type: ignore[attr-defined]
+    assert grid.occupied_mask.sum() * 0.05**2 > 10  # type: ignore[attr-defined]
+    # the robot drove through free space
+    on_free = grid.is_free(log.true_poses[:, 0], log.true_poses[:, 1])  # type: ignore[attr-defined]
+    assert on_free.mean() > 0.95
+
+
+def test_ceamcl_localises_globally_on_intel(intel: tuple[object, object]) -> None:
+    """From 3 evenly spread starts, 30 m windows: CEAMCL's hypotheses hold the true pose at
+    the end of the window (closest hypothesis within 0.5 m) in most runs."""
+    prepared, grid = intel
+    log = prepared.log  # type: ignore[attr-defined]
+    windows, _ = start_windows(log, 3, window_m=30.0)
+    found = []
+    for s, e in windows:
+        window = log.window(s, e)
+        f = _build("ceamcl", grid, _filter_rng(0, s, "ceamcl"))  # type: ignore[arg-type]
+        result = run_filter(f, window)
+        hyps = result.hypotheses[-1]
+        truth = window.true_poses[-1]
+        found.append(float(np.min(np.hypot(hyps[:, 0] - truth[0], hyps[:, 1] - truth[1]))) < 0.5)
+    assert sum(found) >= 2, found
+
+
+def test_map_from_log_cli_writes_a_map_that_loads_back(tmp_path: Path) -> None:
+    path = log_path("fhw")
+    out = tmp_path / "fhw.yaml"
+    assert main(["map-from-log", str(path), "--resolution", "0.1", "-o", str(out), "--quiet"]) == 0
+    from ceamcl.mapping import MappingConfig
+
+    expected, _ = map_from_log(open_log(path), MappingConfig(resolution_m=0.1))
+    assert load_map(out) == expected
+
+
+def test_run_cli_writes_every_output(tmp_path: Path) -> None:
+    path = log_path("fhw")
+    out = tmp_path / "run"
+    code = main(
+        ["run", str(path), "--algorithm", "mcl", "--seed", "3", "--out", str(out), "--quiet"]
+    )
+    assert code == 0
+    for name in ("trajectory.tum", "groundtruth.tum", "summary.json", "run.png", "diagnostics.csv"):
+        assert (out / name).is_file(), name
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["odometry"] == "synthetic"
+    assert summary["odometry_noise"]["seed"] == 3
+    assert "built from the log itself" in summary["map"]
+    t, poses = read_tum(out / "groundtruth.tum")
+    assert t.size == 488
+    np.testing.assert_allclose(poses[:, :2], open_log(path).poses[:, :2], atol=1e-6)
+
+
+def test_evaluate_log_cli_small(tmp_path: Path) -> None:
+    path = log_path("intel")
+    out = tmp_path / "ev"
+    argv = [
+        "evaluate-log",
+        str(path),
+        "--starts",
+        "2",
+        "--algorithms",
+        "mcl",
+        "--scans",
+        "6",
+        "--hold",
+        "3",
+        "--executor",
+        "serial",
+        "--out",
+        str(out),
+        "--quiet",
+    ]
+    assert main(argv) == 0
+    rows = (out / "evaluate.csv").read_text().splitlines()
+    assert len(rows) == 3 and rows[0].startswith("algorithm,start_index")
+    assert [r.split(",")[1] for r in rows[1:]] == ["0", "904"]
+    assert "| mcl | 2 |" in (out / "evaluate.md").read_text()
+    assert (out / "errors.png").is_file() and (out / "success.png").is_file()
