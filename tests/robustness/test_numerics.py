@@ -18,7 +18,7 @@ from tests.robustness._filters import assert_all_finite, small_filter, small_sen
 from tests.robustness.conftest import box_grid
 
 GEOM = LaserGeometry.covering(np.pi, 9, 4.0, range_min=0.1)
-OWN = ("ceamcl", "gmcl", "mcl")
+OWN = ("ceamcl", "gmcl", "mcl", "kld-amcl", "kld-amcl-recovery")
 
 
 def algorithms_expected_to(what: str) -> list[object]:

@@ -8,13 +8,19 @@ sensor models:
   turned more than ``update_min_a``, since the last update (amcl tests each axis of the
   odometry frame). The first scan after an initialisation always updates. An update moves
   the particles by the whole accumulated motion, then weights them.
-* **Sensor update** in log space; if every weight vanishes (or is NaN) the weights become
-  uniform, as amcl does.
+* **Sensor update** in log space. NaN and +inf likelihoods count as impossible; a scan with no
+  usable beam changes nothing. If every particle is impossible the filter re-initialises
+  globally (``max_particles`` poses uniform over free space, the next scan updates at once)
+  and the step's :class:`StepDiagnostics` says ``reinitialised=True``, as MCL's does. (amcl
+  only makes the weights uniform, which keeps a cloud no pose of which explains the scan.)
 * **Augmented MCL** (Probabilistic Robotics Table 8.3): running averages ``w_slow`` and
   ``w_fast`` of the average weight, and at resampling each new particle is drawn uniformly
-  over free space with probability ``max(0, 1 - w_fast / w_slow)``; both averages reset to 0
-  after particles were injected. See :func:`average_weight` for the one deviation (the scale
-  of the average weight).
+  over free space with probability ``max(0, 1 - w_fast / w_slow)``. Three deviations from
+  amcl, all needed for recovery to fire after a kidnap (docs/baselines.md): the average
+  weight is the per-beam marginal likelihood (:func:`average_weight`); the averages are
+  bias-corrected running means (:func:`running_average`) rather than started at the first
+  value; and they are *not* reset to 0 after an injection (the book's algorithm; amcl's reset
+  restarts ``w_slow`` at the lost level and stops the recovery after one burst).
 * **KLD-sampling** at resampling: particles are drawn one by one (multinomial, as amcl's
   roulette wheel) and dropped into a histogram of ``0.5 m x 0.5 m x 10 deg`` bins; drawing stops
   as soon as the count exceeds :func:`kld_sample_size` of the number of occupied bins, and
@@ -38,7 +44,12 @@ from numpy.typing import ArrayLike, NDArray
 from ceamcl.errors import ConfigError
 from ceamcl.filters.base import Hypothesis, ParticleSnapshot, PoseEstimate, StepDiagnostics
 from ceamcl.filters.clustering import pose_cluster_labels
-from ceamcl.filters.resampling import effective_sample_size, normalise_log_weights
+from ceamcl.filters.mcl import check_increment
+from ceamcl.filters.resampling import (
+    effective_sample_size,
+    normalise_log_weights,
+    sanitise_log_likelihood,
+)
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import (
     OdometryIncrement,
@@ -152,19 +163,44 @@ class KLDAMCLConfig:
 
 
 def average_weight(
-    prior_weights: NDArray[np.float64], fitness_values: NDArray[np.float64]
+    prior_log_weights: NDArray[np.float64],
+    log_likelihood: NDArray[np.float64],
+    prepared: PreparedScan,
+    sensor: SensorModel,
 ) -> float:
-    """The "average weight" that ``w_slow`` and ``w_fast`` follow: ``sum_i w_i f_i``.
+    """The "average weight" that ``w_slow`` and ``w_fast`` follow: the per-beam marginal
+    likelihood ``(sum_i w_i p(z | x_i))^(1 / n_beams) / p_max``, in [0, 1].
 
-    amcl averages its particles' weights, which under its beam/likelihood-field heuristics
-    (``1 + sum p^3``) stay within a few orders of magnitude from scan to scan. Our weights are
-    the product of per-beam likelihoods, whose magnitude swings by many orders with the number
-    of usable beams alone, which would make ``w_fast / w_slow`` noise. We therefore average the
-    per-beam *fitness* (geometric mean of the beam likelihoods over their maximum, in (0, 1]),
-    weighted by the prior weights; a scan no pose explains drives it towards 0 just the same.
+    ``sum_i w_i p(z | x_i)`` (prior weights ``w_i``) is what Probabilistic Robotics' average
+    weight estimates: the likelihood of the scan given the past, ``p(z_t | z_1:t-1, u_1:t)``.
+    Our likelihoods are products of beam likelihoods, so its magnitude swings by many orders with
+    the number of usable beams alone; its ``n_beams``-th root over the largest one-beam
+    likelihood ``p_max`` does not (1: a perfect match). Equivalently, a power mean of order
+    ``n_beams`` of the per-beam fitness (:func:`~ceamcl.sensors.base.fitness`): it follows the
+    best-placed particles, so it stays near 1 while the cloud tracks (however far the motion
+    noise spreads it) and drops when no particle explains the scan. The plain weighted mean of
+    the fitness (order 1) does not separate the two (docs/baselines.md). 0 when every particle
+    is impossible.
     """
-    f = np.nan_to_num(fitness_values, nan=0.0, posinf=0.0, neginf=0.0)
-    return float(np.clip(prior_weights @ f, 0.0, 1.0))
+    x = prior_log_weights + log_likelihood
+    top = float(np.max(x)) if x.size else -math.inf
+    if not math.isfinite(top):
+        return 0.0
+    log_marginal = top + math.log(float(np.sum(np.exp(x - top))))
+    per_beam = log_marginal / prepared.n_beams - sensor.max_log_beam_likelihood(prepared)
+    return float(math.exp(min(per_beam, 0.0)))
+
+
+def running_average(average: float, value: float, alpha: float, count: int) -> float:
+    """Exponential running average with decay ``alpha``, bias-corrected at the start: the
+    ``count``-th value (from 1) enters with weight ``max(alpha, 1 / count)``, so for the first
+    ``1 / alpha`` values it is their plain mean, then the usual exponential average.
+
+    amcl instead starts an average at its first value, which then counts as if it were the
+    whole history: with ``alpha_slow = 0.001`` the average weight of the first (global, uniform)
+    cloud would stand for ``w_slow`` for a thousand updates.
+    """
+    return average + max(alpha, 1.0 / count) * (value - average)
 
 
 class KLDAMCL:
@@ -194,6 +230,7 @@ class KLDAMCL:
         self.fitness: NDArray[np.float64] = np.ones(n)
         self.w_slow = 0.0
         self.w_fast = 0.0
+        self._n_averaged = 0  # values folded into w_slow and w_fast since the initialisation
         self.t = 0
         self.odom = np.zeros(3)  # odometry pose accumulated from the increments
         self.odom_at_update = np.zeros(3)  # odometry pose of the last filter update
@@ -211,6 +248,7 @@ class KLDAMCL:
         self.log_weights = np.full(n, -math.log(n))
         self.fitness = np.ones(n)
         self.w_slow = self.w_fast = 0.0
+        self._n_averaged = 0
         self.t = 0
         self.odom = np.zeros(3)
         self.odom_at_update = np.zeros(3)
@@ -223,8 +261,8 @@ class KLDAMCL:
         start = time.perf_counter()
         self._reset(self.grid.sample_free_poses(self.config.max_particles, self.rng))
         self._evaluations = 0
-        resampled = self._update(scan)
-        return self._diagnostics(start, updated=True, resampled=resampled)
+        resampled, reinit = self._update(scan)
+        return self._diagnostics(start, updated=True, resampled=resampled, reinitialised=reinit)
 
     def initialise_pose(self, pose: ArrayLike, covariance: ArrayLike) -> None:
         """``max_particles`` poses from ``N(pose, covariance)`` (amcl's ``pf_init``)."""
@@ -252,6 +290,7 @@ class KLDAMCL:
 
     def step(self, increment: OdometryIncrement, scan: LaserScan | None) -> StepDiagnostics:
         start = time.perf_counter()
+        check_increment(increment)
         self.t += 1
         self._evaluations = 0
         self.odom = apply_increment(self.odom, increment.rot1, increment.trans, increment.rot2)[0]
@@ -259,43 +298,44 @@ class KLDAMCL:
             return self._diagnostics(start, updated=False, resampled=False)
         self.poses = self.motion.sample(self.poses, self._motion_since_update(), self.rng)
         self.odom_at_update = self.odom.copy()
-        resampled = self._update(scan)
-        return self._diagnostics(start, updated=True, resampled=resampled)
+        resampled, reinit = self._update(scan)
+        return self._diagnostics(start, updated=True, resampled=resampled, reinitialised=reinit)
 
-    def _update(self, scan: LaserScan) -> bool:
+    def _update(self, scan: LaserScan) -> tuple[bool, bool]:
         """Sensor update with ``scan``, then resampling when its interval comes; returns whether
-        it resampled."""
+        it resampled and whether it had to re-initialise globally."""
         self._force_update = False
+        self._injected = 0
         prepared = self.sensor.prepare(scan)
-        ll = self.sensor.log_likelihood(self.poses, prepared)
+        if prepared.n_beams == 0:
+            return False, False  # the scan says nothing: weights and averages stay as they are
+        ll = sanitise_log_likelihood(self.sensor.log_likelihood(self.poses, prepared))
         self._evaluations += self.poses.shape[0]
-        prior = normalise_log_weights(self.log_weights)[1]
-        self.fitness = _fitness(ll, prepared, self.sensor)
-        log_w, _, ok = normalise_log_weights(self.log_weights + ll)
-        if ok:
-            self.log_weights = log_w
-            w_avg = average_weight(prior, self.fitness)
-        else:
-            # Every particle impossible or NaN: uniform weights, and the average weight is 0.
-            n = self.poses.shape[0]
+        prior_log_w = normalise_log_weights(self.log_weights)[0]
+        log_w, _, ok = normalise_log_weights(prior_log_w + ll)
+        if not ok:
+            # Every particle impossible (or the model returned NaN): start again globally. The
+            # averages skip this scan (it measured a cloud that is gone).
+            n = self.config.max_particles
+            self.poses = self.grid.sample_free_poses(n, self.rng)
             self.log_weights = np.full(n, -math.log(n))
-            w_avg = 0.0
+            self.fitness = np.ones(n)
+            self._kld_target = n
+            self._force_update = True
+            return False, True
+        self.log_weights = log_w
+        self.fitness = _fitness(ll, prepared, self.sensor)
         cfg = self.config
         if cfg.recovery:
-            if self.w_slow == 0.0:
-                self.w_slow = w_avg
-            else:
-                self.w_slow += cfg.alpha_slow * (w_avg - self.w_slow)
-            if self.w_fast == 0.0:
-                self.w_fast = w_avg
-            else:
-                self.w_fast += cfg.alpha_fast * (w_avg - self.w_fast)
+            w_avg = average_weight(prior_log_w, ll, prepared, self.sensor)
+            self._n_averaged += 1
+            self.w_slow = running_average(self.w_slow, w_avg, cfg.alpha_slow, self._n_averaged)
+            self.w_fast = running_average(self.w_fast, w_avg, cfg.alpha_fast, self._n_averaged)
         self._resample_count += 1
         if self._resample_count % cfg.resample_interval != 0:
-            self._injected = 0
-            return False
+            return False, False
         self._resample(prepared)
-        return True
+        return True, False
 
     def random_probability(self) -> float:
         """``max(0, 1 - w_fast / w_slow)``: the chance that a resampled particle is random."""
@@ -337,11 +377,10 @@ class KLDAMCL:
             self._evaluations += self._injected
             self.fitness[injected] = _fitness(ll, prepared, self.sensor)
         self.log_weights = np.full(m, -math.log(m))
-        if w_diff > 0.0:
-            # amcl resets the averages so that it does not spiral into complete randomness.
-            self.w_slow = self.w_fast = 0.0
 
-    def _diagnostics(self, start: float, *, updated: bool, resampled: bool) -> StepDiagnostics:
+    def _diagnostics(
+        self, start: float, *, updated: bool, resampled: bool, reinitialised: bool = False
+    ) -> StepDiagnostics:
         w = self.weights
         return StepDiagnostics(
             step=self.t,
@@ -350,6 +389,7 @@ class KLDAMCL:
             resampled=resampled,
             likelihood_evaluations=self._evaluations,
             step_ms=(time.perf_counter() - start) * 1e3,
+            reinitialised=reinitialised,
             extra={
                 "updated": float(updated),
                 "w_slow": self.w_slow,
@@ -438,4 +478,5 @@ __all__ = [
     "kld_sample_size",
     "kld_sample_sizes",
     "occupied_bins_prefix",
+    "running_average",
 ]
