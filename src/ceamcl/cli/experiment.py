@@ -6,12 +6,18 @@ from __future__ import annotations
 import argparse
 import time
 from collections.abc import Callable
-from typing import Any
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from rich.console import Console
 
 from ceamcl.cli.common import non_negative_int, positive_float, positive_int
 from ceamcl.errors import ConfigError
+from ceamcl.viz.outputs import OutputOptions, add_output_arguments
+
+if TYPE_CHECKING:
+    from ceamcl.experiments.common import ExperimentSettings, TrialOutputs
+    from ceamcl.experiments.trials import TrialRecord
 
 EXPERIMENTS: dict[str, str] = {
     "table1": "the paper's Table 1 and Figs. 4-6: every algorithm from each of the four rooms",
@@ -91,6 +97,9 @@ def _add_common(p: argparse.ArgumentParser, name: str, default_trials: int) -> N
     )
     p.add_argument("--out", default=f"experiment-{name}", help="folder for the results")
     p.add_argument("--quiet", action="store_true", help="no progress bar or table")
+    # After the trials, the first trial of each algorithm is run again with its particles
+    # kept and drawn into OUT/runs/ALGORITHM/ (docs/outputs.md); --mcap FILE names a file there.
+    add_output_arguments(p, animation_default=False)
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -166,6 +175,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     from ceamcl.io.results import ensure_output_dir
 
     settings = _settings(args, console)
+    outputs = _output_options(args)  # refuses --mp4 without ffmpeg before the trials
     ensure_output_dir(args.out)  # fail on an unwritable folder before hours of trials
     runs = len(settings.algorithms) * len(settings.course.routes) * settings.trials
     if args.experiment == "delta":
@@ -180,22 +190,26 @@ def run(args: argparse.Namespace, console: Console) -> int:
     write: Callable[[], list[Any]]
     if args.experiment == "table1":
         r1 = table1.run_table1(settings, console=console, quiet=args.quiet)
+        records = r1.records
         table = table1.table1_rich(r1)
         write = lambda: table1.write_table1(r1, args.out, meta)  # noqa: E731
     elif args.experiment == "delta":
         r2 = delta.run_delta(
             settings, args.deltas or delta.DEFAULT_DELTAS, console=console, quiet=args.quiet
         )
+        records = r2.records
         table = delta.delta_rich(r2)
         write = lambda: delta.write_delta(r2, args.out, meta)  # noqa: E731
     elif args.experiment == "marked":
         r3 = marked.run_marked(settings, console=console, quiet=args.quiet)
+        records = r3.records
         table = marked.marked_rich(r3)
         write = lambda: marked.write_marked(r3, args.out, meta)  # noqa: E731
     else:
         r4 = kidnapped.run_kidnapped(
             settings, args.recovery_window, console=console, quiet=args.quiet
         )
+        records = r4.records
         table = kidnapped.kidnapped_rich(r4)
         write = lambda: kidnapped.write_kidnapped(r4, args.out, meta)  # noqa: E731
     meta["wall_time_s"] = round(time.perf_counter() - started, 1)
@@ -207,4 +221,93 @@ def run(args: argparse.Namespace, console: Console) -> int:
             + ", ".join(p.name for p in paths)
             + f" to {args.out}"
         )
+    if outputs.any:
+        _write_run_outputs(records, settings, args, outputs, console)
     return 0
+
+
+def _output_options(args: argparse.Namespace) -> OutputOptions:
+    """The visual outputs asked for; ``--mcap FILE`` keeps only FILE's name, for a file in
+    each algorithm's ``OUT/runs/ALGORITHM/`` folder."""
+    options = OutputOptions.from_args({**vars(args), "mcap": None})
+    if args.mcap is None:
+        return options
+    name = Path(args.mcap).name
+    if not name or name in (".", ".."):
+        raise ConfigError(f"mcap: expected a file name, got {args.mcap!r}")
+    return OutputOptions(
+        gif=options.gif,
+        mp4=options.mp4,
+        fps=options.fps,
+        stride=options.stride,
+        report=options.report,
+        mcap=Path(name),
+    )
+
+
+def _write_run_outputs(
+    records: list[TrialRecord],
+    settings: ExperimentSettings,
+    args: argparse.Namespace,
+    outputs: OutputOptions,
+    console: Console,
+) -> None:
+    """Run the first trial of each algorithm again, with its particles, and write its visual
+    outputs into ``OUT/runs/ALGORITHM/``."""
+    from ceamcl.experiments.common import first_records
+
+    for record in first_records(records):
+        out_dir = Path(args.out) / "runs" / record.algorithm
+        done = _rerun(record, settings, out_dir, outputs, console, quiet=args.quiet)
+        if not done.same_as_record:
+            console.print(
+                f"[yellow]warning[/]: the re-run of {record.algorithm}'s first trial differs "
+                "from the trial the experiment counted (its summary.json says so)"
+            )
+        if not args.quiet:
+            console.print(
+                f"{record.algorithm}: wrote "
+                + ", ".join(p.name for p in done.files)
+                + f" to {done.out_dir}"
+            )
+
+
+def _rerun(
+    record: TrialRecord,
+    settings: ExperimentSettings,
+    out_dir: Path,
+    outputs: OutputOptions,
+    console: Console,
+    *,
+    quiet: bool,
+) -> TrialOutputs:
+    """One re-run with progress bars over its steps and the animation's frames."""
+    from rich.progress import TaskID
+
+    from ceamcl.cli.common import make_progress
+    from ceamcl.experiments.common import write_trial_outputs
+
+    progress = make_progress(
+        f"[bold]{record.algorithm}[/] on {record.route}, repetition {record.repetition}, "
+        "again for the visual outputs",
+        console,
+        quiet=quiet,
+    )
+    with progress:
+        task = progress.add_task("steps", total=None)
+        frame_task: list[TaskID] = []
+
+        def frame(i: int, total: int) -> None:
+            if not frame_task:
+                frame_task.append(progress.add_task("animation frames", total=total))
+            progress.update(frame_task[0], completed=i)
+
+        return write_trial_outputs(
+            record,
+            settings,
+            out_dir,
+            outputs,
+            on_start=lambda total: progress.update(task, total=total),
+            on_step=lambda k: progress.update(task, completed=k + 1),
+            on_frame=frame,
+        )

@@ -7,10 +7,12 @@ import argparse
 from typing import Any
 
 from rich.console import Console
+from rich.progress import TaskID
 from rich.table import Table
 
 from ceamcl.cli.common import make_progress, non_negative_int, positive_float, positive_int
 from ceamcl.errors import ConfigError
+from ceamcl.viz.outputs import OutputOptions, add_output_arguments
 
 DEFAULT_ALGORITHM = "ceamcl"
 
@@ -104,6 +106,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     add_truth_arguments(p)
     p.add_argument("--out", default="run-out", help="folder for the results")
     p.add_argument("--quiet", action="store_true", help="no progress bar or table")
+    # Real logs are long: no animation unless --gif asks for it (docs/outputs.md).
+    add_output_arguments(p, animation_default=False)
     p.set_defaults(run=run)
 
 
@@ -111,6 +115,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     from ceamcl.experiments.algorithms import resolve_algorithms
     from ceamcl.experiments.evaluate_log import obtain_map, prepare_log, replay_log
 
+    outputs = OutputOptions.from_args(args)  # refuses --mp4 without ffmpeg before the run
     algos, skipped = resolve_algorithms([args.algorithm])
     if not algos:
         from ceamcl.errors import ConfigError
@@ -131,6 +136,13 @@ def run(args: argparse.Namespace, console: Console) -> int:
     )
     with progress:
         task = progress.add_task("scans", total=None)
+        frame_task: list[TaskID] = []
+
+        def frame(i: int, total: int) -> None:
+            if not frame_task:
+                frame_task.append(progress.add_task("animation frames", total=total))
+            progress.update(frame_task[0], completed=i)
+
         outcome = replay_log(
             prepared,
             grid,
@@ -139,6 +151,8 @@ def run(args: argparse.Namespace, console: Console) -> int:
             out=args.out,
             on_start=lambda total: progress.update(task, total=total),
             on_step=lambda k: progress.update(task, completed=k + 1),
+            outputs=outputs,
+            on_frame=frame,
         )
     if not args.quiet:
         table = Table(title=f"ceamcl run ({args.algorithm}, seed {args.seed})")
@@ -165,4 +179,6 @@ def run(args: argparse.Namespace, console: Console) -> int:
                 table.add_row(key, f"{v:.3f}" if isinstance(v, float) else str(v))
         console.print(table)
         console.print(f"results written to [bold]{outcome.out_dir}[/]")
+        for path in outcome.files:
+            console.print(f"  {path}")
     return 0

@@ -11,7 +11,7 @@ import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -19,7 +19,10 @@ from rich.console import Console
 
 from ceamcl.experiments.executors import map_trials, open_executor
 from ceamcl.experiments.routes import Course
-from ceamcl.experiments.trials import Trial, TrialRecord, run_trial
+from ceamcl.experiments.trials import Trial, TrialRecord, localise_trial, run_trial
+
+if TYPE_CHECKING:
+    from ceamcl.viz.outputs import OutputOptions
 
 T = TypeVar("T")
 
@@ -98,6 +101,99 @@ def run_metadata(settings: ExperimentSettings, argv: Sequence[str] | None = None
         "python": platform.python_version(),
         "numpy": numpy.__version__,
     }
+
+
+# ------------------------------------------------------------------ visual outputs
+def trial_of(record: TrialRecord, settings: ExperimentSettings) -> Trial:
+    """The trial that made ``record`` (trials are seeded: running it again gives the record)."""
+    return Trial(
+        record.experiment,
+        record.algorithm,
+        settings.course,
+        record.route_index,
+        record.repetition,
+        record.seed,
+        record.delta_per_m2,
+        settings.max_time_s,
+    )
+
+
+def first_records(records: Sequence[TrialRecord]) -> list[TrialRecord]:
+    """The first trial of each algorithm (records in trial order: the first route, the first
+    repetition and, for ``delta``, the first delta)."""
+    return [rs[0] for rs in group_by(records, lambda r: r.algorithm).values()]
+
+
+@dataclass(frozen=True)
+class TrialOutputs:
+    """The visual outputs of one re-run trial, and whether the re-run equals its record."""
+
+    algorithm: str
+    out_dir: Path
+    files: list[Path]
+    same_as_record: bool
+
+
+def write_trial_outputs(
+    record: TrialRecord,
+    settings: ExperimentSettings,
+    out_dir: str | os.PathLike[str],
+    options: OutputOptions,
+    *,
+    on_start: Callable[[int], None] | None = None,
+    on_step: Callable[[int], None] | None = None,
+    on_frame: Callable[[int, int], None] | None = None,
+) -> TrialOutputs:
+    """Run the trial of ``record`` again in this process, keeping the particles every
+    ``options.stride`` steps, and write ``options``' outputs (``ceamcl.viz.outputs.
+    OutputOptions``: ``run.gif``, ``run.mp4``, ``report.html``; ``options.mcap`` is taken as a
+    file *name* inside ``out_dir``) plus ``summary.json`` into ``out_dir``.
+
+    The run is checked against the record: ``same_as_record`` is whether the estimates of
+    every step are bit for bit those the experiment counted (``summary.json`` says so too).
+    """
+    from dataclasses import asdict, replace
+
+    from ceamcl.io.results import ensure_output_dir, write_json
+    from ceamcl.viz.outputs import write_outputs
+
+    out = ensure_output_dir(out_dir)
+    trial = trial_of(record, settings)
+    log, result = localise_trial(
+        trial, snapshot_every=options.stride, on_start=on_start, on_step=on_step
+    )
+    same = bool(np.array_equal(result.estimates, record.estimates)) and bool(
+        np.array_equal(result.times, record.times)
+    )
+    summary: dict[str, Any] = {
+        "trial": trial.name,
+        "experiment": trial.experiment,
+        "algorithm": trial.algorithm,
+        "course": settings.course.name,
+        "route": trial.route,
+        "repetition": trial.repetition,
+        "seed": trial.seed,
+        "delta_per_m2": trial.delta_per_m2,
+        "max_time_s": trial.max_time_s,
+        "steps": result.steps,
+        "same_as_recorded_trial": same,
+        **asdict(record.metrics),
+    }
+    if options.mcap is not None:
+        options = replace(options, mcap=out / Path(options.mcap).name)
+    files = write_outputs(
+        result,
+        trial.course.grid(),
+        out,
+        options,
+        log=log,
+        summary=summary,
+        title=f"{trial.experiment}: {trial.algorithm} on {trial.route}, "
+        f"repetition {trial.repetition}, seed {trial.seed}",
+        on_frame=on_frame,
+    )
+    files.append(write_json(out / "summary.json", summary))
+    return TrialOutputs(trial.algorithm, out, files, same)
 
 
 # ------------------------------------------------------------------ curves over time

@@ -25,7 +25,7 @@ import zlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -35,6 +35,9 @@ from ceamcl.io.logs import DEFAULT_SYNTHETIC_NOISE, RecordedLog, open_log, poses
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryNoise
 from ceamcl.runner import RunResult, run_filter
+
+if TYPE_CHECKING:
+    from ceamcl.viz.outputs import OutputOptions
 
 TruthMode = Literal["auto", "yes", "no"]
 
@@ -112,6 +115,7 @@ class ReplayOutcome:
     result: RunResult
     summary: dict[str, Any]
     out_dir: Path | None
+    files: list[Path] = field(default_factory=list)  # visual outputs written (gif, report, mcap)
 
 
 def replay_log(
@@ -123,8 +127,16 @@ def replay_log(
     out: str | os.PathLike[str] | None = None,
     on_start: Callable[[int], None] | None = None,
     on_step: Callable[[int], None] | None = None,
+    outputs: OutputOptions | None = None,
+    on_frame: Callable[[int, int], None] | None = None,
 ) -> ReplayOutcome:
-    """Global localisation over the whole log; with ``out``, the files of ``ceamcl run``."""
+    """Global localisation over the whole log; with ``out``, the files of ``ceamcl run``.
+
+    ``outputs`` (``ceamcl.viz.outputs.OutputOptions``) adds ``run.gif``/``run.mp4``,
+    ``report.html`` and an MCAP file (with the log's scans, and its truth where it has one);
+    the particles are kept every ``outputs.stride`` steps only when one of them is asked for.
+    ``on_frame(i, total)`` reports the animation's progress.
+    """
     from ceamcl.io.results import ensure_output_dir, write_diagnostics_csv, write_json
     from ceamcl.io.tum import write_tum
 
@@ -133,7 +145,8 @@ def replay_log(
     if on_start is not None:
         on_start(len(log))
     f = _build(algorithm, grid, _filter_rng(prepared.seed, 0, algorithm))
-    result = run_filter(f, log, on_step=on_step)
+    snapshot_every = outputs.snapshot_every if outputs is not None else 0
+    result = run_filter(f, log, on_step=on_step, snapshot_every=snapshot_every)
     summary = run_summary(result, prepared, grid, map_source)
     if out_dir is not None:
         from ceamcl.viz.plots import plot_run
@@ -149,7 +162,22 @@ def replay_log(
             title=f"{algorithm} on {log.name}, seed {prepared.seed}",
         )
         write_json(out_dir / "summary.json", summary)
-    return ReplayOutcome(result, summary, out_dir)
+    files: list[Path] = []
+    if outputs is not None and outputs.any:
+        from ceamcl.viz.outputs import write_outputs
+
+        # Without an output folder only the MCAP file (a path of its own) is written.
+        files = write_outputs(
+            result,
+            grid,
+            out_dir if out_dir is not None else Path(),
+            outputs if out_dir is not None else outputs.only_mcap(),
+            log=log,
+            summary=summary,
+            title=f"{algorithm} on {log.name}, seed {prepared.seed}",
+            on_frame=on_frame,
+        )
+    return ReplayOutcome(result, summary, out_dir, files)
 
 
 def run_summary(

@@ -9,6 +9,7 @@ algorithm of an experiment sees the same logs, and no executor can change a numb
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -17,7 +18,7 @@ from numpy.typing import NDArray
 from ceamcl.experiments.algorithms import SINGLE_ESTIMATE, build_filter
 from ceamcl.experiments.metrics import TrialMetrics, step_coverage, trial_metrics
 from ceamcl.experiments.routes import Course
-from ceamcl.runner import run_filter
+from ceamcl.runner import RunResult, run_filter
 from ceamcl.simulation.simulator import SimulatedLog
 
 
@@ -101,13 +102,35 @@ def simulate_trial_log(trial: Trial) -> SimulatedLog:
     return log
 
 
-def run_trial(trial: Trial) -> TrialRecord:
-    """Simulate, localise globally, and record coverage, errors, sample size and cost."""
+def localise_trial(
+    trial: Trial,
+    *,
+    snapshot_every: int = 0,
+    on_start: Callable[[int], None] | None = None,
+    on_step: Callable[[int], None] | None = None,
+) -> tuple[SimulatedLog, RunResult]:
+    """Simulate the trial's log and run its filter over it: the run :func:`run_trial` records.
+
+    ``snapshot_every > 0`` also keeps the particles every that many steps (for the visual
+    outputs); it does not change the run. ``on_start(steps)``/``on_step(k)``: progress.
+    """
     log = simulate_trial_log(trial)
+    if on_start is not None:
+        on_start(len(log))
     _, filter_rng = trial_generators(trial.seed, trial.route_index, trial.repetition)
     grid = trial.course.grid()
     f = build_filter(trial.algorithm, grid, filter_rng, delta_per_m2=trial.delta_per_m2)
-    result = run_filter(f, log)
+    return log, run_filter(f, log, on_step=on_step, snapshot_every=snapshot_every)
+
+
+def run_trial(trial: Trial) -> TrialRecord:
+    """Simulate, localise globally, and record coverage, errors, sample size and cost."""
+    log, result = localise_trial(trial)
+    return record_trial(trial, log, result)
+
+
+def record_trial(trial: Trial, log: SimulatedLog, result: RunResult) -> TrialRecord:
+    """What :func:`run_trial` records of the run ``result`` of ``trial`` over ``log``."""
     single = trial.algorithm in SINGLE_ESTIMATE
     n = result.steps
     k_images = trial.course.n_images
