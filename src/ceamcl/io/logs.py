@@ -30,7 +30,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ceamcl.angles import wrap
 from ceamcl.errors import ConfigError, LogFormatError
-from ceamcl.motion.odometry import OdometryMotionModel, OdometryNoise, increment_between
+from ceamcl.motion.odometry import OdometryNoise, synthetic_odometry
 from ceamcl.sensors.scan import LaserScan
 
 __all__ = [
@@ -183,22 +183,6 @@ class RecordedLog:
 
 def _noise_dict(noise: OdometryNoise) -> dict[str, float]:
     return {k: float(getattr(noise, k)) for k in ("alpha1", "alpha2", "alpha3", "alpha4")}
-
-
-def synthetic_odometry(
-    true_poses: ArrayLike, noise: OdometryNoise, rng: np.random.Generator
-) -> NDArray[np.float64]:
-    """Odometry poses ``(T, 3)``: the true increments perturbed by the odometry model's noise."""
-    truth = np.asarray(true_poses, dtype=np.float64).reshape(-1, 3)
-    model = OdometryMotionModel(noise)
-    odom = np.empty_like(truth)
-    if truth.shape[0] == 0:
-        return odom
-    odom[0] = truth[0]
-    for k in range(1, truth.shape[0]):
-        inc = increment_between(truth[k - 1], truth[k])
-        odom[k] = model.sample(odom[k - 1 : k], inc, rng)[0]
-    return odom
 
 
 def interpolate_poses(times: ArrayLike, poses: ArrayLike, at: ArrayLike) -> NDArray[np.float64]:

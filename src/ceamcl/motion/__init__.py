@@ -6,6 +6,7 @@ from ceamcl.motion.odometry import (
     OdometryNoise,
     apply_increment,
     increment_between,
+    synthetic_odometry,
 )
 
 __all__ = [
@@ -14,4 +15,5 @@ __all__ = [
     "OdometryNoise",
     "apply_increment",
     "increment_between",
+    "synthetic_odometry",
 ]

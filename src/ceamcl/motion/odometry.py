@@ -16,6 +16,7 @@ as 0 for translations under 1 cm, where the direction of travel is meaningless.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -122,3 +123,32 @@ class OdometryMotionModel:
         trans = increment.trans - noise[:, 1] * np.sqrt(v_trans)
         rot2 = increment.rot2 - noise[:, 2] * np.sqrt(v_rot2)
         return apply_increment(p, rot1, trans, rot2)
+
+
+def synthetic_odometry(
+    true_poses: ArrayLike,
+    noise: OdometryNoise,
+    rng: np.random.Generator,
+    *,
+    kidnapped_at: Sequence[int] = (),
+) -> NDArray[np.float64]:
+    """Odometry poses ``(T, 3)``: the true increments, each perturbed by the odometry model.
+
+    Serves the simulator and corrected real logs (which hold no raw odometry). At the steps in
+    ``kidnapped_at`` the robot is lifted and carried: the wheels do not turn, so the odometry
+    stays where it was while the truth jumps.
+    """
+    truth = np.asarray(true_poses, dtype=np.float64).reshape(-1, 3)
+    model = OdometryMotionModel(noise)
+    odom = np.empty_like(truth)
+    if truth.shape[0] == 0:
+        return odom
+    odom[0] = truth[0]
+    lifted = set(kidnapped_at)
+    for k in range(1, truth.shape[0]):
+        if k in lifted:
+            odom[k] = odom[k - 1]
+            continue
+        inc = increment_between(truth[k - 1], truth[k])
+        odom[k] = model.sample(odom[k - 1 : k], inc, rng)[0]
+    return odom

@@ -21,7 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ceamcl.angles import diff, wrap
 from ceamcl.maps.grid import OccupancyGrid
-from ceamcl.motion.odometry import OdometryMotionModel, OdometryNoise, increment_between
+from ceamcl.motion.odometry import OdometryNoise, synthetic_odometry
 from ceamcl.sensors.raycast import cast_rays
 from ceamcl.sensors.scan import LaserGeometry, LaserScan, laser_poses
 
@@ -140,18 +140,9 @@ class Simulator:
         At the steps in ``kidnapped_at`` the robot is lifted and carried: the wheels do not
         turn, so the odometry stays where it was while the truth jumps.
         """
-        truth = np.asarray(true_poses, dtype=np.float64).reshape(-1, 3)
-        model = OdometryMotionModel(self.config.odometry_noise)
-        odom = np.empty_like(truth)
-        odom[0] = truth[0]
-        lifted = set(kidnapped_at)
-        for k in range(1, truth.shape[0]):
-            if k in lifted:
-                odom[k] = odom[k - 1]
-                continue
-            inc = increment_between(truth[k - 1], truth[k])
-            odom[k] = model.sample(odom[k - 1 : k], inc, rng)[0]
-        return odom
+        return synthetic_odometry(
+            true_poses, self.config.odometry_noise, rng, kidnapped_at=kidnapped_at
+        )
 
     def scans(self, true_poses: ArrayLike, rng: np.random.Generator) -> NDArray[np.float64]:
         """Noisy ranges ``(T, n_beams)`` seen from the true poses."""
