@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ceamcl.maps.grid import OccupancyGrid
+from ceamcl.sensors._compile import serial_and_parallel
 from ceamcl.sensors.likelihood_field import PARALLEL_MIN_POSES
 from ceamcl.sensors.raycast import RangeTable, _march, _table_range, cast_fan
 from ceamcl.sensors.scan import LaserScan, PreparedScan, laser_poses, prepare_scan
@@ -140,8 +141,7 @@ def _beam_kernel_py(
     return out
 
 
-_beam_kernel_parallel = numba.njit(cache=True, parallel=True, fastmath=True)(_beam_kernel_py)
-_beam_kernel_serial = numba.njit(cache=True, fastmath=True)(_beam_kernel_py)
+_beam_kernel_serial, _beam_kernel_parallel = serial_and_parallel(_beam_kernel_py)
 
 
 def _beam_table_kernel_py(
@@ -201,8 +201,7 @@ def _beam_table_kernel_py(
     return out
 
 
-_beam_table_parallel = numba.njit(cache=True, parallel=True, fastmath=True)(_beam_table_kernel_py)
-_beam_table_serial = numba.njit(cache=True, fastmath=True)(_beam_table_kernel_py)
+_beam_table_serial, _beam_table_parallel = serial_and_parallel(_beam_table_kernel_py)
 
 
 class BeamModel:

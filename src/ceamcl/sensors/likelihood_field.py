@@ -26,6 +26,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ceamcl.maps.grid import OccupancyGrid
+from ceamcl.sensors._compile import serial_and_parallel
 from ceamcl.sensors.scan import LaserScan, PreparedScan, laser_poses, prepare_scan
 
 _SQRT_2PI = math.sqrt(2.0 * math.pi)
@@ -94,8 +95,7 @@ def _lf_kernel_py(
 
 # One source, compiled twice: threads only pay off for large batches (CEAMCL's 10^6 test
 # poses); a few hundred particles are faster on one core than after a thread hand-off.
-_lf_kernel_parallel = numba.njit(cache=True, parallel=True, fastmath=True)(_lf_kernel_py)
-_lf_kernel_serial = numba.njit(cache=True, fastmath=True)(_lf_kernel_py)
+_lf_kernel_serial, _lf_kernel_parallel = serial_and_parallel(_lf_kernel_py)
 PARALLEL_MIN_POSES = 4096
 
 
