@@ -183,3 +183,17 @@ def test_pose_cluster_joins_across_the_heading_wrap() -> None:
     )
     _, count2 = pose_cluster_labels(both, 0.5, np.deg2rad(30.0))
     assert count2 == 2
+
+
+def test_one_cell_joins_every_region_it_touches_across_the_heading_wrap() -> None:
+    # Heading slices of 45 degrees; one cell in the last slice (just below +pi) at x-cell 1
+    # touches two first-slice cells (just above -pi) at x-cells 0 and 2, which do not touch
+    # each other: all three are one region.
+    th_last, th_first = np.pi - 0.1, -np.pi + 0.1
+    poses = np.array([[1.5, 0.5, th_last], [0.5, 0.5, th_first], [2.5, 0.5, th_first]])
+    labels, count = pose_cluster_labels(poses, 1.0, np.pi / 4)
+    assert count == 1
+    assert labels.tolist() == [0, 0, 0]
+    # Control: without the bridging cell the two first-slice cells are two regions.
+    _, count_apart = pose_cluster_labels(poses[1:], 1.0, np.pi / 4)
+    assert count_apart == 2

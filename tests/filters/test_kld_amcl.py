@@ -13,7 +13,7 @@ from numpy.typing import ArrayLike, NDArray
 from ceamcl.errors import CeamclError, ConfigError
 from ceamcl.experiments.kidnapped import DEFAULT_WINDOW_S
 from ceamcl.experiments.metrics import covers, recovery_step
-from ceamcl.filters import ALGORITHMS, KLDAMCL, KLDAMCLConfig, make_filter
+from ceamcl.filters import ALGORITHMS, KLDAMCL, KLDAMCLConfig, make_filter, make_sensor
 from ceamcl.filters.kld_amcl import (
     Z_099,
     average_weight,
@@ -480,3 +480,24 @@ def test_beam_model_works_too() -> None:
     for k in range(1, 120):
         f.step(increment_between(log.odometry[k - 1], log.odometry[k]), log.scan(k))
     assert np.hypot(*(f.estimate().pose[:2] - log.true_poses[119, :2])) < 0.15
+
+
+def test_estimate_is_the_heaviest_hypothesis() -> None:
+    log, rng = office_log(3)
+    grid = get_scenario("office").grid()
+    cfg = KLDAMCLConfig(resample_interval=1000)  # no resampling: the uniform cloud stays
+    f = KLDAMCL(grid, OdometryMotionModel(), make_sensor("likelihood-field", grid), cfg, rng=rng)
+    f.initialise_global(log.scan(0))  # many clusters
+    f.step(OdometryIncrement(0.0, 0.1, 0.0), log.scan(1))  # carried between updates
+    hyps = f.hypotheses()
+    assert len(hyps) > 1
+    assert [h.weight for h in hyps] == sorted((h.weight for h in hyps), reverse=True)
+    est = f.estimate()
+    np.testing.assert_array_equal(est.pose, hyps[0].pose)
+    np.testing.assert_array_equal(est.covariance, hyps[0].covariance)
+
+
+def test_initialise_pose_rejects_a_non_finite_pose() -> None:
+    f = make_filter("kld-amcl", get_scenario("office").grid(), np.random.default_rng(0))
+    with pytest.raises(ConfigError, match="pose"):
+        f.initialise_pose([1.0, float("nan"), 0.0], np.eye(3) * 0.01)

@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import ndimage
+from scipy import ndimage, sparse
+from scipy.sparse import csgraph
 
 _EIGHT = np.ones((3, 3), dtype=bool)
 
@@ -60,24 +61,22 @@ def pose_cluster_labels(
     occ[xy[:, 0], xy[:, 1], th] = True
     lab, count = ndimage.label(occ, structure=_TWENTY_SIX)
     if n_theta > 2 and count > 1:
-        # Join regions that touch across the heading wrap (last slice next to the first).
-        parent = np.arange(count + 1)
-
-        def find(i: int) -> int:
-            while parent[i] != i:
-                parent[i] = parent[parent[i]]
-                i = int(parent[i])
-            return i
-
-        first = ndimage.maximum_filter(lab[:, :, 0], size=3, mode="constant")
+        # Join regions that touch across the heading wrap: each occupied cell of the last
+        # heading slice with the occupied cells of the first slice next to it in x-y.
+        first = np.pad(lab[:, :, 0], 1)
         last = lab[:, :, -1]
-        for a, b in zip(last[last > 0], first[last > 0], strict=True):
-            if b > 0:
-                ra, rb = find(int(a)), find(int(b))
-                if ra != rb:
-                    parent[max(ra, rb)] = min(ra, rb)
-        roots = np.array([find(i) for i in range(count + 1)])
-        _, lab_compact = np.unique(roots, return_inverse=True)
-        lab = lab_compact[lab]
-        count = int(lab_compact.max())
+        a, b = [], []
+        for dx in range(3):
+            for dy in range(3):
+                near = first[dx : dx + shape[0], dy : dy + shape[1]]
+                touch = (last > 0) & (near > 0)
+                a.append(last[touch])
+                b.append(near[touch])
+        edges = np.concatenate(a), np.concatenate(b)
+        graph = sparse.coo_matrix((np.ones(edges[0].size), edges), shape=(count + 1, count + 1))
+        _, component = csgraph.connected_components(graph, directed=False)
+        # Number the joined regions in the order of their lowest label (background stays 0).
+        _, lowest = np.unique(component, return_index=True)
+        lab = np.argsort(np.argsort(lowest))[component][lab]
+        count = int(lowest.size - 1)
     return (lab[xy[:, 0], xy[:, 1], th] - 1).astype(np.int64), int(count)

@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -44,7 +44,7 @@ from numpy.typing import ArrayLike, NDArray
 from ceamcl.errors import ConfigError
 from ceamcl.filters.base import Hypothesis, ParticleSnapshot, PoseEstimate, StepDiagnostics
 from ceamcl.filters.clustering import pose_cluster_labels
-from ceamcl.filters.mcl import check_increment
+from ceamcl.filters.mcl import check_increment, cluster_hypotheses, gaussian_poses
 from ceamcl.filters.resampling import (
     effective_sample_size,
     normalise_log_weights,
@@ -57,7 +57,6 @@ from ceamcl.motion.odometry import (
     apply_increment,
     increment_between,
 )
-from ceamcl.pose import pose_covariance, pose_mean
 from ceamcl.sensors.base import SensorModel, fitness
 from ceamcl.sensors.scan import LaserScan, PreparedScan
 
@@ -266,13 +265,7 @@ class KLDAMCL:
 
     def initialise_pose(self, pose: ArrayLike, covariance: ArrayLike) -> None:
         """``max_particles`` poses from ``N(pose, covariance)`` (amcl's ``pf_init``)."""
-        mean = np.asarray(pose, dtype=np.float64).reshape(3)
-        cov = np.asarray(covariance, dtype=np.float64).reshape(3, 3)
-        poses = self.rng.multivariate_normal(
-            mean, cov, size=self.config.max_particles, method="eigh"
-        )
-        poses[:, 2] = np.angle(np.exp(1j * poses[:, 2]))
-        self._reset(poses)
+        self._reset(gaussian_poses(pose, covariance, self.config.max_particles, self.rng))
 
     # ------------------------------------------------------------------ one step
     def _motion_since_update(self) -> OdometryIncrement:
@@ -324,7 +317,7 @@ class KLDAMCL:
             self._force_update = True
             return False, True
         self.log_weights = log_w
-        self.fitness = _fitness(ll, prepared, self.sensor)
+        self.fitness = fitness(ll, prepared, self.sensor)
         cfg = self.config
         if cfg.recovery:
             w_avg = average_weight(prior_log_w, ll, prepared, self.sensor)
@@ -373,9 +366,9 @@ class KLDAMCL:
         injected = is_random[:m]
         self._injected = int(injected.sum())
         if self._injected:
-            ll = self.sensor.log_likelihood(self.poses[injected], prepared)
+            ll = sanitise_log_likelihood(self.sensor.log_likelihood(self.poses[injected], prepared))
             self._evaluations += self._injected
-            self.fitness[injected] = _fitness(ll, prepared, self.sensor)
+            self.fitness[injected] = fitness(ll, prepared, self.sensor)
         self.log_weights = np.full(m, -math.log(m))
 
     def _diagnostics(
@@ -415,45 +408,21 @@ class KLDAMCL:
     def _labels(self) -> tuple[NDArray[np.int64], int]:
         return pose_cluster_labels(self.poses, self.config.bin_xy_m, self.config.bin_theta_rad)
 
-    def hypotheses(self) -> list[Hypothesis]:
-        """Clusters of connected occupied bins, heaviest first (amcl's hypotheses)."""
-        labels, count = self._labels()
-        w = self.weights
-        mass = np.bincount(labels, weights=w, minlength=count)
-        out = []
-        for k in np.argsort(-mass, kind="stable"):
-            members = labels == k
-            wk = w[members]
-            mean = pose_mean(self.poses[members], wk)
-            cov = pose_covariance(self.poses[members], wk, mean)
-            out.append(
-                Hypothesis(
-                    pose=self._carried(mean[None, :])[0],
-                    covariance=cov,
-                    n_particles=int(members.sum()),
-                    weight=float(mass[k]),
-                    fitness=float(np.mean(self.fitness[members])),
-                    label=int(k),
-                )
-            )
-        return out
+    def hypotheses(self, limit: int | None = None) -> list[Hypothesis]:
+        """Clusters of connected occupied bins, heaviest first (amcl's hypotheses), their poses
+        carried by the odometry since the last update; only the ``limit`` heaviest when given."""
+        hyps = cluster_hypotheses(self.poses, self.weights, self.fitness, *self._labels(), limit)
+        return [replace(h, pose=self._carried(h.pose[None, :])[0]) for h in hyps]
 
     def estimate(self) -> PoseEstimate:
         """The heaviest cluster's weighted mean and covariance (as amcl publishes)."""
-        best = self.hypotheses()[0]
+        best = self.hypotheses(limit=1)[0]
         return PoseEstimate(best.pose, best.covariance)
 
     def particles(self) -> ParticleSnapshot:
         """The particles, carried by the odometry since the last update; labels are clusters."""
         labels, _ = self._labels()
         return ParticleSnapshot(self._carried(self.poses.copy()), self.weights, labels)
-
-
-def _fitness(
-    ll: NDArray[np.float64], prepared: PreparedScan, sensor: SensorModel
-) -> NDArray[np.float64]:
-    """:func:`~ceamcl.sensors.base.fitness`, with NaN (a model's failure) scored 0."""
-    return np.nan_to_num(fitness(ll, prepared, sensor), nan=0.0)
 
 
 def kld_sample_sizes(

@@ -93,6 +93,38 @@ def gaussian_poses(
     return np.asarray(out, dtype=np.float64)
 
 
+def cluster_hypotheses(
+    poses: NDArray[np.float64],
+    weights: NDArray[np.float64],
+    fitness: NDArray[np.float64],
+    labels: NDArray[np.int64],
+    count: int,
+    limit: int | None = None,
+) -> list[Hypothesis]:
+    """The particle clusters ``labels`` (in ``0..count-1``) as hypotheses, heaviest first
+    (equal masses: lower label first); only the ``limit`` heaviest when given. Each has its
+    members' weighted mean pose and covariance, its share of the weight and mean fitness."""
+    mass = np.bincount(labels, weights=weights, minlength=count)
+    order = np.argsort(labels, kind="stable")
+    bounds = np.searchsorted(labels[order], np.arange(count + 1))
+    out = []
+    for k in np.argsort(-mass, kind="stable")[:limit]:
+        members = order[bounds[k] : bounds[k + 1]]
+        wk = weights[members]
+        mean = pose_mean(poses[members], wk)
+        out.append(
+            Hypothesis(
+                pose=mean,
+                covariance=pose_covariance(poses[members], wk, mean),
+                n_particles=int(members.size),
+                weight=float(mass[k]),
+                fitness=float(np.mean(fitness[members])),
+                label=int(k),
+            )
+        )
+    return out
+
+
 @dataclass(frozen=True)
 class MCLConfig:
     """MCL settings.
@@ -253,25 +285,7 @@ class MCL:
         return cluster_labels(self.poses[:, :2], self.config.cluster_cell_m)
 
     def hypotheses(self) -> list[Hypothesis]:
-        labels, count = self._labels()
-        w = self.weights
-        mass = np.bincount(labels, weights=w, minlength=count)
-        out = []
-        for k in np.argsort(-mass):
-            members = labels == k
-            wk = w[members]
-            mean = pose_mean(self.poses[members], wk)
-            out.append(
-                Hypothesis(
-                    pose=mean,
-                    covariance=pose_covariance(self.poses[members], wk, mean),
-                    n_particles=int(members.sum()),
-                    weight=float(mass[k]),
-                    fitness=float(np.mean(self.fitness[members])),
-                    label=int(k),
-                )
-            )
-        return out
+        return cluster_hypotheses(self.poses, self.weights, self.fitness, *self._labels())
 
     def particles(self) -> ParticleSnapshot:
         labels, _ = self._labels()

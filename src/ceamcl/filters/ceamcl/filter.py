@@ -55,14 +55,14 @@ from ceamcl.filters.ceamcl.species import (
     all_species_stats,
     compact_species,
     group_members,
-    in_species_weights,
     overlapping_pairs,
+    resample_species,
     sample_living_domain,
     split_parts,
 )
 from ceamcl.filters.evolution import evolve
 from ceamcl.filters.mcl import check_increment, gaussian_poses
-from ceamcl.filters.resampling import sanitise_log_likelihood, systematic
+from ceamcl.filters.resampling import sanitise_log_likelihood
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel
 from ceamcl.sensors.base import SensorModel, fitness
@@ -198,7 +198,7 @@ class CEAMCL:
         self._grow()
         if self.poses.shape[0] == 0:
             return self._restart(scan, start)
-        self._resample()
+        members = self._resample()
         self._predict(increment)
         prepared = None if scan is None else self.sensor.prepare(scan)
         if prepared is None or prepared.n_beams == 0:
@@ -211,8 +211,8 @@ class CEAMCL:
         self._weigh(prepared)
         if not np.any(np.isfinite(self.loglik)):
             return self._restart(scan, start)  # every particle impossible under this scan
-        self._evolve()
-        self._split_and_merge()  # leaves self.stats fresh
+        self._evolve(members)
+        self._split_and_merge(members)  # leaves self.stats fresh
         if self._fitness_collapsed():
             self._events["recoveries"] = 1.0
             return self._restart(scan, start)  # kidnapped: no species explains the scans
@@ -304,18 +304,12 @@ class CEAMCL:
         return int(lo) + int(self.rng.random() < (x - lo))
 
     # ------------------------------------------------------------------ 2. resampling
-    def _resample(self) -> None:
-        members = group_members(self.species)
-        picks = []
-        for sid, idx in members.items():
-            target = self._targets.get(sid, idx.size)
-            w = in_species_weights(self.loglik[idx])
-            picks.append(idx[systematic(w, target, self.rng)])
-        sel = np.concatenate(picks) if picks else np.zeros(0, dtype=np.intp)
-        self.poses = self.poses[sel]
-        self.species = self.species[sel]
-        self.loglik = self.loglik[sel]
-        self.fitness = self.fitness[sel]
+    def _resample(self) -> dict[int, NDArray[np.intp]]:
+        """Returns the members of each species after resampling; prediction, weighting and
+        evolution keep them, so evolution and splitting reuse them."""
+        sel, members = resample_species(self.species, self.loglik, self._targets, self.rng)
+        self._take(sel)
+        return members
 
     # ------------------------------------------------------------------ 3. prediction
     def _predict(self, increment: OdometryIncrement) -> None:
@@ -332,8 +326,8 @@ class CEAMCL:
         return self.sensor.log_likelihood(poses, self._prepared)
 
     # ------------------------------------------------------------------ 5. evolution
-    def _evolve(self) -> None:
-        groups = list(group_members(self.species).values())
+    def _evolve(self, members: dict[int, NDArray[np.intp]]) -> None:
+        groups = list(members.values())
         self._evaluations += evolve(
             self.poses, self.loglik, groups, self.config.evolution, self._evaluate, self.rng
         )
@@ -342,13 +336,16 @@ class CEAMCL:
         self.fitness = fitness(self.loglik, self._prepared, self.sensor)
 
     # ------------------------------------------------------------------ 6. split and merge
-    def _split_and_merge(self) -> None:
-        """Split, then merge; on return ``self.stats`` describes the current particles."""
+    def _split_and_merge(self, members: dict[int, NDArray[np.intp]] | None = None) -> None:
+        """Split, then merge (``members``: the particles of each species when already known,
+        as :func:`group_members` gives them); on return ``self.stats`` describes the current
+        particles."""
         cfg = self.config
+        if members is None:
+            members = group_members(self.species)
         # Split: one species per connected region of occupied cells; fragments smaller than a
         # viable species are dropped (resampling refills the parent next step).
         keep = np.ones(self.species.size, dtype=bool)
-        members = group_members(self.species)
         compact = compact_species(members, self.poses, cfg.split_cell_m, cfg.split_cell_rad)
         for sid, idx in members.items():
             if idx.size < 2 * cfg.min_species_size or sid in compact:
@@ -430,7 +427,8 @@ class CEAMCL:
         self.competition.dn = dict(zip(ids, dn.tolist(), strict=True))
 
     # ------------------------------------------------------------------ bookkeeping
-    def _take(self, mask: NDArray[np.bool_]) -> None:
+    def _take(self, mask: NDArray[np.bool_] | NDArray[np.intp]) -> None:
+        """Keep the particles a boolean mask or an index array selects."""
         self.poses = self.poses[mask]
         self.species = self.species[mask]
         self.loglik = self.loglik[mask]

@@ -12,10 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ceamcl.angles import circular_variance, wrap
-from ceamcl.filters.ceamcl.competition import living_domain
+from ceamcl.angles import wrap
 from ceamcl.filters.clustering import pose_cluster_labels
-from ceamcl.pose import pose_covariance, pose_mean
 
 
 @dataclass(frozen=True, eq=False)
@@ -39,55 +37,81 @@ class SpeciesStats:
         return int(self.members.size)
 
 
-def in_species_weights(loglik: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Importance weights of one species' members, normalised to sum to 1 (never NaN)."""
+def species_segments(
+    species: NDArray[np.int64],
+) -> tuple[NDArray[np.intp], NDArray[np.int64], NDArray[np.intp], NDArray[np.intp]]:
+    """The particles sorted by species: ``(order, ids, starts, counts)``, so that species
+    ``ids[k]`` (ascending) owns ``order[starts[k] : starts[k] + counts[k]]``."""
+    order = np.argsort(species, kind="stable")
+    ids, starts = np.unique(species[order], return_index=True)
+    counts = np.diff(np.append(starts, order.size))
+    return order, ids, starts, counts
+
+
+def segment_weights(
+    loglik: NDArray[np.float64], starts: NDArray[np.intp], seg: NDArray[np.intp]
+) -> NDArray[np.float64]:
+    """In-species importance weights of log-likelihoods sorted by species (segment ``seg[i]``
+    of particle ``i`` begins at ``starts[seg[i]]``): each segment's weights sum to 1, never
+    NaN; a segment with no finite log-likelihood gets uniform weights."""
     ll = np.where(np.isnan(loglik), -np.inf, loglik)
-    top = float(np.max(ll)) if ll.size else -np.inf
-    if not np.isfinite(top):
-        return np.full(ll.size, 1.0 / max(ll.size, 1))
-    w = np.exp(ll - top)
-    return w / w.sum()
+    top = np.maximum.reduceat(ll, starts)
+    finite_top = np.isfinite(top)
+    w = np.exp(ll - np.where(finite_top, top, 0.0)[seg])
+    w = np.where(finite_top[seg], w, 1.0)
+    return np.asarray(w / np.add.reduceat(w, starts)[seg], dtype=np.float64)
 
 
 def group_members(species: NDArray[np.int64]) -> dict[int, NDArray[np.intp]]:
     """Indices of the particles of each species id, in ascending id order."""
     if species.size == 0:
         return {}
-    order = np.argsort(species, kind="stable")
-    ids, starts = np.unique(species[order], return_index=True)
-    bounds = [*starts[1:], order.size]
-    return {int(i): order[s:e] for i, s, e in zip(ids, starts, bounds, strict=True)}
+    order, ids, starts, counts = species_segments(species)
+    return {int(i): order[s : s + c] for i, s, c in zip(ids, starts, counts, strict=True)}
 
 
-def species_stats(
-    species_id: int,
-    members: NDArray[np.intp],
-    poses: NDArray[np.float64],
+def resample_species(
+    species: NDArray[np.int64],
     loglik: NDArray[np.float64],
-    fitness: NDArray[np.float64],
-) -> SpeciesStats:
-    p = poses[members]
-    w = in_species_weights(loglik[members])
-    mean = pose_mean(p, w)
-    cov = pose_covariance(p, w, mean)
-    if p.shape[0] > 1:
-        cov_xy = np.cov(p[:, :2], rowvar=False)
-    else:
-        cov_xy = np.zeros((2, 2))
-    d, u, area = living_domain(cov_xy)
-    return SpeciesStats(
-        species_id=species_id,
-        members=members,
-        weights=w,
-        mean=mean,
-        covariance=cov,
-        cov_xy=cov_xy,
-        heading_sd=float(np.sqrt(min(circular_variance(p[:, 2]), np.pi**2))),
-        fitness=float(np.mean(fitness[members])) if members.size else 0.0,
-        domain_variances=d,
-        domain_axes=u,
-        area_m2=area,
-    )
+    targets: dict[int, int],
+    rng: np.random.Generator,
+) -> tuple[NDArray[np.intp], dict[int, NDArray[np.intp]]]:
+    """Low-variance resampling inside every species at once: ``targets.get(id, size)``
+    ancestors of each species, drawn from its in-species weights with one uniform offset per
+    species (ascending ids), as :func:`~ceamcl.filters.resampling.systematic` would draw them
+    species by species.
+
+    Returns ``(ancestors, members)``: the ancestors' indices, grouped by species in ascending
+    id order, and the members of each surviving species among the resampled particles
+    (contiguous ranges, what :func:`group_members` would return for them).
+    """
+    if species.size == 0:
+        return np.zeros(0, dtype=np.intp), {}
+    order, ids, starts, counts = species_segments(species)
+    seg = np.repeat(np.arange(ids.size), counts)
+    w = segment_weights(loglik[order], starts, seg)
+    # Cumulative weights inside each species, normalised by the species' total.
+    cum = np.cumsum(w)
+    local = cum - np.append(0.0, cum)[starts][seg]
+    ends = starts + counts - 1
+    cdf = local / local[ends][seg]
+    n = np.array([targets.get(int(sid), int(c)) for sid, c in zip(ids, counts, strict=True)])
+    n = np.maximum(n, 0)
+    u = np.zeros(ids.size)
+    u[n > 0] = rng.random(int(np.count_nonzero(n > 0)))
+    ptr_seg = np.repeat(np.arange(ids.size), n)
+    first = np.cumsum(n) - n
+    k = np.arange(ptr_seg.size) - first[ptr_seg]
+    pointers = (u[ptr_seg] + k) / n[ptr_seg]
+    # One search for all species: species k's cumulative weights lie in [2k, 2k + 1].
+    pos = np.searchsorted(2.0 * seg + cdf, 2.0 * ptr_seg + pointers, side="right")
+    pos = np.minimum(pos, ends[ptr_seg])
+    members = {
+        int(sid): np.arange(a, a + c, dtype=np.intp)
+        for sid, a, c in zip(ids, first, n, strict=True)
+        if c > 0
+    }
+    return order[pos].astype(np.intp), members
 
 
 def all_species_stats(
@@ -96,17 +120,17 @@ def all_species_stats(
     loglik: NDArray[np.float64],
     fitness: NDArray[np.float64],
 ) -> dict[int, SpeciesStats]:
-    """:func:`species_stats` of every species at once, in ascending id order.
+    """:class:`SpeciesStats` of every species, in ascending id order.
 
-    The same quantities, computed with segment sums over the particles sorted by species
-    instead of one NumPy pass per species: the per-species Python overhead was most of a
-    CEAMCL step (docs/performance.md). Results agree with :func:`species_stats` to rounding.
+    Computed with segment sums over the particles sorted by species instead of one NumPy pass
+    per species (whose Python overhead was most of a CEAMCL step, docs/performance.md); the
+    results agree to rounding with ``pose_mean``, ``pose_covariance``, ``np.cov``,
+    :func:`~ceamcl.filters.ceamcl.competition.living_domain` and ``circular_variance`` applied
+    to each species alone.
     """
     if species.size == 0:
         return {}
-    order = np.argsort(species, kind="stable")
-    ids, starts = np.unique(species[order], return_index=True)
-    counts = np.diff(np.append(starts, order.size))
+    order, ids, starts, counts = species_segments(species)
     seg = np.repeat(np.arange(ids.size), counts)
     p = poses[order]
     x, y, th = p[:, 0], p[:, 1], p[:, 2]
@@ -114,14 +138,7 @@ def all_species_stats(
     def total(v: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.add.reduceat(v, starts)
 
-    # In-species importance weights (in_species_weights, per segment).
-    ll = loglik[order]
-    ll = np.where(np.isnan(ll), -np.inf, ll)
-    top = np.maximum.reduceat(ll, starts)
-    finite_top = np.isfinite(top)
-    w = np.exp(ll - np.where(finite_top, top, 0.0)[seg])
-    w = np.where(finite_top[seg], w, 1.0)
-    w = w / total(w)[seg]
+    w = segment_weights(loglik[order], starts, seg)
     # Weighted mean pose with circular heading (pose_mean).
     sw, cw = total(w * np.sin(th)), total(w * np.cos(th))
     mean = np.column_stack(
@@ -186,16 +203,21 @@ def compact_species(
 ) -> set[int]:
     """Ids of the species whose poses span less than one split cell in x, y and heading:
     their occupied cells are pairwise adjacent (26-neighbourhood), so they cannot split and
-    :func:`split_parts` need not label them."""
-    out: set[int] = set()
-    for sid, idx in members.items():
-        p = poses[idx]
-        if np.ptp(p[:, 0]) >= cell_m or np.ptp(p[:, 1]) >= cell_m:
-            continue
-        dev = wrap(p[:, 2] - p[0, 2])
-        if np.ptp(dev) < cell_rad:
-            out.add(sid)
-    return out
+    :func:`split_parts` need not label them. (Heading spread: the range of the headings'
+    deviations from the species' first member.) Every species in ``members`` is non-empty."""
+    if not members:
+        return set()
+    counts = np.array([idx.size for idx in members.values()])
+    starts = np.cumsum(counts) - counts
+    seg = np.repeat(np.arange(counts.size), counts)
+    p = poses[np.concatenate(list(members.values()))]
+    dev = wrap(p[:, 2] - p[starts, 2][seg])
+    spans = [
+        np.maximum.reduceat(v, starts) - np.minimum.reduceat(v, starts)
+        for v in (p[:, 0], p[:, 1], dev)
+    ]
+    compact = (spans[0] < cell_m) & (spans[1] < cell_m) & (spans[2] < cell_rad)
+    return {sid for sid, ok in zip(members, compact.tolist(), strict=True) if ok}
 
 
 def overlapping_pairs(stats: list[SpeciesStats]) -> list[tuple[int, int]]:
