@@ -6,6 +6,7 @@ import os
 from pathlib import Path
 from typing import Any
 
+from ceamcl.experiments.common import markdown_table, write_text
 from ceamcl.io.results import ensure_output_dir, write_json
 
 
@@ -19,12 +20,6 @@ def _f(v: Any, digits: int = 1) -> str:
     if isinstance(v, float):
         return f"{v:,.{digits}f}"
     return str(v)
-
-
-def _table(header: list[str], rows: list[list[str]]) -> list[str]:
-    out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    out += ["| " + " | ".join(r) + " |" for r in rows]
-    return [*out, ""]
 
 
 def render_markdown(r: dict[str, Any]) -> str:
@@ -55,7 +50,7 @@ def render_markdown(r: dict[str, Any]) -> str:
         sign = ">=" if t["kind"] == "min" else "<="
         verdict = "not measured" if t["pass"] is None else ("PASS" if t["pass"] else "FAIL")
         rows.append([t["target"], f"{sign} {t['threshold']:g}", _f(t["value"], 2), verdict])
-    lines += _table(["target", "goal", "measured", ""], rows)
+    lines.append(markdown_table(["target", "goal", "measured", ""], rows))
 
     lines += [
         "## Full filter update (motion, sensor, resampling)",
@@ -82,19 +77,21 @@ def render_markdown(r: dict[str, Any]) -> str:
                 _f(row.get("speedup"), 1),
             ]
         )
-    lines += _table(
-        [
-            "sensor",
-            "N",
-            "ours ms",
-            "ours ns/pb",
-            "ours CPU/wall",
-            "Nav2 ms",
-            "Nav2 ns/pb",
-            "Nav2 CPU/wall",
-            "speed-up",
-        ],
-        rows,
+    lines.append(
+        markdown_table(
+            [
+                "sensor",
+                "N",
+                "ours ms",
+                "ours ns/pb",
+                "ours CPU/wall",
+                "Nav2 ms",
+                "Nav2 ns/pb",
+                "Nav2 CPU/wall",
+                "speed-up",
+            ],
+            rows,
+        )
     )
 
     init = r["ceamcl_init"]
@@ -107,7 +104,9 @@ def render_markdown(r: dict[str, Any]) -> str:
         f"{init['species']} species, {init['particles']} particles.",
         "",
     ]
-    lines += _table(["phase", "s"], [[k, _f(s, 3)] for k, s in init["phases_s"].items()])
+    lines.append(
+        markdown_table(["phase", "s"], [[k, _f(s, 3)] for k, s in init["phases_s"].items()])
+    )
     step = r["ceamcl_step"]
     lines += [
         "## CEAMCL step",
@@ -126,26 +125,30 @@ def render_markdown(r: dict[str, Any]) -> str:
 
     sc = r["scaling"]
     lines += ["## Scaling: sensor kernels alone", "", "Against N (60 beams, hall):", ""]
-    lines += _table(
-        ["sensor", "N", "ns/pb", "ms per call", "first call ms"],
-        [
+    lines.append(
+        markdown_table(
+            ["sensor", "N", "ns/pb", "ms per call", "first call ms"],
             [
-                x["sensor"],
-                _f(x["n"]),
-                _f(x["ns_per_pb"], 2),
-                _f(x["ms"], 3),
-                _f(x["first_call_ms"], 1),
-            ]
-            for x in sc["n"]
-        ],
+                [
+                    x["sensor"],
+                    _f(x["n"]),
+                    _f(x["ns_per_pb"], 2),
+                    _f(x["ms"], 3),
+                    _f(x["first_call_ms"], 1),
+                ]
+                for x in sc["n"]
+            ],
+        )
     )
     lines += ["Against the beam count (N = 5000):", ""]
-    lines += _table(
-        ["sensor", "max_beams", "ns/pb", "ms per call"],
-        [
-            [x["sensor"], _f(x["max_beams"]), _f(x["ns_per_pb"], 2), _f(x["ms"], 3)]
-            for x in sc["beams"]
-        ],
+    lines.append(
+        markdown_table(
+            ["sensor", "max_beams", "ns/pb", "ms per call"],
+            [
+                [x["sensor"], _f(x["max_beams"]), _f(x["ns_per_pb"], 2), _f(x["ms"], 3)]
+                for x in sc["beams"]
+            ],
+        )
     )
     ft = sc["beam_table_full_map"]
     lines += [
@@ -157,32 +160,34 @@ def render_markdown(r: dict[str, Any]) -> str:
         "Against the map size (synthetic floors, 5 cm cells, N = 5000):",
         "",
     ]
-    lines += _table(
-        [
-            "cells",
-            "metres",
-            "distance field s",
-            "blocking distance s",
-            "LF table s",
-            "LF ns/pb",
-            "beam ns/pb",
-            "beam table MB",
-            "peak RSS MB",
-        ],
-        [
+    lines.append(
+        markdown_table(
             [
-                f"{x['cells']} x {x['cells']}",
-                _f(x["size_m"], 0),
-                _f(x["distance_field_s"], 2),
-                _f(x["blocking_distance_field_s"], 2),
-                _f(x["lf_table_s"], 2),
-                _f(x["lf_ns_per_pb"], 2),
-                _f(x["beam_ns_per_pb"], 2),
-                _f(x["beam_table_mb"], 1),
-                _f(x["peak_rss_mb"], 0),
-            ]
-            for x in sc["maps"]
-        ],
+                "cells",
+                "metres",
+                "distance field s",
+                "blocking distance s",
+                "LF table s",
+                "LF ns/pb",
+                "beam ns/pb",
+                "beam table MB",
+                "peak RSS MB",
+            ],
+            [
+                [
+                    f"{x['cells']} x {x['cells']}",
+                    _f(x["size_m"], 0),
+                    _f(x["distance_field_s"], 2),
+                    _f(x["blocking_distance_field_s"], 2),
+                    _f(x["lf_table_s"], 2),
+                    _f(x["lf_ns_per_pb"], 2),
+                    _f(x["beam_ns_per_pb"], 2),
+                    _f(x["beam_table_mb"], 1),
+                    _f(x["peak_rss_mb"], 0),
+                ]
+                for x in sc["maps"]
+            ],
+        )
     )
     jit = r["jit"]
     lines += [
@@ -193,11 +198,15 @@ def render_markdown(r: dict[str, Any]) -> str:
         f"{_f(jit['cache_files_present_before'])}; total {jit['total_ms']:.0f} ms.",
         "",
     ]
-    lines += _table(
-        ["kernel", "first call ms"], [[k, _f(t, 1)] for k, t in jit["first_call_ms"].items()]
+    lines.append(
+        markdown_table(
+            ["kernel", "first call ms"], [[k, _f(t, 1)] for k, t in jit["first_call_ms"].items()]
+        )
     )
     lines += ["## Peak memory (resident, whole process)", ""]
-    lines += _table(["after", "MB"], [[k, _f(t, 0)] for k, t in r["memory_peak_rss_mb"].items()])
+    lines.append(
+        markdown_table(["after", "MB"], [[k, _f(t, 0)] for k, t in r["memory_peak_rss_mb"].items()])
+    )
     return "\n".join(lines)
 
 
@@ -205,8 +214,5 @@ def write_report(result: dict[str, Any], out_dir: str | os.PathLike[str]) -> tup
     """Write ``bench.json`` and ``bench.md`` (each whole or not at all)."""
     out = ensure_output_dir(out_dir)
     js = write_json(out / "bench.json", result)
-    md = out / "bench.md"
-    tmp = md.with_name(md.name + ".tmp")
-    tmp.write_text(render_markdown(result) + "\n")
-    os.replace(tmp, md)
+    md = write_text(out / "bench.md", render_markdown(result) + "\n")
     return js, md

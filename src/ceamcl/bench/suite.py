@@ -167,6 +167,17 @@ _TRACK_COV = np.diag([0.1**2, 0.1**2, 0.05**2])
 _FIRST_STEP = 40  # the robot is driving by then
 
 
+def _update_figures(times: list[float], cpu: list[float], n: int) -> dict[str, float]:
+    """Median update time (wall) of ``n`` particles, per particle-beam, and CPU/wall."""
+    wall = float(np.median(times))
+    return {
+        "ms": wall * 1e3,
+        "ns_per_pb": wall * 1e9 / (n * BEAMS),
+        "cpu_per_wall": float(np.sum(cpu) / max(np.sum(times), 1e-12)),
+        "updates": len(times),
+    }
+
+
 def _our_updates(
     sensor_name: str, grid: OccupancyGrid, log: SimulatedLog, n: int, steps: int, seed: int
 ) -> dict[str, float]:
@@ -191,13 +202,7 @@ def _our_updates(
         if k >= k0 + 3:
             times.append(c.wall)
             cpu.append(c.cpu)
-    wall = float(np.median(times))
-    return {
-        "ms": wall * 1e3,
-        "ns_per_pb": wall * 1e9 / (n * BEAMS),
-        "cpu_per_wall": float(np.sum(cpu) / max(np.sum(times), 1e-12)),
-        "updates": len(times),
-    }
+    return _update_figures(times, cpu, n)
 
 
 def _nav2_updates(grid: OccupancyGrid, log: SimulatedLog, n: int, steps: int) -> dict[str, float]:
@@ -206,7 +211,7 @@ def _nav2_updates(grid: OccupancyGrid, log: SimulatedLog, n: int, steps: int) ->
     call). Odometry is the log's, in the grid frame."""
     import amcl  # type: ignore[import-untyped,unused-ignore]
 
-    from ceamcl.peers.nav2_amcl import amcl_ranges, to_amcl_grid, to_amcl_pose
+    from ceamcl.peers.nav2_amcl import to_amcl_grid, to_amcl_pose, to_amcl_scan
 
     noise = OdometryNoise()
     b = BeamModelConfig(max_beams=BEAMS)
@@ -230,12 +235,7 @@ def _nav2_updates(grid: OccupancyGrid, log: SimulatedLog, n: int, steps: int) ->
     pf.set_initial_pose(
         amcl.Vector3D(*(float(v) for v in to_amcl_pose(grid, log.true_poses[k0]))), cov
     )
-    scans = [
-        amcl.create_laser_scan_from_list(
-            amcl_ranges(log.scan(k), BEAMS).tolist(), float(log.laser.range_max)
-        )
-        for k in range(k0, k0 + 3 + steps)
-    ]
+    scans = [to_amcl_scan(log.scan(k), BEAMS) for k in range(k0, k0 + 3 + steps)]
     odom = [amcl.Vector3D(*(float(v) for v in log.odometry[k])) for k in range(k0, k0 + 3 + steps)]
     times, cpu = [], []
     for i in range(len(scans)):
@@ -244,13 +244,7 @@ def _nav2_updates(grid: OccupancyGrid, log: SimulatedLog, n: int, steps: int) ->
         if i >= 3:
             times.append(c.wall)
             cpu.append(c.cpu)
-    wall = float(np.median(times))
-    return {
-        "ms": wall * 1e3,
-        "ns_per_pb": wall * 1e9 / (n * BEAMS),
-        "cpu_per_wall": float(np.sum(cpu) / max(np.sum(times), 1e-12)),
-        "updates": len(times),
-    }
+    return _update_figures(times, cpu, n)
 
 
 # ------------------------------------------------------------------------------------ sections

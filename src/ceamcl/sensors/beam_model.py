@@ -26,7 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.sensors._compile import serial_and_parallel
 from ceamcl.sensors.likelihood_field import PARALLEL_MIN_POSES
-from ceamcl.sensors.raycast import RangeTable, _march, _table_range, cast_fan
+from ceamcl.sensors.raycast import RangeTable, _march, _mounted_pose, _table_range, cast_fan
 from ceamcl.sensors.scan import LaserScan, PreparedScan, laser_poses, prepare_scan
 
 _SQRT_2PI = math.sqrt(2.0 * math.pi)
@@ -72,25 +72,15 @@ class BeamModelConfig:
 
 @numba.njit(cache=True, inline="always")
 def _beam_log_p(
-    r: float,
-    expected: float,
-    is_max: bool,
-    range_max: float,
-    a_hit: float,
-    inv_two_sigma2: float,
-    z_short: float,
-    lambda_short: float,
-    z_max: float,
-    c_rand: float,
+    r: float, expected: float, a_hit: float, inv_two_sigma2: float, short: float, extra: float
 ) -> float:
+    """``log p(r | r*)`` of one beam: ``short`` is the short term ``z_short lambda
+    exp(-lambda r)`` (added where ``r < r*``), ``extra`` is ``z_max`` or ``z_rand / range_max``."""
     z = r - expected
     p = a_hit * math.exp(-z * z * inv_two_sigma2)
     if z < 0.0:
-        p += z_short * lambda_short * math.exp(-lambda_short * r)
-    if is_max:
-        p += z_max
-    else:
-        p += c_rand
+        p += short
+    p += extra
     return math.log(p)
 
 
@@ -98,7 +88,8 @@ def _beam_kernel_py(
     poses: NDArray[np.float64],
     ranges: NDArray[np.float64],
     bearings: NDArray[np.float64],
-    is_max: NDArray[np.bool_],
+    extra: NDArray[np.float64],
+    short: NDArray[np.float64],
     laser_x: float,
     laser_y: float,
     laser_yaw: float,
@@ -108,35 +99,20 @@ def _beam_kernel_py(
     range_max: float,
     a_hit: float,
     inv_two_sigma2: float,
-    z_short: float,
-    lambda_short: float,
-    z_max: float,
-    c_rand: float,
 ) -> NDArray[np.float64]:
+    """The beam model with an exact ray cast per beam; ``extra``, ``short`` per beam as in
+    :func:`_beam_log_p`."""
     n = poses.shape[0]
     m = ranges.shape[0]
     out = np.empty(n)
     for i in numba.prange(n):
-        c = math.cos(poses[i, 2])
-        s = math.sin(poses[i, 2])
-        lx = poses[i, 0] + c * laser_x - s * laser_y
-        ly = poses[i, 1] + s * laser_x + c * laser_y
-        lth = poses[i, 2] + laser_yaw
+        lx, ly, lth = _mounted_pose(
+            poses[i, 0], poses[i, 1], poses[i, 2], laser_x, laser_y, laser_yaw
+        )
         acc = 0.0
         for j in range(m):
             expected = _march(lx, ly, lth + bearings[j], blocking, dist, res, range_max)
-            acc += _beam_log_p(
-                ranges[j],
-                expected,
-                is_max[j],
-                range_max,
-                a_hit,
-                inv_two_sigma2,
-                z_short,
-                lambda_short,
-                z_max,
-                c_rand,
-            )
+            acc += _beam_log_p(ranges[j], expected, a_hit, inv_two_sigma2, short[j], extra[j])
         out[i] = acc
     return out
 
@@ -164,18 +140,15 @@ def _beam_table_kernel_py(
     a_hit: float,
     inv_two_sigma2: float,
 ) -> NDArray[np.float64]:
-    """The beam model over a :class:`RangeTable`. Per beam ``j``, ``short[j]`` is the short
-    term ``z_short lambda exp(-lambda r_j)`` (added where ``r_j < r*``) and ``extra[j]`` is
-    ``z_max`` or ``z_rand / range_max``."""
+    """The beam model over a :class:`RangeTable` (:func:`_table_range`); otherwise as
+    :func:`_beam_kernel_py`."""
     n = poses.shape[0]
     m = ranges.shape[0]
     out = np.empty(n)
     for i in numba.prange(n):
-        c = math.cos(poses[i, 2])
-        s = math.sin(poses[i, 2])
-        lx = poses[i, 0] + c * laser_x - s * laser_y
-        ly = poses[i, 1] + s * laser_x + c * laser_y
-        lth = poses[i, 2] + laser_yaw
+        lx, ly, lth = _mounted_pose(
+            poses[i, 0], poses[i, 1], poses[i, 2], laser_x, laser_y, laser_yaw
+        )
         acc = 0.0
         for j in range(m):
             expected = _table_range(
@@ -191,12 +164,7 @@ def _beam_table_kernel_py(
                 res,
                 range_max,
             )
-            z = ranges[j] - expected
-            p = a_hit * math.exp(-z * z * inv_two_sigma2)
-            if z < 0.0:
-                p += short[j]
-            p += extra[j]
-            acc += math.log(p)
+            acc += _beam_log_p(ranges[j], expected, a_hit, inv_two_sigma2, short[j], extra[j])
         out[i] = acc
     return out
 
@@ -256,52 +224,31 @@ class BeamModel:
         cfg = self.config
         lx, ly, lyaw = prepared.laser_pose
         parallel = mp.shape[0] >= PARALLEL_MIN_POSES
-        if self.ray_casting == "table":
-            table = self.range_table(prepared.range_max)
-            table.reserve(mp, (lx, ly))
-            extra = np.where(prepared.is_max, cfg.z_max, cfg.z_rand / prepared.range_max)
-            short = cfg.z_short * cfg.lambda_short * np.exp(-cfg.lambda_short * prepared.ranges)
-            tkernel = _beam_table_parallel if parallel else _beam_table_serial
-            return tkernel(  # type: ignore[no-any-return,unused-ignore]
-                mp,
-                prepared.ranges,
-                prepared.bearings,
-                np.ascontiguousarray(extra),
-                np.ascontiguousarray(short),
-                lx,
-                ly,
-                lyaw,
-                table.slot,
-                table.rows,
-                table.cos_k,
-                table.sin_k,
-                self.grid.blocking_mask,
-                self.grid.distance_to_blocking,
-                self.grid.resolution,
-                prepared.range_max,
-                self._a_hit(),
-                1.0 / (2.0 * cfg.sigma_hit_m**2),
-            )
-        kernel = _beam_kernel_parallel if parallel else _beam_kernel_serial
-        return kernel(  # type: ignore[no-any-return,unused-ignore]
+        beams = (
             mp,
             prepared.ranges,
             prepared.bearings,
-            prepared.is_max,
+            np.ascontiguousarray(
+                np.where(prepared.is_max, cfg.z_max, cfg.z_rand / prepared.range_max)
+            ),
+            np.ascontiguousarray(
+                cfg.z_short * cfg.lambda_short * np.exp(-cfg.lambda_short * prepared.ranges)
+            ),
             lx,
             ly,
             lyaw,
-            self.grid.blocking_mask,
-            self.grid.distance_to_blocking,
-            self.grid.resolution,
-            prepared.range_max,
-            self._a_hit(),
-            1.0 / (2.0 * cfg.sigma_hit_m**2),
-            cfg.z_short,
-            cfg.lambda_short,
-            cfg.z_max,
-            cfg.z_rand / prepared.range_max,
         )
+        grid = (self.grid.blocking_mask, self.grid.distance_to_blocking, self.grid.resolution)
+        mixture = (prepared.range_max, self._a_hit(), 1.0 / (2.0 * cfg.sigma_hit_m**2))
+        if self.ray_casting == "table":
+            table = self.range_table(prepared.range_max)
+            table.reserve(mp, (lx, ly))
+            tkernel = _beam_table_parallel if parallel else _beam_table_serial
+            return tkernel(  # type: ignore[no-any-return,unused-ignore]
+                *beams, table.slot, table.rows, table.cos_k, table.sin_k, *grid, *mixture
+            )
+        kernel = _beam_kernel_parallel if parallel else _beam_kernel_serial
+        return kernel(*beams, *grid, *mixture)  # type: ignore[no-any-return,unused-ignore]
 
     def expected_ranges(self, poses: ArrayLike, prepared: PreparedScan) -> NDArray[np.float64]:
         """Expected ranges ``(N, M)`` of the prepared beams, as :meth:`log_likelihood` uses

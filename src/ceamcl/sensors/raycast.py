@@ -81,6 +81,17 @@ def _march(
     return max_range
 
 
+@numba.njit(cache=True, inline="always")
+def _mounted_pose(
+    x: float, y: float, theta: float, mount_x: float, mount_y: float, mount_yaw: float
+) -> tuple[float, float, float]:
+    """Pose of a sensor mounted at ``(mount_x, mount_y, mount_yaw)`` on a body at
+    ``(x, y, theta)`` (the compiled form of :func:`ceamcl.sensors.scan.laser_poses`)."""
+    c = math.cos(theta)
+    s = math.sin(theta)
+    return x + c * mount_x - s * mount_y, y + s * mount_x + c * mount_y, theta + mount_yaw
+
+
 @numba.njit(cache=True, parallel=True)
 def _cast_many(
     xs: NDArray[np.float64],
@@ -231,10 +242,9 @@ def _assign_rows(
     h, w = slot.shape
     wanted = 0
     for i in range(poses.shape[0]):
-        c = math.cos(poses[i, 2])
-        s = math.sin(poses[i, 2])
-        fx = (poses[i, 0] + c * offset_x - s * offset_y) / res
-        fy = (poses[i, 1] + s * offset_x + c * offset_y) / res
+        px, py, _ = _mounted_pose(poses[i, 0], poses[i, 1], poses[i, 2], offset_x, offset_y, 0.0)
+        fx = px / res
+        fy = py / res
         if not (fx >= 0.0 and fy >= 0.0 and fx < w and fy < h):
             continue
         ix = int(fx)
