@@ -67,6 +67,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from ceamcl.angles import diff
 from ceamcl.errors import LogFormatError
 from ceamcl.io.logs import RecordedLog, interpolate_poses
 
@@ -500,5 +501,4 @@ def _relative_poses(base: NDArray[np.float64], other: NDArray[np.float64]) -> ND
     dx = other[:, 0] - base[:, 0]
     dy = other[:, 1] - base[:, 1]
     c, s = np.cos(base[:, 2]), np.sin(base[:, 2])
-    dth = np.angle(np.exp(1j * (other[:, 2] - base[:, 2])))
-    return np.column_stack([c * dx + s * dy, -s * dx + c * dy, dth])
+    return np.column_stack([c * dx + s * dy, -s * dx + c * dy, diff(other[:, 2], base[:, 2])])

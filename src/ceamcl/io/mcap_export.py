@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import base64
 import json
-import math
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -38,6 +37,8 @@ from mcap.writer import Writer
 from numpy.typing import NDArray
 
 from ceamcl.filters.base import ParticleSnapshot
+from ceamcl.io.quaternion import yaw_to_quaternion
+from ceamcl.io.results import atomic_write
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.runner import RunResult
 from ceamcl.sensors.scan import LaserScan
@@ -199,7 +200,8 @@ def stamp(ns: int) -> dict[str, int]:
 
 
 def yaw_quaternion(yaw: float) -> dict[str, float]:
-    return {"x": 0.0, "y": 0.0, "z": math.sin(yaw / 2.0), "w": math.cos(yaw / 2.0)}
+    qz, qw = yaw_to_quaternion(yaw)
+    return {"x": 0.0, "y": 0.0, "z": float(qz), "w": float(qw)}
 
 
 def pose_2d(x: float, y: float, yaw: float) -> dict[str, Any]:
@@ -252,8 +254,8 @@ def poses_json(poses: NDArray[np.float64], ns: int) -> bytes:
     p = np.asarray(poses, dtype=np.float64)[:, :3]
     if not np.all(np.isfinite(p)):
         raise ValueError("poses_json: particle poses must be finite")
-    half = p[:, 2] / 2.0
-    flat = np.column_stack([p[:, 0], p[:, 1], np.sin(half), np.cos(half)]).ravel().tolist()
+    qz, qw = yaw_to_quaternion(p[:, 2])
+    flat = np.column_stack([p[:, 0], p[:, 1], qz, qw]).ravel().tolist()
     body = ",".join([_PARTICLE_JSON] * p.shape[0]) % tuple(flat) if p.shape[0] else ""
     head = json.dumps({"timestamp": stamp(ns), "frame_id": MAP_FRAME}, separators=(",", ":"))
     return (head[:-1] + ',"poses":[' + body + "]}").encode()
@@ -308,13 +310,11 @@ def write_mcap(
     snapshot_every=k)``), plus the first and the last step. The file is written to a temporary
     name and renamed, so a failure leaves no half-written file.
     """
-    out = Path(path)
     if log is not None and len(log) != result.steps:
         raise ValueError(
             f"write_mcap: the log has {len(log)} entries but the run has {result.steps} steps"
         )
-    tmp = out.with_name(out.name + ".tmp")
-    try:
+    with atomic_write(path) as tmp:
         with tmp.open("wb") as fh:
             writer = Writer(fh)
             writer.start(profile="", library="ceamcl")
@@ -373,7 +373,4 @@ def write_mcap(
                 if k in particles:
                     emit("/particles", ns, poses_json(particles[k].poses, ns))
             writer.finish()
-        os.replace(tmp, out)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return out
+    return Path(path)

@@ -6,7 +6,8 @@ import csv
 import json
 import math
 import os
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +29,23 @@ def ensure_output_dir(path: str | os.PathLike[str]) -> Path:
     return out
 
 
+@contextmanager
+def atomic_write(path: str | os.PathLike[str], *, keep_suffix: bool = False) -> Iterator[Path]:
+    """A temporary path beside ``path`` to write to: renamed over ``path`` when the block ends
+    normally, removed when it raises, so no half-written file is left.
+
+    The temporary name is ``<name>.tmp``, or ``<name>.tmp<suffix>`` with ``keep_suffix`` (for
+    writers that choose the format by the suffix, such as ffmpeg).
+    """
+    out = Path(path)
+    tmp = out.with_name(out.name + ".tmp" + (out.suffix if keep_suffix else ""))
+    try:
+        yield tmp
+        os.replace(tmp, out)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
 def _jsonable(value: Any) -> Any:
     if isinstance(value, float) and not math.isfinite(value):
         return None
@@ -41,11 +59,9 @@ def _jsonable(value: Any) -> Any:
 
 
 def write_json(path: str | os.PathLike[str], data: Mapping[str, Any]) -> Path:
-    out = Path(path)
-    tmp = out.with_name(out.name + ".tmp")
-    tmp.write_text(json.dumps(_jsonable(data), indent=2) + "\n")
-    os.replace(tmp, out)
-    return out
+    with atomic_write(path) as tmp:
+        tmp.write_text(json.dumps(_jsonable(data), indent=2) + "\n")
+    return Path(path)
 
 
 def write_diagnostics_csv(
@@ -63,9 +79,7 @@ def write_diagnostics_csv(
     species_fields = ("n", "dn", "fitness", "area_m2", "resources", "capacity", "x", "y", "theta")
     for sid in species_ids:
         fields.extend(f"species_{sid}_{f}" for f in species_fields)
-    out = Path(path)
-    tmp = out.with_name(out.name + ".tmp")
-    with tmp.open("w", newline="") as fh:
+    with atomic_write(path) as tmp, tmp.open("w", newline="") as fh:
         writer = csv.DictWriter(fh, fieldnames=fields, restval="")
         writer.writeheader()
         for k, (rec, row) in enumerate(zip(records, rows, strict=True)):
@@ -76,5 +90,4 @@ def write_diagnostics_csv(
                 for f in species_fields:
                     full[f"species_{s.species_id}_{f}"] = getattr(s, f)
             writer.writerow(full)
-    os.replace(tmp, out)
-    return out
+    return Path(path)

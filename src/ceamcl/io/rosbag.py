@@ -18,7 +18,6 @@ holds. Bags are read as a stream; only the scans and poses are kept.
 
 from __future__ import annotations
 
-import math
 import os
 from pathlib import Path
 from typing import Any
@@ -28,6 +27,7 @@ from numpy.typing import NDArray
 
 from ceamcl.errors import LogFormatError
 from ceamcl.io.logs import RecordedLog, interpolate_poses
+from ceamcl.io.quaternion import quaternion_yaw
 
 __all__ = ["LASER_SCAN", "ODOMETRY", "TF", "read_bag"]
 
@@ -39,10 +39,6 @@ TF = "tf2_msgs/msg/TFMessage"
 def _stamp(header: Any, fallback_ns: int) -> float:
     s = header.stamp.sec + header.stamp.nanosec * 1e-9
     return s if s > 0 else fallback_ns * 1e-9
-
-
-def _yaw(q: Any) -> float:
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
 
 
 def _strip(frame: str) -> str:
@@ -131,7 +127,7 @@ def _read(
     ranges: list[NDArray[np.float64]] = []
     meta: list[tuple[float, float, float, float]] = []
     frames: list[str] = []
-    odo: list[tuple[float, float, float, float]] = []
+    odo: list[tuple[float, float, float, float, float, float, float]] = []  # t x y quaternion
     links: dict[tuple[str, str], tuple[float, float, float]] = {}
     tf_pairs: set[tuple[str, str]] = set()
     wanted = scan_conns + odom_conns + tf_conns
@@ -150,19 +146,17 @@ def _read(
             )
             frames.append(_strip(msg.header.frame_id))
         elif conn.msgtype == ODOMETRY:
-            pose = msg.pose.pose
-            odo.append(
-                (_stamp(msg.header, t_ns), pose.position.x, pose.position.y, _yaw(pose.orientation))
-            )
+            pos, q = msg.pose.pose.position, msg.pose.pose.orientation
+            odo.append((_stamp(msg.header, t_ns), pos.x, pos.y, q.x, q.y, q.z, q.w))
         else:
             for tf in msg.transforms:
                 parent, child = _strip(tf.header.frame_id), _strip(tf.child_frame_id)
                 tf_pairs.add((parent, child))
                 tr, q = tf.transform.translation, tf.transform.rotation
                 if use_tf and parent == odom_frame and child == base_frame:
-                    odo.append((_stamp(tf.header, t_ns), tr.x, tr.y, _yaw(q)))
+                    odo.append((_stamp(tf.header, t_ns), tr.x, tr.y, q.x, q.y, q.z, q.w))
                 elif parent == base_frame:
-                    links[(parent, child)] = (tr.x, tr.y, _yaw(q))
+                    links[(parent, child)] = (tr.x, tr.y, float(quaternion_yaw(q.x, q.y, q.z, q.w)))
     if not times:
         raise LogFormatError(f"{p}: the scan topic holds no message")
     if not odo:
@@ -176,7 +170,8 @@ def _read(
     n = len(times)
     t = np.asarray(times, dtype=np.float64)
     o = np.asarray(odo, dtype=np.float64)
-    poses = interpolate_poses(o[:, 0], o[:, 1:], t)
+    yaw = quaternion_yaw(o[:, 3], o[:, 4], o[:, 5], o[:, 6])
+    poses = interpolate_poses(o[:, 0], np.column_stack([o[:, 1], o[:, 2], yaw]), t)
     m = np.asarray(meta, dtype=np.float64)
     for k in range(n):
         if not (m[k, 3] > 0 and 0 <= m[k, 2] < m[k, 3]):

@@ -36,6 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ceamcl.maps.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
+from ceamcl.maps.ros_io import SAVE_FREE_THRESH, SAVE_OCCUPIED_THRESH
 from ceamcl.runner import RobotLog
 
 __all__ = ["MapStats", "MappingConfig", "build_map", "log_odds_map"]
@@ -61,8 +62,8 @@ class MappingConfig:
     p_occ: float = 0.7
     p_free: float = 0.4
     l_clamp: float = 8.0
-    occupied_prob: float = 0.65
-    free_prob: float = 0.196
+    occupied_prob: float = SAVE_OCCUPIED_THRESH
+    free_prob: float = SAVE_FREE_THRESH
     margin_m: float = 1.0
     beam_stride: int = 1
 
@@ -156,9 +157,9 @@ def _trace(
 
 def _beams(
     log: RobotLog, laser_world: NDArray[np.float64], cfg: MappingConfig
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_], int]:
-    """Start points ``(B, 2)``, end points ``(B, 2)``, traced lengths, hit flags, no-returns."""
-    starts, ends, hits, lengths = [], [], [], []
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_], int]:
+    """Start points ``(B, 2)``, end points ``(B, 2)``, hit flags, no-return count."""
+    starts, ends, hits = [], [], []
     no_return = 0
     for k in range(len(log)):
         scan = log.scan(k)
@@ -183,17 +184,10 @@ def _beams(
         )
         starts.append(np.repeat(laser_world[k : k + 1, :2], length.size, axis=0))
         hits.append(is_hit)
-        lengths.append(length)
     if not starts:
         empty = np.zeros((0, 2))
-        return empty, empty, np.zeros(0), np.zeros(0, dtype=bool), 0
-    return (
-        np.concatenate(starts),
-        np.concatenate(ends),
-        np.concatenate(lengths),
-        np.concatenate(hits),
-        no_return,
-    )
+        return empty, empty, np.zeros(0, dtype=bool), 0
+    return np.concatenate(starts), np.concatenate(ends), np.concatenate(hits), no_return
 
 
 def log_odds_map(
@@ -205,10 +199,17 @@ def log_odds_map(
 
     ``laser_world[k]`` is the laser's world pose at scan ``k``.
     """
-    cfg = config or MappingConfig()
+    logodds, _, origin, stats = _map(log, laser_world, config or MappingConfig())
+    return logodds, origin, stats
+
+
+def _map(
+    log: RobotLog, laser_world: NDArray[np.float64], cfg: MappingConfig
+) -> tuple[NDArray[np.float32], NDArray[np.int8], tuple[float, float, float], MapStats]:
+    """:func:`log_odds_map` and the classified cells."""
     if len(log) == 0:
         raise ValueError("log_odds_map: the log has no scans")
-    start, end, _, hit, no_return = _beams(log, laser_world, cfg)
+    start, end, hit, no_return = _beams(log, laser_world, cfg)
     pts = np.vstack([laser_world[:, :2], end]) if end.size else laser_world[:, :2]
     res = cfg.resolution_m
     x_min, y_min = pts.min(axis=0) - cfg.margin_m
@@ -241,7 +242,7 @@ def log_odds_map(
         free_area_m2=float(np.count_nonzero(data == FREE)) * res * res,
         size_m=(width * res, height * res),
     )
-    return logodds, origin, stats
+    return logodds, data, origin, stats
 
 
 def classify(logodds: NDArray[np.float32], config: MappingConfig) -> NDArray[np.int8]:
@@ -263,5 +264,5 @@ def build_map(
 ) -> tuple[OccupancyGrid, MapStats]:
     """The occupancy grid of a log from the laser's world poses (module docstring)."""
     cfg = config or MappingConfig()
-    logodds, origin, stats = log_odds_map(log, laser_world, cfg)
-    return OccupancyGrid(classify(logodds, cfg), cfg.resolution_m, origin, name=name), stats
+    _, data, origin, stats = _map(log, laser_world, cfg)
+    return OccupancyGrid(data, cfg.resolution_m, origin, name=name), stats

@@ -45,13 +45,14 @@ import ctypes.util
 import importlib
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from types import ModuleType, TracebackType
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ceamcl.angles import wrap
 from ceamcl.errors import ConfigError
 from ceamcl.filters.base import Hypothesis, ParticleSnapshot, PoseEstimate, StepDiagnostics
 from ceamcl.maps.grid import OccupancyGrid
@@ -432,7 +433,7 @@ class Nav2AMCL:
         est = self.estimate()
         n = self.config.snapshot_particles
         poses = self.rng.multivariate_normal(est.pose, est.covariance, size=n, method="eigh")
-        poses[:, 2] = np.angle(np.exp(1j * poses[:, 2]))
+        poses[:, 2] = wrap(poses[:, 2])
         return ParticleSnapshot(poses, np.full(n, 1.0 / n), np.zeros(n, dtype=np.int64))
 
 
@@ -458,17 +459,8 @@ def make_nav2_amcl(
     if n_particles is not None and n_particles < 1:
         raise ConfigError(f"particles: expected a positive count, got {n_particles}")
     max_p = NAV2_MAX_PARTICLES if n_particles is None else n_particles
-    beam_cfg = beam or BeamModelConfig()
     try:
-        beam_cfg = BeamModelConfig(
-            z_hit=beam_cfg.z_hit,
-            z_short=beam_cfg.z_short,
-            z_max=beam_cfg.z_max,
-            z_rand=beam_cfg.z_rand,
-            sigma_hit_m=beam_cfg.sigma_hit_m,
-            lambda_short=beam_cfg.lambda_short,
-            max_beams=max_beams,
-        )
+        beam_cfg = replace(beam or BeamModelConfig(), max_beams=max_beams)
     except ValueError as exc:
         raise ConfigError(f"max_beams: {exc}") from exc
     cfg = Nav2AMCLConfig(

@@ -32,6 +32,8 @@ from numpy.typing import NDArray
 from PIL import Image
 
 from ceamcl.filters.base import ParticleSnapshot
+from ceamcl.filters.ceamcl.competition import living_domain
+from ceamcl.io.results import atomic_write
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.runner import RunResult
 
@@ -84,8 +86,7 @@ def living_domains(snapshot: ParticleSnapshot, min_particles: int = 3) -> NDArra
         cov = np.cov(xy, rowvar=False)
         if not np.all(np.isfinite(cov)):
             continue
-        d, u = np.linalg.eigh(0.5 * (cov + cov.T))
-        d = np.clip(d, 0.0, None)
+        d, u, _ = living_domain(cov)
         a, b = 2.0 * np.sqrt(d[1]), 2.0 * np.sqrt(d[0])
         angle = float(np.arctan2(u[1, 1], u[0, 1]))
         cx, cy = xy.mean(axis=0)
@@ -157,13 +158,6 @@ def ellipse_outline(row: NDArray[np.float64], points: int = _ELLIPSE_POINTS) -> 
 def _colours(labels: NDArray[np.int64]) -> NDArray[np.float64]:
     table = np.array([matplotlib.colors.to_rgba(c) for c in SPECIES_COLOURS])
     return table[np.asarray(labels) % len(SPECIES_COLOURS)]
-
-
-def _map_image(grid: OccupancyGrid) -> NDArray[np.float64]:
-    img = np.full(grid.data.shape, 1.0)
-    img[grid.unknown_mask] = 0.75
-    img[grid.occupied_mask] = 0.0
-    return img
 
 
 class _Renderer:
@@ -349,10 +343,6 @@ def _palette_image(samples: list[NDArray[np.uint8]]) -> Image.Image:
     return Image.fromarray(strip).quantize(256, method=Image.Quantize.MEDIANCUT)
 
 
-def _tmp_path(path: Path) -> Path:
-    return path.with_name(path.name + ".tmp" + path.suffix)
-
-
 def write_gif(
     frames: list[NDArray[np.uint8]], path: str | os.PathLike[str], fps: float = 10.0
 ) -> Path:
@@ -366,9 +356,7 @@ def write_gif(
     images = [
         Image.fromarray(f).quantize(palette=palette, dither=Image.Dither.NONE) for f in frames
     ]
-    out = Path(path)
-    tmp = _tmp_path(out)
-    try:
+    with atomic_write(path, keep_suffix=True) as tmp:
         images[0].save(
             tmp,
             format="GIF",
@@ -378,10 +366,7 @@ def write_gif(
             loop=0,
             optimize=True,
         )
-        os.replace(tmp, out)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return out
+    return Path(path)
 
 
 def ffmpeg_path() -> str | None:
@@ -398,9 +383,13 @@ def write_mp4(
         raise RuntimeError("write_mp4: ffmpeg is not on the PATH")
     if not frames:
         raise ValueError("write_mp4: no frames")
+    with atomic_write(path, keep_suffix=True) as tmp:
+        _pipe_to_ffmpeg(exe, frames, fps, tmp)
+    return Path(path)
+
+
+def _pipe_to_ffmpeg(exe: str, frames: list[NDArray[np.uint8]], fps: float, out: Path) -> None:
     h, w = frames[0].shape[:2]
-    out = Path(path)
-    tmp = _tmp_path(out)
     cmd = [
         exe,
         "-y",
@@ -425,23 +414,18 @@ def write_mp4(
         "yuv420p",
         "-movflags",
         "+faststart",
-        str(tmp),
+        str(out),
     ]
+    proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stderr=subprocess.PIPE)
+    assert proc.stdin is not None
     try:
-        proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stderr=subprocess.PIPE)
-        assert proc.stdin is not None
-        try:
-            for f in frames:
-                proc.stdin.write(np.ascontiguousarray(f).tobytes())
-        finally:
-            proc.stdin.close()
-        err = proc.stderr.read().decode(errors="replace") if proc.stderr else ""
-        if proc.wait() != 0:
-            raise RuntimeError(f"write_mp4: ffmpeg failed: {err.strip()}")
-        os.replace(tmp, out)
+        for f in frames:
+            proc.stdin.write(np.ascontiguousarray(f).tobytes())
     finally:
-        tmp.unlink(missing_ok=True)
-    return out
+        proc.stdin.close()
+    err = proc.stderr.read().decode(errors="replace") if proc.stderr else ""
+    if proc.wait() != 0:
+        raise RuntimeError(f"write_mp4: ffmpeg failed: {err.strip()}")
 
 
 def animate_run(
@@ -488,8 +472,6 @@ def save_frame(
         rgb = renderer.render(pick)
     finally:
         renderer.close()
-    out = Path(path)
-    tmp = _tmp_path(out)
-    Image.fromarray(rgb).save(tmp, format="PNG", optimize=True)
-    os.replace(tmp, out)
-    return out
+    with atomic_write(path, keep_suffix=True) as tmp:
+        Image.fromarray(rgb).save(tmp, format="PNG", optimize=True)
+    return Path(path)

@@ -126,32 +126,33 @@ def _species_tracks(result: RunResult) -> dict[int, np.ndarray]:
 def plot_species(result: RunResult, path: str | os.PathLike[str], title: str = "") -> Path:
     """``species.png`` (the paper's Fig. 6): total sample size and total resources over time,
     and each species' size."""
+    from ceamcl.viz.animation import series
+
     t = result.times
-    total_n = np.array([d.n_particles for d in result.diagnostics], dtype=np.float64)
-    total_r = np.array([d.extra.get("total_resources", np.nan) for d in result.diagnostics])
+    total_n, total_r = series(result)
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
     ax1.plot(t, total_n, "k-", lw=2, label="total sample size")
     ax1.plot(t, total_r, "g--", lw=2, label="total resources R")
     ax1.set_ylabel("samples / resources")
     ax1.legend(loc="upper right")
     ax1.grid(alpha=0.3)
-    series: dict[int, list[tuple[float, int]]] = {}
+    sizes: dict[int, list[tuple[float, int]]] = {}
     for time_s, d in zip(t, result.diagnostics, strict=True):
         for s in d.species:
-            series.setdefault(s.species_id, []).append((float(time_s), s.n))
-    for sid, pts in sorted(series.items()):
+            sizes.setdefault(s.species_id, []).append((float(time_s), s.n))
+    for sid, pts in sorted(sizes.items()):
         arr = np.array(pts)
         ax2.plot(
             arr[:, 0],
             arr[:, 1],
             lw=1.2,
             color=plt.get_cmap("tab10")(sid % 10),
-            label=f"species {sid}" if len(series) <= 12 else None,
+            label=f"species {sid}" if len(sizes) <= 12 else None,
         )
     ax2.set_xlabel("time [s]")
     ax2.set_ylabel("samples per species")
     ax2.grid(alpha=0.3)
-    if 0 < len(series) <= 12:
+    if 0 < len(sizes) <= 12:
         ax2.legend(loc="upper right", fontsize=7, ncol=2)
     ax1.set_title(title or f"{result.algorithm}: sample size and resources")
     fig.tight_layout()

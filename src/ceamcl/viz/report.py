@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 from PIL import Image
 
+from ceamcl.io.results import atomic_write
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.runner import RunResult
 from ceamcl.viz.animation import SPECIES_COLOURS, replay_frames, series
@@ -232,11 +233,6 @@ def write_report(
         fps=fps,
         max_particles=max_particles,
     )
-    out = Path(path)
-    tmp = out.with_name(out.name + ".tmp")
-    try:
+    with atomic_write(path) as tmp:
         tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, out)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return out
+    return Path(path)
