@@ -16,11 +16,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ceamcl.experiments.metrics import covers
 from ceamcl.filters import make_filter
-from ceamcl.io.results import ensure_output_dir, write_diagnostics_csv, write_json
-from ceamcl.io.tum import write_tum
+from ceamcl.io.results import ensure_output_dir
 from ceamcl.maps.worlds import symmetric_images
-from ceamcl.runner import RunResult, run_filter
+from ceamcl.pose import position_error
+from ceamcl.runner import RunResult, run_filter, write_run_files
 from ceamcl.simulation.scenarios import HALL_WORLDS, get_scenario
 from ceamcl.simulation.simulator import SimulatedLog
 
@@ -44,7 +45,7 @@ def seeded_generators(seed: int, count: int) -> list[np.random.Generator]:
 
 def summarise(result: RunResult, log: SimulatedLog, **context: Any) -> dict[str, Any]:
     """The fields of ``summary.json``."""
-    step_ms = np.array([d.step_ms for d in result.diagnostics[1:]] or [0.0])
+    step_ms = result.step_ms
     pos_err = result.position_errors
     head_err = result.heading_errors
     final_h = result.hypotheses[-1]
@@ -72,17 +73,15 @@ def summarise(result: RunResult, log: SimulatedLog, **context: Any) -> dict[str,
     if result.truth is not None and final_h.shape[0]:
         # In a symmetric world the estimate is one of several equally fit hypotheses; the
         # distance of the closest hypothesis tells whether the truth is still tracked.
-        d_truth = np.hypot(final_h[:, 0] - result.truth[-1, 0], final_h[:, 1] - result.truth[-1, 1])
+        d_truth = position_error(final_h[:, :3], result.truth[-1])
         summary["closest_hypothesis_error_m"] = float(d_truth.min())
     if result.diagnostics[-1].species or result.diagnostics[0].species:
         summary["species_initial"] = len(result.diagnostics[0].species)
         summary["species_final"] = len(result.diagnostics[-1].species)
     if result.truth is not None and log.world in HALL_WORLDS and final_h.shape[0]:
-        images = symmetric_images(result.truth[-1])
-        d = np.hypot(
-            final_h[:, None, 0] - images[None, :, 0], final_h[:, None, 1] - images[None, :, 1]
-        )
-        summary["symmetric_images_covered"] = int(np.sum(d.min(axis=0) < 0.5))
+        # Position only: an image counts when some hypothesis is within the experiments' 0.5 m.
+        near = covers(final_h[:, :3], symmetric_images(result.truth[-1]), heading_tol=np.inf)
+        summary["symmetric_images_covered"] = int(np.sum(near.any(axis=0)))
     return summary
 
 
@@ -121,36 +120,14 @@ def run_demo(
     summary = summarise(
         result, log, seed=seed, scenario=scenario, start_room=start_room, sensor=sensor
     )
-    if out_dir is not None:
-        from ceamcl.viz.plots import plot_run, plot_species
-
-        write_tum(out_dir / "trajectory.tum", result.times, result.estimates)
-        write_tum(out_dir / "groundtruth.tum", log.times, log.true_poses)
-        write_diagnostics_csv(out_dir / "diagnostics.csv", result.diagnostics, list(result.times))
-        plot_run(
-            result, grid, out_dir / "run.png", title=f"{algorithm} on {grid.name}, seed {seed}"
-        )
-        if any(d.species for d in result.diagnostics):
-            plot_species(
-                result,
-                out_dir / "species.png",
-                title=f"{algorithm} on {grid.name}, "
-                f"seed {seed}: sample size and resources (Fig. 6)",
-            )
-        write_json(out_dir / "summary.json", summary)
-    files: list[Path] = []
-    if outputs is not None and outputs.any:
-        from ceamcl.viz.outputs import write_outputs
-
-        # Without an output folder only the MCAP file (a path of its own) is written.
-        files = write_outputs(
-            result,
-            grid,
-            out_dir if out_dir is not None else Path(),
-            outputs if out_dir is not None else outputs.only_mcap(),
-            log=log,
-            summary=summary,
-            title=f"{algorithm} on {grid.name}, seed {seed}",
-            on_frame=on_frame,
-        )
+    files = write_run_files(
+        result,
+        grid,
+        out_dir,
+        summary,
+        title=f"{algorithm} on {grid.name}, seed {seed}",
+        log=log,
+        outputs=outputs,
+        on_frame=on_frame,
+    )
     return DemoOutcome(result, log, summary, out_dir, files)

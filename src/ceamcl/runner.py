@@ -2,16 +2,23 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import os
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Protocol
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ceamcl.filters.base import LocalisationFilter, ParticleSnapshot, StepDiagnostics
 from ceamcl.motion.odometry import increment_between
+from ceamcl.pose import heading_error, position_error
 from ceamcl.sensors.scan import LaserScan
+
+if TYPE_CHECKING:
+    from ceamcl.maps.grid import OccupancyGrid
+    from ceamcl.viz.outputs import OutputOptions
 
 
 class RobotLog(Protocol):
@@ -48,16 +55,16 @@ class RunResult:
 
     @property
     def position_errors(self) -> NDArray[np.float64] | None:
-        if self.truth is None:
-            return None
-        return np.hypot(*(self.estimates[:, :2] - self.truth[:, :2]).T)
+        return None if self.truth is None else position_error(self.estimates, self.truth)
 
     @property
     def heading_errors(self) -> NDArray[np.float64] | None:
-        if self.truth is None:
-            return None
-        d = self.estimates[:, 2] - self.truth[:, 2]
-        return np.abs(np.angle(np.exp(1j * d)))
+        return None if self.truth is None else heading_error(self.estimates, self.truth)
+
+    @property
+    def step_ms(self) -> NDArray[np.float64]:
+        """Time of each filter step after the global initialisation (``[0.0]`` when none)."""
+        return np.array([d.step_ms for d in self.diagnostics[1:]] or [0.0])
 
 
 def _hypothesis_array(f: LocalisationFilter) -> NDArray[np.float64]:
@@ -110,4 +117,56 @@ def run_filter(
         final_particles=f.particles(),
         initial_particles=initial,
         snapshots=snapshots,
+    )
+
+
+def write_run_files(
+    result: RunResult,
+    grid: OccupancyGrid,
+    out_dir: str | os.PathLike[str] | None,
+    summary: Mapping[str, Any],
+    *,
+    title: str,
+    log: Any = None,
+    outputs: OutputOptions | None = None,
+    on_frame: Callable[[int, int], None] | None = None,
+) -> list[Path]:
+    """The files of one run, as ``ceamcl demo`` and ``ceamcl run`` write them.
+
+    With ``out_dir``: ``trajectory.tum``, ``groundtruth.tum`` (where the run has a truth),
+    ``diagnostics.csv``, ``run.png``, ``species.png`` (filters with species) and
+    ``summary.json``. ``outputs`` (``ceamcl.viz.outputs.OutputOptions``) adds the visual
+    outputs (without ``out_dir`` only the MCAP file, a path of its own); ``log`` gives the MCAP
+    file its scans, ``on_frame(i, total)`` reports the animation's progress. Returns the
+    visual outputs written.
+    """
+    out = None if out_dir is None else Path(out_dir)
+    if out is not None:
+        from ceamcl.io.results import write_diagnostics_csv, write_json
+        from ceamcl.io.tum import write_tum
+        from ceamcl.viz.plots import plot_run, plot_species
+
+        write_tum(out / "trajectory.tum", result.times, result.estimates)
+        if result.truth is not None:
+            write_tum(out / "groundtruth.tum", result.times, result.truth)
+        write_diagnostics_csv(out / "diagnostics.csv", result.diagnostics, list(result.times))
+        plot_run(result, grid, out / "run.png", title=title)
+        if any(d.species for d in result.diagnostics):
+            plot_species(
+                result, out / "species.png", title=f"{title}: sample size and resources (Fig. 6)"
+            )
+        write_json(out / "summary.json", summary)
+    if outputs is None or not outputs.any:
+        return []
+    from ceamcl.viz.outputs import write_outputs
+
+    return write_outputs(
+        result,
+        grid,
+        out if out is not None else Path(),
+        outputs if out is not None else outputs.only_mcap(),
+        log=log,
+        summary=summary,
+        title=title,
+        on_frame=on_frame,
     )

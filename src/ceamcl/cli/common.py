@@ -1,11 +1,22 @@
-"""Shared pieces of the command line: argument types and the progress bar."""
+"""Shared pieces of the command line: argument types, the progress bar, a run's summary table."""
 
 from __future__ import annotations
 
 import argparse
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any
 
 from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    TaskID,
+    TextColumn,
+    TimeElapsedColumn,
+)
+from rich.table import Table
 
 
 def non_negative_int(text: str) -> int:
@@ -49,3 +60,43 @@ def make_progress(label: str, console: Console, *, quiet: bool = False) -> Progr
         disable=quiet,
         transient=False,
     )
+
+
+class RunProgress:
+    """Callbacks that show one run in ``progress``: its steps (``start(total)``, ``step(k)``)
+    and, once the animation starts, its frames (``frame(i, total)``)."""
+
+    def __init__(self, progress: Progress, unit: str = "steps") -> None:
+        self.progress = progress
+        self.task = progress.add_task(unit, total=None)
+        self.frames: TaskID | None = None
+
+    def start(self, total: int) -> None:
+        self.progress.update(self.task, total=total)
+
+    def step(self, k: int) -> None:
+        self.progress.update(self.task, completed=k + 1)
+
+    def frame(self, i: int, total: int) -> None:
+        if self.frames is None:
+            self.frames = self.progress.add_task("animation frames", total=total)
+        self.progress.update(self.frames, completed=i)
+
+
+def summary_table(title: str, summary: Mapping[str, Any], keys: Iterable[str]) -> Table:
+    """A two-column table of the ``keys`` of ``summary`` that are present and not None."""
+    table = Table(title=title)
+    table.add_column("measure")
+    table.add_column("value", justify="right")
+    for key in keys:
+        v = summary.get(key)
+        if v is not None:
+            table.add_row(key, f"{v:.3f}" if isinstance(v, float) else str(v))
+    return table
+
+
+def print_written(console: Console, out_dir: Path | None, files: Iterable[Path]) -> None:
+    """Where a run's results went, and its visual outputs."""
+    console.print(f"results written to [bold]{out_dir}[/]")
+    for path in files:
+        console.print(f"  {path}")

@@ -5,10 +5,15 @@ from __future__ import annotations
 import argparse
 
 from rich.console import Console
-from rich.progress import TaskID
-from rich.table import Table
 
-from ceamcl.cli.common import make_progress, non_negative_int, positive_int
+from ceamcl.cli.common import (
+    RunProgress,
+    make_progress,
+    non_negative_int,
+    positive_int,
+    print_written,
+    summary_table,
+)
 from ceamcl.filters import ALGORITHMS, SENSOR_MODELS
 from ceamcl.viz.outputs import OutputOptions, add_output_arguments
 
@@ -51,21 +56,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
         f"[bold]{args.algorithm}[/] on {args.world}", console, quiet=args.quiet
     )
     with progress:
-        task = progress.add_task("steps", total=None)
-
-        def start(total: int) -> None:
-            progress.update(task, total=total)
-
-        def step(k: int) -> None:
-            progress.update(task, completed=k + 1)
-
-        frame_task: list[TaskID] = []
-
-        def frame(i: int, total: int) -> None:
-            if not frame_task:
-                frame_task.append(progress.add_task("animation frames", total=total))
-            progress.update(frame_task[0], completed=i)
-
+        bar = RunProgress(progress)
         outcome = run_demo(
             args.algorithm,
             world=args.world,
@@ -74,34 +65,30 @@ def run(args: argparse.Namespace, console: Console) -> int:
             sensor=args.sensor,
             n_particles=args.particles,
             out=args.out,
-            on_step=step,
-            on_start=start,
+            on_step=bar.step,
+            on_start=bar.start,
             outputs=outputs,
-            on_frame=frame,
+            on_frame=bar.frame,
         )
     if not args.quiet:
-        table = Table(title=f"ceamcl demo ({args.algorithm}, seed {args.seed})")
-        table.add_column("measure")
-        table.add_column("value", justify="right")
         s = outcome.summary
-        for key in (
-            "steps",
-            "final_position_error_m",
-            "final_heading_error_rad",
-            "closest_hypothesis_error_m",
-            "mean_step_ms",
-            "median_step_ms",
-            "samples_initial",
-            "samples_final",
-            "species_final",
-            "symmetric_images_covered",
-        ):
-            if key in s and s[key] is not None:
-                v = s[key]
-                table.add_row(key, f"{v:.3f}" if isinstance(v, float) else str(v))
+        table = summary_table(
+            f"ceamcl demo ({args.algorithm}, seed {args.seed})",
+            s,
+            (
+                "steps",
+                "final_position_error_m",
+                "final_heading_error_rad",
+                "closest_hypothesis_error_m",
+                "mean_step_ms",
+                "median_step_ms",
+                "samples_initial",
+                "samples_final",
+                "species_final",
+                "symmetric_images_covered",
+            ),
+        )
         table.add_row("hypotheses at the end", str(len(s["hypotheses_final"])))
         console.print(table)
-        console.print(f"results written to [bold]{outcome.out_dir}[/]")
-        for path in outcome.files:
-            console.print(f"  {path}")
+        print_written(console, outcome.out_dir, outcome.files)
     return 0

@@ -85,6 +85,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 def run(args: argparse.Namespace, console: Console) -> int:
     from ceamcl.errors import ConfigError
     from ceamcl.experiments.algorithms import resolve_algorithms
+    from ceamcl.experiments.common import fmt, pct
     from ceamcl.experiments.evaluate_log import evaluate_log, obtain_map, prepare_log
 
     algos, skipped = resolve_algorithms(args.algorithms)
@@ -130,19 +131,16 @@ def run(args: argparse.Namespace, console: Console) -> int:
         ):
             table.add_column(col, justify="left" if col == "algorithm" else "right")
 
-        def f(v: float, d: int) -> str:
-            return "-" if v != v else f"{v:.{d}f}"
-
         for row in ev.table:
             table.add_row(
                 row["algorithm"],
-                f"{100 * row['success_rate']:.0f}%",
-                f(row["time_to_converge_s"], 1),
-                f(row["scans_to_converge"], 1),
-                f(row["position_rmse_m"], 3),
-                f(row["heading_rmse_rad"], 3),
-                f(row["mean_particles"], 0),
-                f(row["mean_step_ms"], 1),
+                pct(row["success_rate"]),
+                fmt(row["time_to_converge_s"], 1, "-"),
+                fmt(row["scans_to_converge"], 1, "-"),
+                fmt(row["position_rmse_m"], 3, "-"),
+                fmt(row["heading_rmse_rad"], 3, "-"),
+                fmt(row["mean_particles"], 0, "-"),
+                fmt(row["mean_step_ms"], 1, "-"),
             )
         console.print(table)
         console.print(f"results written to [bold]{ev.out_dir}[/]")

@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -235,14 +236,7 @@ def _output_options(args: argparse.Namespace) -> OutputOptions:
     name = Path(args.mcap).name
     if not name or name in (".", ".."):
         raise ConfigError(f"mcap: expected a file name, got {args.mcap!r}")
-    return OutputOptions(
-        gif=options.gif,
-        mp4=options.mp4,
-        fps=options.fps,
-        stride=options.stride,
-        report=options.report,
-        mcap=Path(name),
-    )
+    return replace(options, mcap=Path(name))
 
 
 def _write_run_outputs(
@@ -282,9 +276,7 @@ def _rerun(
     quiet: bool,
 ) -> TrialOutputs:
     """One re-run with progress bars over its steps and the animation's frames."""
-    from rich.progress import TaskID
-
-    from ceamcl.cli.common import make_progress
+    from ceamcl.cli.common import RunProgress, make_progress
     from ceamcl.experiments.common import write_trial_outputs
 
     progress = make_progress(
@@ -294,20 +286,13 @@ def _rerun(
         quiet=quiet,
     )
     with progress:
-        task = progress.add_task("steps", total=None)
-        frame_task: list[TaskID] = []
-
-        def frame(i: int, total: int) -> None:
-            if not frame_task:
-                frame_task.append(progress.add_task("animation frames", total=total))
-            progress.update(frame_task[0], completed=i)
-
+        bar = RunProgress(progress)
         return write_trial_outputs(
             record,
             settings,
             out_dir,
             outputs,
-            on_start=lambda total: progress.update(task, total=total),
-            on_step=lambda k: progress.update(task, completed=k + 1),
-            on_frame=frame,
+            on_start=bar.start,
+            on_step=bar.step,
+            on_frame=bar.frame,
         )

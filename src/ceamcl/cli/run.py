@@ -7,10 +7,16 @@ import argparse
 from typing import Any
 
 from rich.console import Console
-from rich.progress import TaskID
-from rich.table import Table
 
-from ceamcl.cli.common import make_progress, non_negative_int, positive_float, positive_int
+from ceamcl.cli.common import (
+    RunProgress,
+    make_progress,
+    non_negative_int,
+    positive_float,
+    positive_int,
+    print_written,
+    summary_table,
+)
 from ceamcl.errors import ConfigError
 from ceamcl.viz.outputs import OutputOptions, add_output_arguments
 
@@ -118,8 +124,6 @@ def run(args: argparse.Namespace, console: Console) -> int:
     outputs = OutputOptions.from_args(args)  # refuses --mp4 without ffmpeg before the run
     algos, skipped = resolve_algorithms([args.algorithm])
     if not algos:
-        from ceamcl.errors import ConfigError
-
         raise ConfigError(f"algorithm: {args.algorithm} cannot run here: {skipped[args.algorithm]}")
     prepared = prepare_log(log_path(args), seed=args.seed, truth=args.truth, **open_kwargs(args))
     grid, map_source = obtain_map(prepared.log, args.map, args.resolution)
@@ -135,31 +139,20 @@ def run(args: argparse.Namespace, console: Console) -> int:
         f"[bold]{args.algorithm}[/] on {prepared.log.name}", console, quiet=args.quiet
     )
     with progress:
-        task = progress.add_task("scans", total=None)
-        frame_task: list[TaskID] = []
-
-        def frame(i: int, total: int) -> None:
-            if not frame_task:
-                frame_task.append(progress.add_task("animation frames", total=total))
-            progress.update(frame_task[0], completed=i)
-
+        bar = RunProgress(progress, "scans")
         outcome = replay_log(
             prepared,
             grid,
             args.algorithm,
             map_source=map_source,
             out=args.out,
-            on_start=lambda total: progress.update(task, total=total),
-            on_step=lambda k: progress.update(task, completed=k + 1),
+            on_start=bar.start,
+            on_step=bar.step,
             outputs=outputs,
-            on_frame=frame,
+            on_frame=bar.frame,
         )
     if not args.quiet:
-        table = Table(title=f"ceamcl run ({args.algorithm}, seed {args.seed})")
-        table.add_column("measure")
-        table.add_column("value", justify="right")
-        s = outcome.summary
-        for key in (
+        keys = (
             "scans",
             "duration_s",
             "path_length_m",
@@ -173,12 +166,8 @@ def run(args: argparse.Namespace, console: Console) -> int:
             "initialisation_ms",
             "mean_step_ms",
             "mean_particles",
-        ):
-            if key in s and s[key] is not None:
-                v = s[key]
-                table.add_row(key, f"{v:.3f}" if isinstance(v, float) else str(v))
-        console.print(table)
-        console.print(f"results written to [bold]{outcome.out_dir}[/]")
-        for path in outcome.files:
-            console.print(f"  {path}")
+        )
+        title = f"ceamcl run ({args.algorithm}, seed {args.seed})"
+        console.print(summary_table(title, outcome.summary, keys))
+        print_written(console, outcome.out_dir, outcome.files)
     return 0

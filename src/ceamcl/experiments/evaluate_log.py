@@ -31,19 +31,20 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ceamcl.errors import ConfigError
+from ceamcl.experiments.metrics import HEADING_TOL_RAD, POSITION_TOL_M
 from ceamcl.io.logs import DEFAULT_SYNTHETIC_NOISE, RecordedLog, open_log, poses_look_corrected
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryNoise
-from ceamcl.runner import RunResult, run_filter
+from ceamcl.runner import RunResult, run_filter, write_run_files
 
 if TYPE_CHECKING:
     from ceamcl.viz.outputs import OutputOptions
 
 TruthMode = Literal["auto", "yes", "no"]
 
-#: Success tolerances and the stretch a run must stay inside them.
-POS_TOL_M = 0.5
-HEAD_TOL_RAD = 0.3
+#: Success tolerances (the experiments' own) and the stretch a run must stay inside them.
+POS_TOL_M = POSITION_TOL_M
+HEAD_TOL_RAD = HEADING_TOL_RAD
 HOLD_STEPS = 10
 #: Default window of each evaluation run: 50 m of travel along the true path.
 DEFAULT_WINDOW_M = 50.0
@@ -137,8 +138,7 @@ def replay_log(
     the particles are kept every ``outputs.stride`` steps only when one of them is asked for.
     ``on_frame(i, total)`` reports the animation's progress.
     """
-    from ceamcl.io.results import ensure_output_dir, write_diagnostics_csv, write_json
-    from ceamcl.io.tum import write_tum
+    from ceamcl.io.results import ensure_output_dir
 
     out_dir = ensure_output_dir(out) if out is not None else None
     log = prepared.log
@@ -148,35 +148,16 @@ def replay_log(
     snapshot_every = outputs.snapshot_every if outputs is not None else 0
     result = run_filter(f, log, on_step=on_step, snapshot_every=snapshot_every)
     summary = run_summary(result, prepared, grid, map_source)
-    if out_dir is not None:
-        from ceamcl.viz.plots import plot_run
-
-        write_tum(out_dir / "trajectory.tum", result.times, result.estimates)
-        if log.true_poses is not None:
-            write_tum(out_dir / "groundtruth.tum", log.times, log.true_poses)
-        write_diagnostics_csv(out_dir / "diagnostics.csv", result.diagnostics, list(result.times))
-        plot_run(
-            result,
-            grid,
-            out_dir / "run.png",
-            title=f"{algorithm} on {log.name}, seed {prepared.seed}",
-        )
-        write_json(out_dir / "summary.json", summary)
-    files: list[Path] = []
-    if outputs is not None and outputs.any:
-        from ceamcl.viz.outputs import write_outputs
-
-        # Without an output folder only the MCAP file (a path of its own) is written.
-        files = write_outputs(
-            result,
-            grid,
-            out_dir if out_dir is not None else Path(),
-            outputs if out_dir is not None else outputs.only_mcap(),
-            log=log,
-            summary=summary,
-            title=f"{algorithm} on {log.name}, seed {prepared.seed}",
-            on_frame=on_frame,
-        )
+    files = write_run_files(
+        result,
+        grid,
+        out_dir,
+        summary,
+        title=f"{algorithm} on {log.name}, seed {prepared.seed}",
+        log=log,
+        outputs=outputs,
+        on_frame=on_frame,
+    )
     return ReplayOutcome(result, summary, out_dir, files)
 
 
@@ -185,7 +166,7 @@ def run_summary(
 ) -> dict[str, Any]:
     """The fields of ``summary.json`` of ``ceamcl run``."""
     log = prepared.log
-    step_ms = np.array([d.step_ms for d in result.diagnostics[1:]] or [0.0])
+    step_ms = result.step_ms
     summary: dict[str, Any] = {
         "algorithm": result.algorithm,
         "log": log.path,
@@ -320,7 +301,6 @@ def run_log_trial(trial: LogTrial) -> LogTrialResult:
     if pos is None or head is None:
         raise ConfigError(f"trial {trial.name}: the log window has no ground truth")
     score = score_errors(result.times, pos, head, hold=trial.hold)
-    step_ms = np.array([d.step_ms for d in result.diagnostics[1:]] or [0.0])
     log = trial.log
     return LogTrialResult(
         name=trial.name,
@@ -338,7 +318,7 @@ def run_log_trial(trial: LogTrial) -> LogTrialResult:
         final_position_error_m=float(pos[-1]),
         final_heading_error_rad=float(head[-1]),
         mean_particles=float(np.mean([d.n_particles for d in result.diagnostics])),
-        mean_step_ms=float(step_ms.mean()),
+        mean_step_ms=float(result.step_ms.mean()),
         initialisation_ms=float(result.diagnostics[0].step_ms),
         elapsed_s=result.times - result.times[0],
         position_errors=pos,
@@ -530,27 +510,17 @@ def write_evaluation(
     ev: Evaluation, prepared: PreparedLog, out_dir: Path, *, hold: int = HOLD_STEPS
 ) -> None:
     """``evaluate.csv`` (per run), ``evaluate.md`` (per algorithm) and two figures."""
-    import csv
+    from ceamcl.experiments.common import write_csv, write_text
 
-    tmp = out_dir / "evaluate.csv.tmp"
-    with tmp.open("w", newline="") as fh:
-        writer = csv.writer(fh)
-        writer.writerow(_CSV_FIELDS)
-        for r in ev.results:
-            writer.writerow(
-                [
-                    "" if v is None else (f"{v:.6g}" if isinstance(v, float) else v)
-                    for v in (getattr(r, k) for k in _CSV_FIELDS)
-                ]
-            )
-    os.replace(tmp, out_dir / "evaluate.csv")
-    md = out_dir / "evaluate.md.tmp"
-    md.write_text(evaluation_markdown(ev, prepared, hold=hold))
-    os.replace(md, out_dir / "evaluate.md")
+    rows = [{k: getattr(r, k) for k in _CSV_FIELDS} for r in ev.results]
+    write_csv(out_dir / "evaluate.csv", rows)
+    write_text(out_dir / "evaluate.md", evaluation_markdown(ev, prepared, hold=hold))
     plot_evaluation(ev, out_dir)
 
 
 def evaluation_markdown(ev: Evaluation, prepared: PreparedLog, *, hold: int = HOLD_STEPS) -> str:
+    from ceamcl.experiments.common import fmt
+
     log = prepared.log
     lengths = [e - s for s, e in ev.windows]
     lines = [
@@ -576,21 +546,25 @@ def evaluation_markdown(ev: Evaluation, prepared: PreparedLog, *, hold: int = HO
         "initialisation [ms] |",
         "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
+    digits = {
+        "time_to_converge_s": 1,
+        "scans_to_converge": 1,
+        "position_rmse_m": 3,
+        "heading_rmse_rad": 3,
+        "mean_particles": 0,
+        "mean_step_ms": 1,
+        "initialisation_ms": 0,
+    }
     for row in ev.table:
+        cells = [fmt(row[key], d, "-") for key, d in digits.items()]
         lines.append(
             f"| {row['algorithm']} | {row['runs']} | {100 * row['success_rate']:.0f}% | "
-            f"{_fmt(row['time_to_converge_s'], 1)} | {_fmt(row['scans_to_converge'], 1)} | "
-            f"{_fmt(row['position_rmse_m'], 3)} | {_fmt(row['heading_rmse_rad'], 3)} | "
-            f"{_fmt(row['mean_particles'], 0)} | {_fmt(row['mean_step_ms'], 1)} | "
-            f"{_fmt(row['initialisation_ms'], 0)} |"
+            + " | ".join(cells)
+            + " |"
         )
     for algo, why in ev.skipped.items():
         lines.append(f"\n{algo} skipped: {why}")
     return "\n".join(lines) + "\n"
-
-
-def _fmt(v: float, digits: int) -> str:
-    return "-" if v is None or not math.isfinite(v) else f"{v:.{digits}f}"
 
 
 def plot_evaluation(ev: Evaluation, out_dir: Path) -> None:

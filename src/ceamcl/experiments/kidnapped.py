@@ -36,7 +36,7 @@ from ceamcl.experiments.common import (
     write_csv,
     write_text,
 )
-from ceamcl.experiments.metrics import HEADING_TOL_RAD, POSITION_TOL_M, covers, recovery_step
+from ceamcl.experiments.metrics import HEADING_TOL_RAD, POSITION_TOL_M, recovery_step, within
 from ceamcl.experiments.trials import TrialRecord
 from ceamcl.io.results import ensure_output_dir
 
@@ -55,9 +55,7 @@ class KidnapOutcome:
 
 def localised_steps(record: TrialRecord) -> np.ndarray:
     """Per step: is the estimate within the tolerances of the truth?"""
-    return np.array(
-        [bool(covers(e, t)[0, 0]) for e, t in zip(record.estimates, record.truth, strict=True)]
-    )
+    return within(record.estimates, record.truth)
 
 
 def kidnap_outcome(record: TrialRecord, window_s: float) -> KidnapOutcome:

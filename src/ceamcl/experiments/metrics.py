@@ -22,10 +22,22 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from ceamcl.pose import heading_error, position_error
+
 POSITION_TOL_M = 0.5
 HEADING_TOL_RAD = 0.3
 GATHERED_SHARE = 0.9
 HOLD_S = 1.0
+
+
+def within(
+    a: NDArray[np.float64],
+    b: NDArray[np.float64],
+    position_tol: float = POSITION_TOL_M,
+    heading_tol: float = HEADING_TOL_RAD,
+) -> NDArray[np.bool_]:
+    """Element-wise (poses ``(..., 3)`` broadcast): is ``a`` within the tolerances of ``b``?"""
+    return (position_error(a, b) <= position_tol) & (heading_error(a, b) <= heading_tol)
 
 
 def covers(
@@ -37,9 +49,7 @@ def covers(
     """``(P, T)``: does pose ``p`` lie within the tolerances of target ``t``?"""
     p = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
     t = np.asarray(targets, dtype=np.float64).reshape(-1, 3)
-    d = np.hypot(p[:, None, 0] - t[None, :, 0], p[:, None, 1] - t[None, :, 1])
-    dth = np.abs(np.angle(np.exp(1j * (p[:, None, 2] - t[None, :, 2]))))
-    return (d <= position_tol) & (dth <= heading_tol)
+    return within(p[:, None, :], t[None, :, :], position_tol, heading_tol)
 
 
 def step_coverage(
@@ -145,17 +155,15 @@ def trial_metrics(
     hold_steps = max(1, round(hold_s / dt)) if dt > 0 else 1
     conv = converged_step(covered, gathered, single_estimate=single_estimate)
     exp = expired_step(covered, conv, hold_steps, single_estimate=single_estimate)
-    err = np.hypot(*(estimates[-1, :2] - truth[-1, :2]))
-    herr = abs(float(np.angle(np.exp(1j * (estimates[-1, 2] - truth[-1, 2])))))
     steps = step_ms[1:] if step_ms.size > 1 else step_ms
     return TrialMetrics(
         converged_s=None if conv is None else float(times[conv] - times[0]),
         expired_s=None if exp is None else float(times[exp] - times[0]),
         success=bool(covered[-1, 0]),
         kept_all=None if single_estimate else bool(covered[-1].all()),
-        final_position_error_m=float(err),
-        final_heading_error_rad=herr,
-        final_estimate_ok=bool(covers(estimates[-1], truth[-1])[0, 0]),
+        final_position_error_m=float(position_error(estimates[-1], truth[-1])),
+        final_heading_error_rad=float(heading_error(estimates[-1], truth[-1])),
+        final_estimate_ok=bool(within(estimates[-1], truth[-1])),
         mean_particles=float(np.mean(n_particles)),
         final_particles=int(n_particles[-1]),
         mean_step_ms=float(np.mean(steps)),

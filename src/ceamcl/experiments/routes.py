@@ -42,6 +42,7 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
+from ceamcl.angles import wrap
 from ceamcl.errors import ConfigError
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.maps.worlds import HALL_SIZE_M, WORLD_NAMES, get_world
@@ -86,7 +87,7 @@ def apply_transforms(
     out = np.empty((transforms.shape[0], 3))
     out[:, 0] = c * x - s * y + transforms[:, 0]
     out[:, 1] = s * x + c * y + transforms[:, 1]
-    out[:, 2] = np.angle(np.exp(1j * (th + transforms[:, 2])))
+    out[:, 2] = wrap(th + transforms[:, 2])
     return out
 
 

@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 from ceamcl.experiments.algorithms import SINGLE_ESTIMATE, build_filter
 from ceamcl.experiments.metrics import TrialMetrics, step_coverage, trial_metrics
 from ceamcl.experiments.routes import Course
+from ceamcl.pose import position_error
 from ceamcl.runner import RunResult, run_filter
 from ceamcl.simulation.simulator import SimulatedLog
 
@@ -75,7 +76,7 @@ class TrialRecord:
 
     @property
     def position_errors(self) -> NDArray[np.float64]:
-        return np.hypot(*(self.estimates[:, :2] - self.truth[:, :2]).T)
+        return position_error(self.estimates, self.truth)
 
 
 def trial_generators(seed: int, route_index: int, repetition: int) -> list[np.random.Generator]:
@@ -146,7 +147,7 @@ def record_trial(trial: Trial, log: SimulatedLog, result: RunResult) -> TrialRec
             hyps = result.hypotheses[k]
         covered[k], gathered[k] = step_coverage(hyps, images)
         near = hyps if hyps.shape[0] else result.estimates[k : k + 1]
-        tracking[k] = float(np.min(np.hypot(near[:, 0] - truth[k, 0], near[:, 1] - truth[k, 1])))
+        tracking[k] = float(np.min(position_error(near, truth[k])))
     diags = result.diagnostics
     n_particles = np.array([d.n_particles for d in diags], dtype=np.int64)
     step_ms = np.array([d.step_ms for d in diags], dtype=np.float64)

@@ -69,34 +69,28 @@ class Scenario:
     def grid(self) -> OccupancyGrid:
         return get_world(self.world)
 
-    def kidnap_step(self) -> int | None:
-        """The step at which the truth jumps (``None`` without a kidnap)."""
+    def _drive(self) -> tuple[NDArray[np.float64], int | None]:
+        """The true path and the step at which the truth jumps (``None`` without a kidnap)."""
+        path = drive_waypoints(self.start, self.waypoints, self.config)
         if self.kidnap is None:
-            return None
-        before = drive_waypoints(self.start, self.waypoints, self.config).shape[0]
+            return path, None
         k = round(self.kidnap.at_s * self.config.rate_hz)
-        if not 0 < k < before:
+        if not 0 < k < path.shape[0]:
             raise ConfigError(
                 f"kidnap.at_s: expected a time within the first route (0 to "
-                f"{(before - 1) / self.config.rate_hz:.1f} s), got {self.kidnap.at_s}"
+                f"{(path.shape[0] - 1) / self.config.rate_hz:.1f} s), got {self.kidnap.at_s}"
             )
-        return k
+        after = drive_waypoints(self.kidnap.pose, self.kidnap.waypoints, self.config)
+        return np.vstack([path[:k], after]), k
 
     def true_path(self) -> NDArray[np.float64]:
-        path = drive_waypoints(self.start, self.waypoints, self.config)
-        k = self.kidnap_step()
-        if self.kidnap is None or k is None:
-            return path
-        after = drive_waypoints(self.kidnap.pose, self.kidnap.waypoints, self.config)
-        return np.vstack([path[:k], after])
+        return self._drive()[0]
 
     def simulate(self, rng: np.random.Generator, grid: OccupancyGrid | None = None) -> SimulatedLog:
         """Run the simulator along the route (truth is deterministic; noise comes from ``rng``)."""
         g = grid if grid is not None else self.grid()
-        k = self.kidnap_step()
-        return Simulator(g, self.config).run(
-            self.true_path(), rng, kidnapped_at=() if k is None else (k,)
-        )
+        path, k = self._drive()
+        return Simulator(g, self.config).run(path, rng, kidnapped_at=() if k is None else (k,))
 
 
 def paper_scenario(
