@@ -12,11 +12,11 @@ import importlib
 import numpy as np
 
 from ceamcl.errors import ConfigError
-from ceamcl.filters import make_filter, make_sensor
+from ceamcl.filters import make_filter
 from ceamcl.filters.base import LocalisationFilter
-from ceamcl.filters.ceamcl import CEAMCL, CEAMCLConfig
+from ceamcl.filters.ceamcl import CEAMCLConfig
 from ceamcl.maps.grid import OccupancyGrid
-from ceamcl.motion.odometry import OdometryMotionModel, OdometryNoise
+from ceamcl.motion.odometry import OdometryNoise
 
 NAV2_AMCL = "nav2-amcl"
 
@@ -89,12 +89,11 @@ def build_filter(
     if delta_per_m2 is not None:
         if algorithm != "ceamcl":
             raise ConfigError(f"delta: only CEAMCL has a delta, not {algorithm!r}")
-        motion = OdometryMotionModel(odometry_noise or OdometryNoise())
-        return CEAMCL(
+        return make_filter(
+            algorithm,
             grid,
-            motion,
-            make_sensor("likelihood-field", grid),
-            CEAMCLConfig(delta_per_m2=delta_per_m2),
-            rng=rng,
+            rng,
+            odometry_noise=odometry_noise,
+            config=CEAMCLConfig(delta_per_m2=delta_per_m2),
         )
     return make_filter(algorithm, grid, rng, odometry_noise=odometry_noise)

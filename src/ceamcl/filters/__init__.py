@@ -48,40 +48,60 @@ def make_filter(
     sensor: str | SensorModel = "likelihood-field",
     odometry_noise: OdometryNoise | None = None,
     n_particles: int | None = None,
+    config: FilterConfig | None = None,
 ) -> LocalisationFilter:
-    """A filter by name (see :data:`ALGORITHMS`) with default settings.
+    """A filter by name (see :data:`ALGORITHMS`), with its default settings or ``config``
+    (the algorithm's own config class, e.g. ``CEAMCLConfig(delta_per_m2=40)``).
 
     ``n_particles`` sets the sample size of fixed-size filters (MCL, GMCL); CEAMCL chooses its
     own (eq. 5) and ignores it; for KLD-AMCL it is the upper bound ``max_particles``.
     """
-    sensor_model = make_sensor(sensor, grid) if isinstance(sensor, str) else sensor
-    motion = OdometryMotionModel(odometry_noise or OdometryNoise())
+    if algorithm not in ALGORITHMS:
+        raise ConfigError(
+            f"algorithm: unknown algorithm {algorithm!r}; expected one of {', '.join(ALGORITHMS)}"
+        )
     if n_particles is not None and n_particles < 1:
         raise ConfigError(f"particles: expected a positive count, got {n_particles}")
-    if algorithm == "mcl":
-        cfg = MCLConfig() if n_particles is None else MCLConfig(n_particles=n_particles)
-        return MCL(grid, motion, sensor_model, cfg, rng=rng)
-    if algorithm == "gmcl":
-        gcfg = GMCLConfig() if n_particles is None else GMCLConfig(n_particles=n_particles)
-        return GMCL(grid, motion, sensor_model, gcfg, rng=rng)
-    if algorithm in ("kld-amcl", "kld-amcl-recovery"):
-        # n_particles, when given, is KLD-sampling's upper bound (max_particles).
-        kcfg = KLDAMCLConfig(
-            alpha_slow=0.001 if algorithm == "kld-amcl-recovery" else 0.0,
-            alpha_fast=0.1 if algorithm == "kld-amcl-recovery" else 0.0,
+    cfg = config if config is not None else _default_config(algorithm)
+    if type(cfg) is not _CONFIG_TYPES[algorithm]:
+        raise ConfigError(
+            f"config: {algorithm} takes a {_CONFIG_TYPES[algorithm].__name__}, "
+            f"got {type(cfg).__name__}"
         )
-        if n_particles is not None:
-            kcfg = replace(
-                kcfg,
-                max_particles=n_particles,
-                min_particles=min(kcfg.min_particles, n_particles),
+    if n_particles is not None:
+        if isinstance(cfg, KLDAMCLConfig):  # KLD-sampling's upper bound (max_particles)
+            cfg = replace(
+                cfg, max_particles=n_particles, min_particles=min(cfg.min_particles, n_particles)
             )
-        return KLDAMCL(grid, motion, sensor_model, kcfg, rng=rng)
-    if algorithm == "ceamcl":
-        return CEAMCL(grid, motion, sensor_model, CEAMCLConfig(), rng=rng)
-    raise ConfigError(
-        f"algorithm: unknown algorithm {algorithm!r}; expected one of {', '.join(ALGORITHMS)}"
-    )
+        elif isinstance(cfg, MCLConfig | GMCLConfig):
+            cfg = replace(cfg, n_particles=n_particles)
+    sensor_model = make_sensor(sensor, grid) if isinstance(sensor, str) else sensor
+    motion = OdometryMotionModel(odometry_noise or OdometryNoise())
+    if isinstance(cfg, CEAMCLConfig):
+        return CEAMCL(grid, motion, sensor_model, cfg, rng=rng)
+    if isinstance(cfg, KLDAMCLConfig):
+        return KLDAMCL(grid, motion, sensor_model, cfg, rng=rng)
+    if isinstance(cfg, GMCLConfig):  # checked before MCLConfig, its base class
+        return GMCL(grid, motion, sensor_model, cfg, rng=rng)
+    return MCL(grid, motion, sensor_model, cfg, rng=rng)
+
+
+FilterConfig = MCLConfig | GMCLConfig | KLDAMCLConfig | CEAMCLConfig
+
+_CONFIG_TYPES: dict[str, type] = {
+    "ceamcl": CEAMCLConfig,
+    "gmcl": GMCLConfig,
+    "mcl": MCLConfig,
+    "kld-amcl": KLDAMCLConfig,
+    "kld-amcl-recovery": KLDAMCLConfig,
+}
+
+
+def _default_config(algorithm: str) -> FilterConfig:
+    if algorithm == "kld-amcl-recovery":
+        return KLDAMCLConfig(alpha_slow=0.001, alpha_fast=0.1)
+    default: FilterConfig = _CONFIG_TYPES[algorithm]()
+    return default
 
 
 __all__ = [

@@ -31,7 +31,7 @@ from numpy.typing import ArrayLike, NDArray
 from ceamcl.angles import wrap
 from ceamcl.errors import ConfigError, LogFormatError
 from ceamcl.motion.odometry import OdometryNoise, synthetic_odometry
-from ceamcl.sensors.scan import LaserScan
+from ceamcl.sensors.scan import LaserScan, laser_poses
 
 __all__ = [
     "DEFAULT_SYNTHETIC_NOISE",
@@ -170,15 +170,9 @@ class RecordedLog:
     def laser_world_poses(self) -> NDArray[np.float64]:
         """World pose of the laser at each scan (true poses where known, else recorded)."""
         base = self.true_poses if self.true_poses is not None else self.poses
-        m = self.laser_mount
-        c, s = np.cos(base[:, 2]), np.sin(base[:, 2])
-        return np.column_stack(
-            [
-                base[:, 0] + c * m[:, 0] - s * m[:, 1],
-                base[:, 1] + s * m[:, 0] + c * m[:, 1],
-                wrap(base[:, 2] + m[:, 2]),
-            ]
-        )
+        world = laser_poses(base, self.laser_mount)
+        world[:, 2] = wrap(world[:, 2])
+        return world
 
 
 def _noise_dict(noise: OdometryNoise) -> dict[str, float]:

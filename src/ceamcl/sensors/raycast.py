@@ -299,7 +299,7 @@ def _table_range(
     n_angles = rows.shape[1]
     k = math.floor(theta * (n_angles / (2.0 * math.pi)) + 0.5) % n_angles
     v = rows[s, k]
-    if v < 0.0:  # not cast yet (a sentinel, not NaN: fastmath callers assume no NaN)
+    if v < 0.0:  # not cast yet (a negative sentinel rather than NaN)
         v = _cast_entry(ix, iy, k, n_angles, blocking, dist, res, max_range)
         rows[s, k] = v  # benign race: every thread writes the same value
     e = v * res

@@ -209,9 +209,12 @@ def prepare_scan(scan: LaserScan, max_beams: int, *, keep_max_range: bool) -> Pr
     )
 
 
-def laser_poses(poses: ArrayLike, laser_pose: tuple[float, float, float]) -> NDArray[np.float64]:
-    """World poses ``(N, 3)`` of the laser given robot poses and the laser's mounting pose."""
+def laser_poses(poses: ArrayLike, laser_pose: ArrayLike) -> NDArray[np.float64]:
+    """World poses ``(N, 3)`` of the laser given robot poses and the laser's mounting pose
+    ``(x, y, yaw)`` on the robot: one for all poses, or one per pose ``(N, 3)``. Headings are
+    not wrapped (the sensor models only take their sine and cosine)."""
     p = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
-    lx, ly, lyaw = laser_pose
+    m = np.asarray(laser_pose, dtype=np.float64).reshape(-1, 3)
+    lx, ly, lyaw = m[:, 0], m[:, 1], m[:, 2]
     c, s = np.cos(p[:, 2]), np.sin(p[:, 2])
     return np.column_stack([p[:, 0] + c * lx - s * ly, p[:, 1] + s * lx + c * ly, p[:, 2] + lyaw])

@@ -195,12 +195,12 @@ class CEAMCL:
         self.t += 1
         self._evaluations = 0
         self._reset_events()
+        prepared = None if scan is None else self.sensor.prepare(scan)
         self._grow()
         if self.poses.shape[0] == 0:
-            return self._restart(scan, start)
+            return self._restart(prepared, start)
         members = self._resample()
         self._predict(increment)
-        prepared = None if scan is None else self.sensor.prepare(scan)
         if prepared is None or prepared.n_beams == 0:
             # No information: sizes freeze (dN = 0) and the particles, just resampled, keep
             # equal weights (no evidence is counted twice at the next resampling).
@@ -210,12 +210,12 @@ class CEAMCL:
             return self._diagnostics(start, reinitialised=False)
         self._weigh(prepared)
         if not np.any(np.isfinite(self.loglik)):
-            return self._restart(scan, start)  # every particle impossible under this scan
+            return self._restart(prepared, start)  # every particle impossible under this scan
         self._evolve(members)
         self._split_and_merge(members)  # leaves self.stats fresh
         if self._fitness_collapsed():
             self._events["recoveries"] = 1.0
-            return self._restart(scan, start)  # kidnapped: no species explains the scans
+            return self._restart(prepared, start)  # kidnapped: no species explains the scans
         self._compete()
         return self._diagnostics(start, reinitialised=False)
 
@@ -238,13 +238,13 @@ class CEAMCL:
             and self._fit_fast < cfg.recovery_ratio * self._fit_slow
         )
 
-    def _restart(self, scan: LaserScan | None, start: float) -> StepDiagnostics:
+    def _restart(self, prepared: PreparedScan | None, start: float) -> StepDiagnostics:
         """Every species died out (or every particle is impossible): global initialisation
-        again, from ``scan`` or, without one, uniformly over free space; recorded in the
+        again, from the step's scan or, without one, uniformly over free space; recorded in the
         diagnostics as ``reinitialised`` (and ``extra["restarts"]``)."""
         t = self.t
         evaluations, events = self._evaluations, dict(self._events)
-        self._initialise_from(None if scan is None else self.sensor.prepare(scan))
+        self._initialise_from(prepared)
         self._evaluations += evaluations
         for key, value in self._events.items():
             events[key] = events.get(key, 0.0) + value
