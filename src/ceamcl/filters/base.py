@@ -14,14 +14,20 @@ to ``initialise_global`` and ``step`` returns a :class:`StepDiagnostics` record.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import TYPE_CHECKING, Any, Literal, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ceamcl.motion.odometry import OdometryIncrement
 from ceamcl.sensors.scan import LaserScan
+
+if TYPE_CHECKING:
+    from ceamcl.maps.grid import OccupancyGrid
+    from ceamcl.motion.odometry import OdometryMotionModel
+    from ceamcl.sensors.base import SensorModel
 
 
 @dataclass(frozen=True, eq=False)
@@ -120,3 +126,48 @@ class LocalisationFilter(Protocol):
     def hypotheses(self) -> list[Hypothesis]: ...
 
     def particles(self) -> ParticleSnapshot: ...
+
+
+def _available() -> str | None:
+    return None
+
+
+@dataclass(frozen=True)
+class Algorithm:
+    """What an algorithm module declares to the registry (:mod:`ceamcl.filters.registry`).
+
+    name: the name users type (``--algorithm``) and tables show.
+    config_type: its frozen config dataclass; ``default_config()`` builds the default one
+        (``config_type()`` unless given).
+    factory: ``factory(grid, motion, sensor, config, rng=rng)`` builds the filter; a filter
+        class whose constructor takes exactly that is its own factory.
+    with_particles: how a particle budget ``n`` enters the config (``None``: the algorithm
+        chooses its own sample size and ignores budgets).
+    reports: ``"hypotheses"`` when :meth:`LocalisationFilter.hypotheses` lists every pose it
+        entertains, ``"estimate"`` when it can only report one pose (the Nav2 peer).
+    unavailable: why it cannot run here (an optional peer not installed), or ``None``.
+    summary: one line for ``--help`` and the docs.
+    """
+
+    name: str
+    config_type: type
+    factory: Callable[..., LocalisationFilter]
+    default_config: Callable[[], Any] | None = None
+    with_particles: Callable[[Any, int], Any] | None = None
+    reports: Literal["hypotheses", "estimate"] = "hypotheses"
+    unavailable: Callable[[], str | None] = _available
+    summary: str = ""
+
+    def default(self) -> Any:
+        """The default config."""
+        return self.config_type() if self.default_config is None else self.default_config()
+
+    def build(
+        self,
+        grid: OccupancyGrid,
+        motion: OdometryMotionModel,
+        sensor: SensorModel,
+        config: Any,
+        rng: np.random.Generator,
+    ) -> LocalisationFilter:
+        return self.factory(grid, motion, sensor, config, rng=rng)

@@ -10,11 +10,12 @@ information they would only stir the particles at random).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
+from ceamcl.filters.base import Algorithm
 from ceamcl.filters.evolution import EvolutionConfig, evolve
 from ceamcl.filters.mcl import MCL, MCLConfig
 from ceamcl.filters.resampling import normalise_log_weights, sanitise_log_likelihood
@@ -50,3 +51,12 @@ class GMCL(MCL):
         log_w, _, ok = normalise_log_weights(self._prior_log_weights + self.loglik)
         if ok:
             self.log_weights = log_w
+
+
+ALGORITHM = Algorithm(
+    "gmcl",
+    GMCLConfig,
+    GMCL,
+    with_particles=lambda cfg, n: replace(cfg, n_particles=n),
+    summary="MCL plus CEAMCL's genetic operators, no species (the paper's second baseline)",
+)

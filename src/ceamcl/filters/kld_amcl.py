@@ -42,7 +42,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ceamcl.errors import ConfigError
-from ceamcl.filters.base import Hypothesis, ParticleSnapshot, PoseEstimate, StepDiagnostics
+from ceamcl.filters.base import (
+    Algorithm,
+    Hypothesis,
+    ParticleSnapshot,
+    PoseEstimate,
+    StepDiagnostics,
+)
 from ceamcl.filters.clustering import pose_cluster_labels
 from ceamcl.filters.mcl import check_increment, cluster_hypotheses, gaussian_poses
 from ceamcl.filters.resampling import (
@@ -438,8 +444,32 @@ def kld_sample_sizes(
     return n.astype(np.int64)
 
 
+def _with_particles(cfg: KLDAMCLConfig, n: int) -> KLDAMCLConfig:
+    """A budget of ``n`` particles is KLD-sampling's upper bound ``max_particles``."""
+    return replace(cfg, max_particles=n, min_particles=min(cfg.min_particles, n))
+
+
+ALGORITHM = Algorithm(
+    "kld-amcl",
+    KLDAMCLConfig,
+    KLDAMCL,
+    with_particles=_with_particles,
+    summary="KLD-sampling adaptive MCL as in ROS/Nav2 amcl, recovery off (Nav2's default)",
+)
+RECOVERY_ALGORITHM = Algorithm(
+    "kld-amcl-recovery",
+    KLDAMCLConfig,
+    KLDAMCL,
+    default_config=lambda: KLDAMCLConfig(alpha_slow=0.001, alpha_fast=0.1),
+    with_particles=_with_particles,
+    summary="KLD-AMCL with augmented-MCL recovery (alpha_slow 0.001, alpha_fast 0.1)",
+)
+
+
 __all__ = [
+    "ALGORITHM",
     "KLDAMCL",
+    "RECOVERY_ALGORITHM",
     "Z_099",
     "KLDAMCLConfig",
     "average_weight",

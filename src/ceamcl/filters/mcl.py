@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -27,6 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 from ceamcl.angles import wrap
 from ceamcl.errors import ConfigError, LogFormatError
 from ceamcl.filters.base import (
+    Algorithm,
     Hypothesis,
     ParticleSnapshot,
     PoseEstimate,
@@ -290,3 +291,12 @@ class MCL:
     def particles(self) -> ParticleSnapshot:
         labels, _ = self._labels()
         return ParticleSnapshot(self.poses.copy(), self.weights, labels)
+
+
+ALGORITHM = Algorithm(
+    "mcl",
+    MCLConfig,
+    MCL,
+    with_particles=lambda cfg, n: replace(cfg, n_particles=n),
+    summary="Monte Carlo localisation with a fixed sample size (the paper's first baseline)",
+)

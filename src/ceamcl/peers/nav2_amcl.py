@@ -54,7 +54,13 @@ from numpy.typing import ArrayLike, NDArray
 
 from ceamcl.angles import wrap
 from ceamcl.errors import ConfigError
-from ceamcl.filters.base import Hypothesis, ParticleSnapshot, PoseEstimate, StepDiagnostics
+from ceamcl.filters.base import (
+    Algorithm,
+    Hypothesis,
+    ParticleSnapshot,
+    PoseEstimate,
+    StepDiagnostics,
+)
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryIncrement, OdometryNoise, apply_increment
 from ceamcl.sensors.base import fitness
@@ -474,7 +480,51 @@ def make_nav2_amcl(
     return Nav2AMCL(grid, cfg, rng=rng)
 
 
+def _default_config() -> Nav2AMCLConfig:
+    """Nav2's defaults, as :func:`make_nav2_amcl` builds them (beam model, 60 beams)."""
+    return replace(Nav2AMCLConfig(), beam=replace(BeamModelConfig(), max_beams=60))
+
+
+def _with_particles(cfg: Nav2AMCLConfig, n: int) -> Nav2AMCLConfig:
+    return replace(cfg, max_particles=n, min_particles=min(NAV2_MIN_PARTICLES, n))
+
+
+def _build(
+    grid: OccupancyGrid,
+    motion: Any,
+    sensor: Any,
+    config: Nav2AMCLConfig,
+    *,
+    rng: np.random.Generator,
+) -> Nav2AMCL:
+    """The registry's factory: the wheel brings its own beam model (``sensor`` is not used);
+    the odometry noise is the motion model's."""
+    _amcl()
+    return Nav2AMCL(grid, replace(config, odometry_noise=motion.noise), rng=rng)
+
+
+def _unavailable() -> str | None:
+    from ceamcl import peers
+
+    return (
+        None if peers.available() else "Nav2's AMCL is not installed (pip install 'ceamcl[peers]')"
+    )
+
+
+ALGORITHM = Algorithm(
+    "nav2-amcl",
+    Nav2AMCLConfig,
+    _build,
+    default_config=_default_config,
+    with_particles=_with_particles,
+    reports="estimate",
+    unavailable=_unavailable,
+    summary="Nav2's C++ AMCL through the amcl wheel (optional extra [peers]), a benchmark peer",
+)
+
+
 __all__ = [
+    "ALGORITHM",
     "INSTALL_HINT",
     "Nav2AMCL",
     "Nav2AMCLConfig",

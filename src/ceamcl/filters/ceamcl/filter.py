@@ -36,6 +36,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ceamcl.angles import interpolate
 from ceamcl.filters.base import (
+    Algorithm,
     Hypothesis,
     ParticleSnapshot,
     PoseEstimate,
@@ -369,9 +370,7 @@ class CEAMCL:
             return  # no scan to probe the fitness between two species: no evidence to merge
         cfg = self.config
         ids = sorted(self.stats, key=lambda s: -self.stats[s].fitness)
-        pairs = [
-            (ids[i], ids[j]) for i, j in overlapping_pairs([self.stats[sid] for sid in ids])
-        ]
+        pairs = [(ids[i], ids[j]) for i, j in overlapping_pairs([self.stats[sid] for sid in ids])]
         if not pairs:
             return
         k = cfg.merge_probe_points
@@ -515,3 +514,11 @@ class CEAMCL:
         if total > 0:
             weights /= total
         return ParticleSnapshot(self.poses.copy(), weights, self.species.copy())
+
+
+ALGORITHM = Algorithm(
+    "ceamcl",
+    CEAMCLConfig,
+    CEAMCL,
+    summary="coevolution-based adaptive MCL: species, Lotka-Volterra competition, evolution",
+)

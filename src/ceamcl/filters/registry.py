@@ -1,0 +1,166 @@
+"""The one registry of localisation algorithms: name -> config type and factory.
+
+Each algorithm module declares what it offers as an :class:`~ceamcl.filters.base.Algorithm`
+(its name, config type, default config and how a particle budget maps onto that config); the
+line below that lists it is the only place that knows it exists. The CLI, the experiments, the
+bench and the tests look algorithms up here and build them with :func:`make_filter`.
+
+Adding an algorithm: write its module (say ``filters/my_filter.py``, with ``ALGORITHM =
+Algorithm("my-filter", MyConfig, MyFilter, ...)``) and add ``my_filter.ALGORITHM`` to
+:data:`_BUILT_IN`. An algorithm outside the core (a peer in an optional extra) is listed in
+:data:`_LAZY` by module name: its module is imported only when it is asked for.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Iterable
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+from ceamcl.errors import ConfigError
+from ceamcl.filters import gmcl, kld_amcl, mcl
+from ceamcl.filters.base import Algorithm, LocalisationFilter
+from ceamcl.filters.ceamcl import filter as ceamcl_filter
+from ceamcl.maps.grid import OccupancyGrid
+from ceamcl.motion.odometry import OdometryMotionModel, OdometryNoise
+from ceamcl.sensors.base import SensorModel
+from ceamcl.sensors.beam_model import BeamModel
+from ceamcl.sensors.likelihood_field import LikelihoodFieldModel
+
+#: The project's own algorithms, in the order experiments run and tables list them.
+_BUILT_IN: tuple[Algorithm, ...] = (
+    ceamcl_filter.ALGORITHM,
+    gmcl.ALGORITHM,
+    mcl.ALGORITHM,
+    kld_amcl.ALGORITHM,
+    kld_amcl.RECOVERY_ALGORITHM,
+)
+#: Algorithms outside the core: name -> module whose ``ALGORITHM`` declares it.
+_LAZY: dict[str, str] = {"nav2-amcl": "ceamcl.peers.nav2_amcl"}
+
+#: The project's own algorithms (always available).
+ALGORITHMS: tuple[str, ...] = tuple(a.name for a in _BUILT_IN)
+#: Sensor models by name (``make_sensor``).
+SENSOR_MODELS: tuple[str, ...] = ("likelihood-field", "beam")
+
+_BY_NAME: dict[str, Algorithm] = {a.name: a for a in _BUILT_IN}
+
+
+def names() -> tuple[str, ...]:
+    """Every registered algorithm: the project's own, then those outside the core."""
+    return (*ALGORITHMS, *_LAZY)
+
+
+def get(name: str) -> Algorithm:
+    """The registered algorithm ``name``; a :class:`ConfigError` naming the choices otherwise."""
+    if name in _BY_NAME:
+        return _BY_NAME[name]
+    if name in _LAZY:
+        module = importlib.import_module(_LAZY[name])
+        algorithm: Algorithm = module.ALGORITHM
+        _BY_NAME[name] = algorithm
+        return algorithm
+    raise ConfigError(
+        f"algorithm: unknown algorithm {name!r}; expected one of {', '.join(names())}"
+    )
+
+
+def unavailable_reason(name: str) -> str | None:
+    """Why ``name`` cannot run here (a peer that is not installed), or ``None`` when it can."""
+    if name in _BY_NAME and name not in _LAZY:
+        return None
+    try:
+        algorithm = get(name)
+    except ImportError as exc:
+        return f"{_LAZY.get(name, name)} cannot be imported ({exc})"
+    try:
+        return algorithm.unavailable()
+    except Exception as exc:  # a broken optional install must not stop the other algorithms
+        return f"{name}: checking whether it can run failed: {exc}"
+
+
+def resolve(wanted: Iterable[str] | None) -> tuple[list[str], dict[str, str]]:
+    """The algorithms to run (in the order given, duplicates dropped; default: every one) and
+    those skipped with the reason (an optional peer that is not installed).
+
+    An unknown name, or an empty selection given explicitly, is a :class:`ConfigError`.
+    """
+    chosen = list(names()) if wanted is None else list(dict.fromkeys(wanted))
+    if not chosen:
+        raise ConfigError(f"algorithms: expected at least one of {', '.join(names())}")
+    unknown = [n for n in chosen if n not in names()]
+    if unknown:
+        raise ConfigError(
+            f"algorithms: unknown algorithm {unknown[0]!r}; expected some of {', '.join(names())}"
+        )
+    skipped = {n: r for n in chosen if (r := unavailable_reason(n)) is not None}
+    return [n for n in chosen if n not in skipped], skipped
+
+
+def make_sensor(name: str, grid: OccupancyGrid) -> SensorModel:
+    """A sensor model by name, with its default (ROS amcl) parameters."""
+    if name == "likelihood-field":
+        return LikelihoodFieldModel(grid)
+    if name == "beam":
+        return BeamModel(grid)
+    raise ConfigError(
+        f"sensor: unknown sensor model {name!r}; expected one of {', '.join(SENSOR_MODELS)}"
+    )
+
+
+def make_filter(
+    algorithm: str,
+    grid: OccupancyGrid,
+    rng: np.random.Generator,
+    *,
+    sensor: str | SensorModel = "likelihood-field",
+    odometry_noise: OdometryNoise | None = None,
+    n_particles: int | None = None,
+    config: Any = None,
+) -> LocalisationFilter:
+    """A filter by name (see :func:`names`), with its default settings or ``config`` (the
+    algorithm's own config class, e.g. ``CEAMCLConfig(delta_per_m2=40)``).
+
+    ``n_particles`` is the particle budget: the sample size of fixed-size filters (MCL, GMCL),
+    the upper bound ``max_particles`` of KLD-sampling; CEAMCL chooses its own (eq. 5) and
+    ignores it. Algorithms outside the core may bring their own sensor model (the Nav2 peer
+    uses the wheel's beam model) and ignore ``sensor``.
+    """
+    spec = get(algorithm)
+    if n_particles is not None and n_particles < 1:
+        raise ConfigError(f"particles: expected a positive count, got {n_particles}")
+    cfg = config if config is not None else spec.default()
+    if type(cfg) is not spec.config_type:
+        raise ConfigError(
+            f"config: {algorithm} takes a {spec.config_type.__name__}, got {type(cfg).__name__}"
+        )
+    if n_particles is not None and spec.with_particles is not None:
+        cfg = spec.with_particles(cfg, n_particles)
+    sensor_model = make_sensor(sensor, grid) if isinstance(sensor, str) else sensor
+    motion = OdometryMotionModel(odometry_noise or OdometryNoise())
+    return spec.build(grid, motion, sensor_model, cfg, rng)
+
+
+def with_config(algorithm: str, **changes: Any) -> Any:
+    """``algorithm``'s default config with ``changes`` (e.g. ``delta_per_m2=40``)."""
+    spec = get(algorithm)
+    try:
+        return replace(spec.default(), **changes)
+    except TypeError as exc:
+        raise ConfigError(f"config: {algorithm}: {exc}") from None
+
+
+__all__ = [
+    "ALGORITHMS",
+    "SENSOR_MODELS",
+    "get",
+    "make_filter",
+    "make_sensor",
+    "names",
+    "resolve",
+    "unavailable_reason",
+    "with_config",
+]
