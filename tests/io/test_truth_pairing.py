@@ -1,0 +1,114 @@
+"""Truth from a second log: raw scans paired with their corrected twins by identical ranges."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ceamcl.errors import LogFormatError
+from ceamcl.io.logs import RecordedLog
+from ceamcl.io.truth import pair_truth
+
+DATA = Path(__file__).resolve().parents[2] / ".." / "shared" / "data"
+
+
+def make_log(ranges: list[list[float]], times: list[float], name: str) -> RecordedLog:
+    n = len(ranges)
+    flat = np.concatenate([np.asarray(r, dtype=np.float64) for r in ranges])
+    offsets = np.concatenate([[0], np.cumsum([len(r) for r in ranges])]).astype(np.intp)
+    poses = np.column_stack([np.arange(n, dtype=np.float64), np.zeros(n), np.zeros(n)])
+    return RecordedLog(
+        path=name,
+        times=np.asarray(times, dtype=np.float64),
+        poses=poses,
+        ranges_flat=flat,
+        offsets=offsets,
+        angle_min=np.full(n, -1.0),
+        angle_increment=np.full(n, 0.1),
+        range_min=np.zeros(n),
+        range_max=np.full(n, 30.0),
+        laser_mount=np.zeros((n, 3)),
+    )
+
+
+def test_pairs_by_ranges_across_a_clock_offset_and_printing_differences() -> None:
+    rng = np.random.default_rng(0)
+    scans = [list(np.round(rng.uniform(0.5, 10, 8), 2)) for _ in range(6)]
+    raw = make_log(scans, [1000.0 + 0.2 * k for k in range(6)], "raw")
+    # the corrected log keeps scans 1, 3, 4, printed with more digits (tiny float noise)
+    kept = [1, 3, 4]
+    corrected = make_log(
+        [[v + 1e-9 for v in scans[k]] for k in kept], [0.2 * k for k in kept], "corrected"
+    )
+    p = pair_truth(raw, corrected)
+    assert p.raw_index.tolist() == kept
+    assert p.truth_index.tolist() == [0, 1, 2]
+    assert p.clock_offset_s == pytest.approx(1000.0)
+    truth = p.truth_at_raw_scans()
+    assert np.isnan(truth[[0, 2, 5]]).all()
+    assert truth[3].tolist() == corrected.poses[1].tolist()
+
+
+def test_a_repeated_scan_is_told_apart_by_its_time() -> None:
+    # The robot stands still: raw scans 1, 2 and 3 are identical; the corrected log kept the
+    # third of them (and scan 0, unique, which fixes the clock offset).
+    a, still = [1.0, 2.0, 3.0], [4.0, 5.0, 6.0]
+    raw = make_log([a, still, still, still, [7.0, 8.0, 9.0]], [50, 51, 52, 53, 54], "raw")
+    corrected = make_log([a, still], [0.0, 3.0], "corrected")
+    p = pair_truth(raw, corrected)
+    assert p.raw_index.tolist() == [0, 3]
+
+
+def test_pairs_never_go_back_in_time() -> None:
+    # Scan a's twin nearest in time (raw 1) comes before the last pair (raw 2): the pairing
+    # takes the next twin instead of stepping back.
+    a, b, c = [1.0, 1.0], [2.0, 2.0], [3.0, 3.0]
+    raw = make_log([c, a, b, a], [10.0, 11.0, 12.0, 12.3], "raw")
+    corrected = make_log([c, b, a], [0.0, 2.0, 1.1], "corrected")
+    p = pair_truth(raw, corrected, time_tol_s=2.0)
+    assert p.raw_index.tolist() == [0, 2, 3]
+
+
+def test_logs_of_different_runs_are_refused_naming_both_files() -> None:
+    raw = make_log([[1.0, 2.0], [3.0, 4.0]], [0, 1], "raw.clf")
+    other = make_log([[5.0, 6.0]], [0], "other.log")
+    with pytest.raises(LogFormatError, match=r"other\.log.*raw\.clf"):
+        pair_truth(raw, other)
+
+
+def test_twins_at_the_wrong_time_are_not_paired() -> None:
+    a, b = [1.0, 2.0], [3.0, 4.0]
+    raw = make_log([a, b, b], [0.0, 1.0, 2.0], "raw")
+    corrected = make_log([a, b], [0.0, 30.0], "corrected")  # b's twin would be 28 s late
+    p = pair_truth(raw, corrected)
+    assert p.raw_index.tolist() == [0]
+
+
+@pytest.mark.parametrize(
+    ("raw_name", "corrected_name", "n_corrected"),
+    [
+        ("intel.clf.gz", "intel-corrected.log.gz", 910),
+        ("fr079.clf.gz", "freiburg-079-corrected.log.gz", 4791),
+    ],
+)
+def test_every_corrected_scan_of_the_shared_logs_has_its_raw_twin(
+    raw_name: str, corrected_name: str, n_corrected: int
+) -> None:
+    raw_path, cor_path = DATA / "carmen-raw" / raw_name, DATA / "carmen" / corrected_name
+    if not (raw_path.is_file() and cor_path.is_file()):
+        pytest.skip(
+            f"{raw_path} or {cor_path} is absent (../shared/data is not beside the project)"
+        )
+    from ceamcl.io.carmen import read_carmen
+
+    raw, corrected = read_carmen(raw_path), read_carmen(cor_path)
+    p = pair_truth(raw, corrected)
+    assert p.n_matched == n_corrected == len(corrected)
+    assert np.all(np.diff(p.raw_index) > 0)
+    # twins have the same ranges
+    for k in (0, p.n_matched // 2, p.n_matched - 1):
+        np.testing.assert_allclose(
+            raw.ranges(int(p.raw_index[k])), corrected.ranges(int(p.truth_index[k])), atol=5e-4
+        )
