@@ -6,33 +6,19 @@ import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ceamcl.filters.base import LocalisationFilter, ParticleSnapshot, StepDiagnostics
+from ceamcl.io.recorded import RobotLog
 from ceamcl.motion.odometry import increment_between
 from ceamcl.pose import heading_error, position_error
-from ceamcl.sensors.scan import LaserScan
 
 if TYPE_CHECKING:
     from ceamcl.maps.grid import OccupancyGrid
     from ceamcl.viz.outputs import OutputOptions
-
-
-class RobotLog(Protocol):
-    """What a replayable log offers: times, odometry poses, scans, and truth where known."""
-
-    @property
-    def times(self) -> NDArray[np.float64]: ...
-
-    @property
-    def odometry(self) -> NDArray[np.float64]: ...
-
-    def __len__(self) -> int: ...
-
-    def scan(self, k: int) -> LaserScan: ...
 
 
 @dataclass
