@@ -24,7 +24,7 @@ from ceamcl.experiments.common import (
 from ceamcl.experiments.evaluate_log import obtain_map, prepare_log, replay_log
 from ceamcl.experiments.routes import resolve_course
 from ceamcl.experiments.trials import run_trial
-from ceamcl.viz.outputs import OutputOptions
+from ceamcl.outputs import OutputOptions
 
 SCANS = 24
 BEAMS = 180

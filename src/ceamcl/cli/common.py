@@ -1,4 +1,5 @@
-"""Shared pieces of the command line: argument types, the progress bar, a run's summary table."""
+"""Shared pieces of the command line: argument types, the visual-output options, the progress
+bar, a run's summary table."""
 
 from __future__ import annotations
 
@@ -17,6 +18,8 @@ from rich.progress import (
     TimeElapsedColumn,
 )
 from rich.table import Table
+
+from ceamcl.outputs import DEFAULT_FPS, DEFAULT_STRIDE
 
 
 def non_negative_int(text: str) -> int:
@@ -100,3 +103,55 @@ def print_written(console: Console, out_dir: Path | None, files: Iterable[Path])
     console.print(f"results written to [bold]{out_dir}[/]")
     for path in files:
         console.print(f"  {path}")
+
+
+def add_output_arguments(
+    parser: argparse.ArgumentParser, *, animation_default: bool = True
+) -> None:
+    """Add ``--gif/--no-animation``, ``--mp4``, ``--fps``, ``--stride``, ``--report`` and
+    ``--mcap FILE`` to ``parser`` (in their own argument group); read them back with
+    :meth:`ceamcl.outputs.OutputOptions.from_args`.
+
+    ``animation_default``: whether ``run.gif`` is written unless ``--no-animation`` is given
+    (the demo: yes; batch commands may prefer no).
+    """
+    group = parser.add_argument_group("visual outputs")
+    group.add_argument(
+        "--gif",
+        dest="gif",
+        action="store_true",
+        default=animation_default,
+        help="write run.gif, the animated run" + (" (default)" if animation_default else ""),
+    )
+    group.add_argument(
+        "--no-animation",
+        dest="gif",
+        action="store_false",
+        help="do not write run.gif",
+    )
+    group.add_argument(
+        "--mp4", action="store_true", help="also write run.mp4 (needs ffmpeg on the PATH)"
+    )
+    group.add_argument(
+        "--fps",
+        type=positive_float,
+        default=DEFAULT_FPS,
+        help=f"frames per second of the animation and the replay (default {DEFAULT_FPS:g})",
+    )
+    group.add_argument(
+        "--stride",
+        type=positive_int,
+        default=DEFAULT_STRIDE,
+        help=f"one animation frame every N filter steps (default {DEFAULT_STRIDE})",
+    )
+    group.add_argument(
+        "--report",
+        action="store_true",
+        help="write report.html: summary, figures and an interactive replay in one file",
+    )
+    group.add_argument(
+        "--mcap",
+        metavar="FILE",
+        default=None,
+        help="write the run as MCAP for Foxglove (map, particles, estimate, truth, scans)",
+    )

@@ -8,6 +8,7 @@ from rich.console import Console
 
 from ceamcl.cli.common import (
     RunProgress,
+    add_output_arguments,
     make_progress,
     non_negative_int,
     positive_int,
@@ -15,7 +16,7 @@ from ceamcl.cli.common import (
     summary_table,
 )
 from ceamcl.filters import ALGORITHMS, SENSOR_MODELS
-from ceamcl.viz.outputs import OutputOptions, add_output_arguments
+from ceamcl.outputs import OutputOptions
 
 DEFAULT_ALGORITHM = "ceamcl"
 

@@ -12,9 +12,14 @@ from typing import TYPE_CHECKING, Any
 
 from rich.console import Console
 
-from ceamcl.cli.common import non_negative_int, positive_float, positive_int
+from ceamcl.cli.common import (
+    add_output_arguments,
+    non_negative_int,
+    positive_float,
+    positive_int,
+)
 from ceamcl.errors import ConfigError
-from ceamcl.viz.outputs import OutputOptions, add_output_arguments
+from ceamcl.outputs import OutputOptions
 
 if TYPE_CHECKING:
     from ceamcl.experiments.common import ExperimentSettings, TrialOutputs

@@ -10,6 +10,7 @@ from rich.console import Console
 
 from ceamcl.cli.common import (
     RunProgress,
+    add_output_arguments,
     make_progress,
     non_negative_int,
     positive_float,
@@ -18,7 +19,7 @@ from ceamcl.cli.common import (
     summary_table,
 )
 from ceamcl.errors import ConfigError
-from ceamcl.viz.outputs import OutputOptions, add_output_arguments
+from ceamcl.outputs import OutputOptions
 
 DEFAULT_ALGORITHM = "ceamcl"
 

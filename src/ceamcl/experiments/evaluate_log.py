@@ -35,10 +35,11 @@ from ceamcl.experiments.metrics import HEADING_TOL_RAD, POSITION_TOL_M
 from ceamcl.io.logs import DEFAULT_SYNTHETIC_NOISE, RecordedLog, open_log, poses_look_corrected
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryNoise
-from ceamcl.runner import RunResult, run_filter, write_run_files
+from ceamcl.outputs import write_run_files
+from ceamcl.runner import RunResult, run_filter
 
 if TYPE_CHECKING:
-    from ceamcl.viz.outputs import OutputOptions
+    from ceamcl.outputs import OutputOptions
 
 TruthMode = Literal["auto", "yes", "no"]
 
@@ -133,7 +134,7 @@ def replay_log(
 ) -> ReplayOutcome:
     """Global localisation over the whole log; with ``out``, the files of ``ceamcl run``.
 
-    ``outputs`` (``ceamcl.viz.outputs.OutputOptions``) adds ``run.gif``/``run.mp4``,
+    ``outputs`` (``ceamcl.outputs.OutputOptions``) adds ``run.gif``/``run.mp4``,
     ``report.html`` and an MCAP file (with the log's scans, and its truth where it has one);
     the particles are kept every ``outputs.stride`` steps only when one of them is asked for.
     ``on_frame(i, total)`` reports the animation's progress.
