@@ -19,6 +19,8 @@ from rich.progress import (
 )
 from rich.table import Table
 
+from ceamcl.errors import ConfigError
+from ceamcl.filters import registry
 from ceamcl.outputs import DEFAULT_FPS, DEFAULT_STRIDE
 
 
@@ -50,6 +52,14 @@ def positive_float(text: str) -> float:
     if not (value > 0.0 and value < float("inf")):
         raise argparse.ArgumentTypeError(f"expected a positive finite number, got {text}")
     return value
+
+
+def require_available(algorithm: str) -> None:
+    """Refuse, with the reason, an algorithm that is registered but cannot run here (the Nav2
+    peer without its optional extra)."""
+    reason = registry.unavailable_reason(algorithm)
+    if reason is not None:
+        raise ConfigError(f"algorithm: {algorithm} cannot run here: {reason}")
 
 
 def make_progress(label: str, console: Console, *, quiet: bool = False) -> Progress:
@@ -84,6 +94,30 @@ class RunProgress:
         if self.frames is None:
             self.frames = self.progress.add_task("animation frames", total=total)
         self.progress.update(self.frames, completed=i)
+
+
+class TrialsProgress:
+    """A progress bar over batches of trials: the ``progress(label, done, total)`` callback
+    that :func:`ceamcl.experiments.executors.map_trials` calls, one bar per label.
+
+    Use as a context manager: ``with TrialsProgress(console, quiet=q) as progress: ...``.
+    """
+
+    def __init__(self, console: Console, *, quiet: bool = False) -> None:
+        self.progress = make_progress("{task.description}", console, quiet=quiet)
+        self.tasks: dict[str, TaskID] = {}
+
+    def __enter__(self) -> TrialsProgress:
+        self.progress.__enter__()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.progress.__exit__(None, None, None)
+
+    def __call__(self, label: str, done: int, total: int) -> None:
+        if label not in self.tasks:
+            self.tasks[label] = self.progress.add_task(label, total=total)
+        self.progress.update(self.tasks[label], completed=done, total=total)
 
 
 def summary_table(title: str, summary: Mapping[str, Any], keys: Iterable[str]) -> Table:

@@ -15,9 +15,8 @@ from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
-from rich.console import Console
 
-from ceamcl.experiments.executors import map_trials, open_executor
+from ceamcl.experiments.executors import ProgressCallback, map_trials, open_executor
 from ceamcl.experiments.routes import Course
 from ceamcl.experiments.trials import Trial, TrialRecord, localise_trial, run_trial
 from ceamcl.io.results import ensure_output_dir, write_json
@@ -73,17 +72,17 @@ def run_trials(
     settings: ExperimentSettings,
     *,
     label: str,
-    console: Console | None = None,
+    progress: ProgressCallback | None = None,
     quiet: bool = False,
 ) -> list[TrialRecord]:
     """Run the trials on the settings' executor, with a progress bar; records in input order."""
     with open_executor(settings.executor, settings.workers) as ex:
-        return map_trials(ex, run_trial, trials, label=label, console=console, quiet=quiet)
+        return map_trials(ex, run_trial, trials, label=label, progress=progress, quiet=quiet)
 
 
 def run_metadata(settings: ExperimentSettings, argv: Sequence[str] | None = None) -> dict[str, Any]:
     """How and where the numbers were made: command, seed, executor, machine, versions."""
-    import numpy
+
 
     return {
         "command": " ".join(["ceamcl", *(argv if argv is not None else sys.argv[1:])]),
@@ -98,7 +97,7 @@ def run_metadata(settings: ExperimentSettings, argv: Sequence[str] | None = None
         "machine": f"{platform.node()} ({platform.machine()}, {os.cpu_count()} cores, "
         f"{platform.system()} {platform.release()})",
         "python": platform.python_version(),
-        "numpy": numpy.__version__,
+        "numpy": np.__version__,
     }
 
 
