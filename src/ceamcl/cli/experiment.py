@@ -95,15 +95,7 @@ def delta_rich(result: DeltaResult) -> Table:
     for col in ("delta", "runs", "initial", "mean", "final", "kept all", "success"):
         t.add_column(col, justify="right")
     for s in result.summaries:
-        t.add_row(
-            f"{s.delta_per_m2:g}",
-            str(s.runs),
-            f"{s.initial_particles:.0f}",
-            f"{s.mean_particles:.0f}",
-            f"{s.final_particles:.0f}",
-            pct(s.kept_all_rate),
-            pct(s.success_rate),
-        )
+        t.add_row(*delta.summary_cells(s))
     return t
 
 

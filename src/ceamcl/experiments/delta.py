@@ -92,6 +92,19 @@ def sample_curves(result: DeltaResult) -> list[Curve]:
     ]
 
 
+def summary_cells(s: DeltaSummary) -> list[str]:
+    """delta, runs, initial/mean/final sample size, kept all, success: a row of its tables."""
+    return [
+        f"{s.delta_per_m2:g}",
+        str(s.runs),
+        f"{s.initial_particles:.0f}",
+        f"{s.mean_particles:.0f}",
+        f"{s.final_particles:.0f}",
+        pct(s.kept_all_rate),
+        pct(s.success_rate),
+    ]
+
+
 def delta_markdown(result: DeltaResult, meta: dict[str, Any]) -> str:
     n_images = result.settings.course.n_images
     header = [
@@ -104,19 +117,7 @@ def delta_markdown(result: DeltaResult, meta: dict[str, Any]) -> str:
         "success",
         "step ms",
     ]
-    rows = [
-        [
-            f"{s.delta_per_m2:g}",
-            str(s.runs),
-            f"{s.initial_particles:.0f}",
-            f"{s.mean_particles:.0f}",
-            f"{s.final_particles:.0f}",
-            pct(s.kept_all_rate),
-            pct(s.success_rate),
-            f"{s.mean_step_ms:.1f}",
-        ]
-        for s in result.summaries
-    ]
+    rows = [[*summary_cells(s), f"{s.mean_step_ms:.1f}"] for s in result.summaries]
     return "\n".join(
         [
             f"# Effect of delta on CEAMCL's sample size on {result.settings.course.name} (Fig. 7)",
