@@ -43,7 +43,12 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         help="room the robot starts in (0 SW, 1 SE, 2 NE, 3 NW)",
     )
     demo.add_argument("--seed", type=non_negative_int, default=0)
-    demo.add_argument("--sensor", choices=registry.SENSOR_MODELS, default="likelihood-field")
+    demo.add_argument(
+        "--sensor",
+        choices=registry.SENSOR_MODELS,
+        default="likelihood-field",
+        help="sensor model (nav2-amcl always uses the wheel's own beam model)",
+    )
     demo.add_argument(
         "--particles",
         type=positive_int,
