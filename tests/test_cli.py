@@ -187,3 +187,27 @@ def test_subprocess_world_export(tmp_path: Path) -> None:
     )
     assert proc.returncode == 0, proc.stderr
     assert load_map(target) == get_world("small-office")
+
+
+@pytest.mark.parametrize("command", ["demo", "soak"])
+def test_an_algorithm_that_cannot_run_here_is_refused_with_the_reason(
+    command: str,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """Every registered algorithm is offered; one whose optional extra is missing (the Nav2
+    peer without ``[peers]``) is refused before any work, saying why."""
+    from ceamcl.filters import registry
+
+    monkeypatch.setattr(
+        registry,
+        "unavailable_reason",
+        lambda name: "Nav2's AMCL is not installed" if name == "nav2-amcl" else None,
+    )
+    out = tmp_path / "out"
+    code = main([command, "--algorithm", "nav2-amcl", "--out", str(out), "--quiet"])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "nav2-amcl cannot run here: Nav2's AMCL is not installed" in err
+    assert not out.exists()

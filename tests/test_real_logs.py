@@ -10,17 +10,14 @@ import numpy as np
 import pytest
 
 from ceamcl.cli import main
-from ceamcl.experiments.evaluate_log import (
-    _build,
-    _filter_rng,
-    obtain_map,
-    prepare_log,
-    start_windows,
-)
+from ceamcl.experiments.log_windows import start_windows
+from ceamcl.filters.registry import make_filter as _build
 from ceamcl.io.logs import open_log
 from ceamcl.io.tum import read_tum
 from ceamcl.mapping import map_from_log
 from ceamcl.maps.ros_io import load_map
+from ceamcl.replay import filter_rng as _filter_rng
+from ceamcl.replay import obtain_map, prepare_log
 from ceamcl.runner import run_filter
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "carmen"

@@ -20,13 +20,14 @@ from ceamcl.experiments.metrics import covers
 from ceamcl.filters import make_filter
 from ceamcl.io.results import ensure_output_dir
 from ceamcl.maps.worlds import symmetric_images
+from ceamcl.outputs import write_run_files
 from ceamcl.pose import position_error
-from ceamcl.runner import RunResult, run_filter, write_run_files
+from ceamcl.runner import RunResult, run_filter
 from ceamcl.simulation.scenarios import HALL_WORLDS, get_scenario
 from ceamcl.simulation.simulator import SimulatedLog
 
 if TYPE_CHECKING:
-    from ceamcl.viz.outputs import OutputOptions
+    from ceamcl.outputs import OutputOptions
 
 
 @dataclass
@@ -104,7 +105,7 @@ def run_demo(
 
     With ``out`` set, writes ``summary.json``, ``trajectory.tum``, ``groundtruth.tum``,
     ``diagnostics.csv`` and ``run.png`` there. ``on_start(total_steps)`` and ``on_step(k)``
-    report progress. ``outputs`` (``ceamcl.viz.outputs.OutputOptions``) adds ``run.gif``,
+    report progress. ``outputs`` (``ceamcl.outputs.OutputOptions``) adds ``run.gif``,
     ``report.html`` and an MCAP file; ``on_frame(i, total)`` reports the animation's progress.
     """
     out_dir = ensure_output_dir(out) if out is not None else None

@@ -1,38 +1,21 @@
-"""Run a filter over a robot log and collect what experiments, plots and files need."""
+"""Run a filter over a robot log and collect what experiments, plots and files need.
+
+The runner only runs: it returns a :class:`RunResult` and writes nothing. Files and figures
+of a run are written by :mod:`ceamcl.outputs`, one layer above.
+"""
 
 from __future__ import annotations
 
-import os
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ceamcl.filters.base import LocalisationFilter, ParticleSnapshot, StepDiagnostics
+from ceamcl.io.recorded import RobotLog
 from ceamcl.motion.odometry import increment_between
 from ceamcl.pose import heading_error, position_error
-from ceamcl.sensors.scan import LaserScan
-
-if TYPE_CHECKING:
-    from ceamcl.maps.grid import OccupancyGrid
-    from ceamcl.viz.outputs import OutputOptions
-
-
-class RobotLog(Protocol):
-    """What a replayable log offers: times, odometry poses, scans, and truth where known."""
-
-    @property
-    def times(self) -> NDArray[np.float64]: ...
-
-    @property
-    def odometry(self) -> NDArray[np.float64]: ...
-
-    def __len__(self) -> int: ...
-
-    def scan(self, k: int) -> LaserScan: ...
 
 
 @dataclass
@@ -117,56 +100,4 @@ def run_filter(
         final_particles=f.particles(),
         initial_particles=initial,
         snapshots=snapshots,
-    )
-
-
-def write_run_files(
-    result: RunResult,
-    grid: OccupancyGrid,
-    out_dir: str | os.PathLike[str] | None,
-    summary: Mapping[str, Any],
-    *,
-    title: str,
-    log: Any = None,
-    outputs: OutputOptions | None = None,
-    on_frame: Callable[[int, int], None] | None = None,
-) -> list[Path]:
-    """The files of one run, as ``ceamcl demo`` and ``ceamcl run`` write them.
-
-    With ``out_dir``: ``trajectory.tum``, ``groundtruth.tum`` (where the run has a truth),
-    ``diagnostics.csv``, ``run.png``, ``species.png`` (filters with species) and
-    ``summary.json``. ``outputs`` (``ceamcl.viz.outputs.OutputOptions``) adds the visual
-    outputs (without ``out_dir`` only the MCAP file, a path of its own); ``log`` gives the MCAP
-    file its scans, ``on_frame(i, total)`` reports the animation's progress. Returns the
-    visual outputs written.
-    """
-    out = None if out_dir is None else Path(out_dir)
-    if out is not None:
-        from ceamcl.io.results import write_diagnostics_csv, write_json
-        from ceamcl.io.tum import write_tum
-        from ceamcl.viz.plots import plot_run, plot_species
-
-        write_tum(out / "trajectory.tum", result.times, result.estimates)
-        if result.truth is not None:
-            write_tum(out / "groundtruth.tum", result.times, result.truth)
-        write_diagnostics_csv(out / "diagnostics.csv", result.diagnostics, list(result.times))
-        plot_run(result, grid, out / "run.png", title=title)
-        if any(d.species for d in result.diagnostics):
-            plot_species(
-                result, out / "species.png", title=f"{title}: sample size and resources (Fig. 6)"
-            )
-        write_json(out / "summary.json", summary)
-    if outputs is None or not outputs.any:
-        return []
-    from ceamcl.viz.outputs import write_outputs
-
-    return write_outputs(
-        result,
-        grid,
-        out if out is not None else Path(),
-        outputs if out is not None else outputs.only_mcap(),
-        log=log,
-        summary=summary,
-        title=title,
-        on_frame=on_frame,
     )

@@ -34,8 +34,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ceamcl.errors import ConfigError
-from ceamcl.filters import ALGORITHMS, SENSOR_MODELS, LocalisationFilter, make_filter
+from ceamcl.filters import LocalisationFilter, registry
+from ceamcl.io.results import ensure_output_dir, write_json
 from ceamcl.maps.grid import OccupancyGrid
+from ceamcl.maps.worlds import get_world
 from ceamcl.motion.odometry import OdometryMotionModel, increment_between
 from ceamcl.sensors.scan import LaserScan
 from ceamcl.simulation.scenarios import office_scenario, paper_scenario
@@ -62,20 +64,16 @@ class SoakConfig:
     def __post_init__(self) -> None:
         if self.steps < 2:
             raise ConfigError(f"steps: expected at least 2, got {self.steps}")
-        if self.algorithm not in ALGORITHMS:
-            raise ConfigError(
-                f"algorithm: unknown algorithm {self.algorithm!r}; expected one of "
-                f"{', '.join(ALGORITHMS)}"
-            )
+        registry.get(self.algorithm)  # an unknown name is a ConfigError naming the choices
         if self.world not in SOAK_WORLDS:
             raise ConfigError(
                 f"world: the soak drives a loop in one of {', '.join(SOAK_WORLDS)}, "
                 f"got {self.world!r}"
             )
-        if self.sensor not in SENSOR_MODELS:
+        if self.sensor not in registry.SENSOR_MODELS:
             raise ConfigError(
                 f"sensor: unknown sensor model {self.sensor!r}; expected one of "
-                f"{', '.join(SENSOR_MODELS)}"
+                f"{', '.join(registry.SENSOR_MODELS)}"
             )
         if self.seed < 0:
             raise ConfigError(f"seed: expected a non-negative number, got {self.seed}")
@@ -243,14 +241,12 @@ def run_soak(
     """Global localisation on the first scan, then ``config.steps - 1`` filter steps."""
     seeds = np.random.SeedSequence(config.seed).spawn(2)
     sim_rng, filter_rng = (np.random.default_rng(s) for s in seeds)
-    from ceamcl.maps.worlds import get_world
-
     grid = get_world(config.world)
     sim_cfg = SimulationConfig()
     stream = SimulatedStream(
         grid, loop_route(config.world, sim_cfg), config.steps, sim_rng, sim_cfg
     )
-    f = make_filter(
+    f = registry.make_filter(
         config.algorithm, grid, filter_rng, sensor=config.sensor, n_particles=config.particles
     )
     lo, hi = sample_size_bounds(f)
@@ -341,8 +337,6 @@ def run_soak(
 def write_soak_outputs(report: SoakReport, out_dir: str | os.PathLike[str]) -> list[Path]:
     """Write ``soak.json`` and ``soak.png`` (RSS and sample size over the run) to ``out_dir``
     (created if needed; files are replaced atomically)."""
-    from ceamcl.io.results import ensure_output_dir, write_json
-
     out = ensure_output_dir(out_dir)
     paths = [write_json(out / "soak.json", report.as_dict())]
     paths.append(plot_soak(report, out / "soak.png"))
@@ -350,6 +344,7 @@ def write_soak_outputs(report: SoakReport, out_dir: str | os.PathLike[str]) -> l
 
 
 def plot_soak(report: SoakReport, path: str | os.PathLike[str]) -> Path:
+    # matplotlib (~0.7 s) only when the figure is drawn: `ceamcl soak --help` imports this module
     import matplotlib
 
     matplotlib.use("Agg")

@@ -158,9 +158,109 @@ def core_violations(src: Path = SRC) -> list[str]:
     return out
 
 
+#: The layers, lowest first. A module may import modules of its own layer or of a lower one,
+#: never of a higher one (and never in a cycle). A module belongs to the layer of the longest
+#: prefix that names it (``ceamcl.io.results`` is an output, the other ``ceamcl.io`` modules
+#: read data). docs/architecture.md draws this.
+LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
+    ("base", ("ceamcl", "ceamcl.angles", "ceamcl.pose", "ceamcl.errors")),
+    ("models", ("ceamcl.maps", "ceamcl.motion", "ceamcl.sensors")),
+    (
+        "filters and data",
+        ("ceamcl.filters", "ceamcl.peers", "ceamcl.simulation", "ceamcl.mapping", "ceamcl.io"),
+    ),
+    ("runner", ("ceamcl.runner",)),
+    (
+        "outputs",
+        (
+            "ceamcl.outputs",
+            "ceamcl.viz",
+            "ceamcl.io.results",
+            "ceamcl.io.tum",
+            "ceamcl.io.mcap_export",
+        ),
+    ),
+    (
+        "drivers",
+        ("ceamcl.replay", "ceamcl.demo", "ceamcl.soak", "ceamcl.experiments", "ceamcl.bench"),
+    ),
+    ("command line", ("ceamcl.cli", "ceamcl.__main__")),
+)
+#: Third-party modules only the command line may import: argument parsing and the terminal.
+CLI_ONLY_THIRD_PARTY = ("argparse", "rich")
+
+
+def layer_of(name: str) -> int:
+    """The index in :data:`LAYERS` of module ``name`` (longest matching prefix; the package
+    ``ceamcl`` itself names only its ``__init__``)."""
+    best, best_len = -1, -1
+    for i, (_, prefixes) in enumerate(LAYERS):
+        for p in prefixes:
+            matches = name == p or (p != PACKAGE and name.startswith(p + "."))
+            if matches and len(p) > best_len:
+                best, best_len = i, len(p)
+    if best < 0:
+        raise KeyError(f"{name} is in no layer of tests/architecture/imports.py")
+    return best
+
+
+def unlayered(src: Path = SRC) -> list[str]:
+    """Modules no prefix of :data:`LAYERS` names."""
+    out = []
+    for name in module_files(src):
+        try:
+            layer_of(name)
+        except KeyError:
+            out.append(name)
+    return out
+
+
+def layer_violations(src: Path = SRC) -> list[str]:
+    """``module (layer) -> imported (higher layer)`` for every import that points up."""
+    graph = import_graph(src)
+    out = []
+    for name in sorted(graph):
+        mine = layer_of(name)
+        for dep in sorted(graph[name]):
+            theirs = layer_of(dep)
+            if theirs > mine:
+                out.append(f"{name} ({LAYERS[mine][0]}) -> {dep} ({LAYERS[theirs][0]})")
+    return out
+
+
+def third_party_imports(path: Path) -> set[str]:
+    """Top-level names of the non-``ceamcl`` modules a file imports (outside TYPE_CHECKING)."""
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    out: set[str] = set()
+    for node in _statements(tree):
+        if isinstance(node, ast.Import):
+            out.update(a.name.split(".")[0] for a in node.names)
+        elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
+            out.add(node.module.split(".")[0])
+    out.discard(PACKAGE)
+    return out
+
+
+def cli_only_violations(src: Path = SRC) -> list[str]:
+    """``module -> argparse/rich`` for every module outside ``ceamcl.cli`` that imports them."""
+    out = []
+    for name, path in module_files(src).items():
+        if _under(name, ("ceamcl.cli",)):
+            continue
+        for dep in sorted(third_party_imports(path) & set(CLI_ONLY_THIRD_PARTY)):
+            out.append(f"{name} -> {dep}")
+    return out
+
+
 if __name__ == "__main__":
     g = import_graph()
     for c in cycles(g):
         print("cycle:", " <-> ".join(c))
     for v in core_violations():
         print("core violation:", v)
+    for name in unlayered():
+        print("in no layer:", name)
+    for v in layer_violations():
+        print("points up:", v)
+    for v in cli_only_violations():
+        print("outside the CLI:", v)

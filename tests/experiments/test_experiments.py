@@ -11,11 +11,12 @@ import pytest
 
 from ceamcl.cli import main
 from ceamcl.errors import ConfigError
-from ceamcl.experiments.algorithms import all_algorithms, resolve_algorithms
 from ceamcl.experiments.common import ExperimentSettings, trial_rows
 from ceamcl.experiments.routes import paper_course
 from ceamcl.experiments.table1 import run_table1
 from ceamcl.experiments.trials import Trial, run_trial, simulate_trial_log
+from ceamcl.filters.registry import names as all_algorithms
+from ceamcl.filters.registry import resolve as resolve_algorithms
 
 
 def test_every_algorithm_sees_the_same_log_and_repetitions_differ() -> None:

@@ -4,17 +4,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from ceamcl.filters import ALGORITHMS, LocalisationFilter, make_filter
-from ceamcl.filters.ceamcl import CEAMCL, CEAMCLConfig
-from ceamcl.filters.gmcl import GMCL, GMCLConfig
-from ceamcl.filters.mcl import MCL, MCLConfig
+from ceamcl.filters import LocalisationFilter, registry
+from ceamcl.filters.ceamcl import CEAMCLConfig
+from ceamcl.filters.registry import ALGORITHMS
 from ceamcl.maps.grid import OccupancyGrid
-from ceamcl.motion.odometry import OdometryMotionModel
 from ceamcl.sensors.base import SensorModel
 from ceamcl.sensors.beam_model import BeamModel, BeamModelConfig
 from ceamcl.sensors.likelihood_field import LikelihoodFieldConfig, LikelihoodFieldModel
 
 SMALL_N = 60
+#: CEAMCL with a few hundred test poses.
+SMALL_CEAMCL = {"n_test": 300, "test_batch": 300, "max_samples": 400, "tracking_samples": 30}
 
 
 def small_sensor(name: str, grid: OccupancyGrid, max_beams: int = 30) -> SensorModel:
@@ -32,24 +32,16 @@ def small_filter(
     resample_ess_fraction: float = 0.5,
     ceamcl_config: CEAMCLConfig | None = None,
 ) -> LocalisationFilter:
-    """A filter with a few dozen particles (CEAMCL: a few hundred test poses)."""
-    motion = OdometryMotionModel()
+    """A filter with a few dozen particles (CEAMCL: a few hundred test poses), built by the
+    registry like every other filter."""
+    config = None
     if algorithm == "ceamcl":
-        cfg = ceamcl_config or CEAMCLConfig(
-            n_test=300, test_batch=300, max_samples=400, tracking_samples=30
-        )
-        return CEAMCL(grid, motion, sensor, cfg, rng=rng)
-    if algorithm == "mcl":
-        return MCL(grid, motion, sensor, MCLConfig(SMALL_N, resample_ess_fraction), rng=rng)
-    if algorithm == "gmcl":
-        return GMCL(
-            grid,
-            motion,
-            sensor,
-            GMCLConfig(n_particles=SMALL_N, resample_ess_fraction=resample_ess_fraction),
-            rng=rng,
-        )
-    return make_filter(algorithm, grid, rng, sensor=sensor, n_particles=SMALL_N)
+        config = ceamcl_config or registry.with_config("ceamcl", **SMALL_CEAMCL)
+    elif algorithm in ("mcl", "gmcl"):
+        config = registry.with_config(algorithm, resample_ess_fraction=resample_ess_fraction)
+    return registry.make_filter(
+        algorithm, grid, rng, sensor=sensor, n_particles=SMALL_N, config=config
+    )
 
 
 def assert_all_finite(f: LocalisationFilter) -> None:

@@ -21,10 +21,10 @@ from ceamcl.experiments.common import (
     make_trials,
     write_trial_outputs,
 )
-from ceamcl.experiments.evaluate_log import obtain_map, prepare_log, replay_log
 from ceamcl.experiments.routes import resolve_course
 from ceamcl.experiments.trials import run_trial
-from ceamcl.viz.outputs import OutputOptions
+from ceamcl.outputs import OutputOptions
+from ceamcl.replay import obtain_map, prepare_log, replay_log
 
 SCANS = 24
 BEAMS = 180

@@ -26,12 +26,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ceamcl import peers
+from ceamcl.filters import registry
 from ceamcl.filters.ceamcl import CEAMCL, CEAMCLConfig
 from ceamcl.filters.ceamcl.initialisation import generate_initial_species
-from ceamcl.filters.mcl import MCL, MCLConfig
 from ceamcl.maps.grid import FREE, OCCUPIED, OccupancyGrid
 from ceamcl.maps.worlds import get_world
-from ceamcl.motion.odometry import OdometryMotionModel, OdometryNoise, increment_between
+from ceamcl.motion.odometry import OdometryNoise, increment_between
 from ceamcl.sensors.base import SensorModel, fitness
 from ceamcl.sensors.beam_model import BeamModel, BeamModelConfig
 from ceamcl.sensors.likelihood_field import LikelihoodFieldConfig, LikelihoodFieldModel
@@ -184,12 +185,12 @@ def _our_updates(
     """MCL with ``n`` particles, resampling every update (as the wheel does): motion, sensor
     and resampling per step; median over ``steps`` updates after two warm-ups."""
     sensor = _sensor(sensor_name, grid)
-    f = MCL(
+    f = registry.make_filter(
+        "mcl",
         grid,
-        OdometryMotionModel(OdometryNoise()),
-        sensor,
-        MCLConfig(n_particles=n, resample_ess_fraction=1.0),
-        rng=np.random.default_rng(seed),
+        np.random.default_rng(seed),
+        sensor=sensor,
+        config=registry.with_config("mcl", n_particles=n, resample_ess_fraction=1.0),
     )
     k0 = _FIRST_STEP
     f.initialise_pose(log.true_poses[k0], _TRACK_COV)
@@ -264,12 +265,11 @@ def measure_jit(grid: OccupancyGrid, log: SimulatedLog) -> dict[str, Any]:
             with _Clock() as c:
                 model.log_likelihood(poses, prepared)
             out["first_call_ms"][f"{name} ({label})"] = c.wall * 1e3
-    f = CEAMCL(
+    f = registry.make_filter(
+        "ceamcl",
         grid,
-        OdometryMotionModel(),
-        LikelihoodFieldModel(grid),
-        CEAMCLConfig(n_test=2000),
-        rng=np.random.default_rng(0),
+        np.random.default_rng(0),
+        config=registry.with_config("ceamcl", n_test=2000),
     )
     with _Clock() as c:
         f.initialise_global(scan)
@@ -307,13 +307,8 @@ def measure_init(grid: OccupancyGrid, log: SimulatedLog, s: BenchSettings) -> di
     totals = []
     last: CEAMCL | None = None
     for r in range(s.init_repeats):
-        f = CEAMCL(
-            grid,
-            OdometryMotionModel(),
-            LikelihoodFieldModel(grid),
-            cfg,
-            rng=np.random.default_rng(s.seed + r),
-        )
+        f = registry.make_filter("ceamcl", grid, np.random.default_rng(s.seed + r), config=cfg)
+        assert isinstance(f, CEAMCL)  # its species are measured below
         with _Clock() as c:
             f.initialise_global(scan)
         totals.append(c.wall)
@@ -368,13 +363,7 @@ def measure_init(grid: OccupancyGrid, log: SimulatedLog, s: BenchSettings) -> di
 def measure_ceamcl_step(grid: OccupancyGrid, log: SimulatedLog, s: BenchSettings) -> dict[str, Any]:
     """CEAMCL on the paper run from global localisation; step times where the sample size is
     700-1300 (the steady state at ~1000 particles), and over the whole run."""
-    f = CEAMCL(
-        grid,
-        OdometryMotionModel(),
-        LikelihoodFieldModel(grid),
-        CEAMCLConfig(),
-        rng=np.random.default_rng(s.seed),
-    )
+    f = registry.make_filter("ceamcl", grid, np.random.default_rng(s.seed))
     f.initialise_global(log.scan(0))
     last = len(log) if s.ceamcl_steps is None else min(len(log), s.ceamcl_steps + 1)
     n, ms, species = [], [], []
@@ -541,8 +530,6 @@ def evaluate_targets(result: dict[str, Any]) -> list[dict[str, Any]]:
 
 def run_bench(settings: BenchSettings, progress: Progress | None = None) -> dict[str, Any]:
     """Every section of the benchmark; ``progress(label)`` is called before each item."""
-    from ceamcl import peers
-
     tick: Progress = progress or (lambda _label: None)
     with_peer = peers.available()
     grid = paper_scenario(0).grid()

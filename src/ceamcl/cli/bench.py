@@ -7,7 +7,10 @@ import argparse
 
 from rich.console import Console
 
+from ceamcl import peers
+from ceamcl.bench import BenchSettings, run_bench, write_report
 from ceamcl.cli.common import make_progress
+from ceamcl.io.results import ensure_output_dir
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -29,10 +32,6 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 
 def run(args: argparse.Namespace, console: Console) -> int:
-    from ceamcl import peers
-    from ceamcl.bench import BenchSettings, run_bench, write_report
-    from ceamcl.io.results import ensure_output_dir
-
     out = ensure_output_dir(args.out)  # fail before minutes of work, not after
     settings = BenchSettings.quick_run() if args.quick else BenchSettings()
     with_peer = peers.available()

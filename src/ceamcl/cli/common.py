@@ -1,4 +1,5 @@
-"""Shared pieces of the command line: argument types, the progress bar, a run's summary table."""
+"""Shared pieces of the command line: argument types, the visual-output options, the progress
+bar, a run's summary table."""
 
 from __future__ import annotations
 
@@ -17,6 +18,10 @@ from rich.progress import (
     TimeElapsedColumn,
 )
 from rich.table import Table
+
+from ceamcl.errors import ConfigError
+from ceamcl.filters import registry
+from ceamcl.outputs import DEFAULT_FPS, DEFAULT_STRIDE
 
 
 def non_negative_int(text: str) -> int:
@@ -47,6 +52,14 @@ def positive_float(text: str) -> float:
     if not (value > 0.0 and value < float("inf")):
         raise argparse.ArgumentTypeError(f"expected a positive finite number, got {text}")
     return value
+
+
+def require_available(algorithm: str) -> None:
+    """Refuse, with the reason, an algorithm that is registered but cannot run here (the Nav2
+    peer without its optional extra)."""
+    reason = registry.unavailable_reason(algorithm)
+    if reason is not None:
+        raise ConfigError(f"algorithm: {algorithm} cannot run here: {reason}")
 
 
 def make_progress(label: str, console: Console, *, quiet: bool = False) -> Progress:
@@ -83,6 +96,30 @@ class RunProgress:
         self.progress.update(self.frames, completed=i)
 
 
+class TrialsProgress:
+    """A progress bar over batches of trials: the ``progress(label, done, total)`` callback
+    that :func:`ceamcl.experiments.executors.map_trials` calls, one bar per label.
+
+    Use as a context manager: ``with TrialsProgress(console, quiet=q) as progress: ...``.
+    """
+
+    def __init__(self, console: Console, *, quiet: bool = False) -> None:
+        self.progress = make_progress("{task.description}", console, quiet=quiet)
+        self.tasks: dict[str, TaskID] = {}
+
+    def __enter__(self) -> TrialsProgress:
+        self.progress.__enter__()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.progress.__exit__(None, None, None)
+
+    def __call__(self, label: str, done: int, total: int) -> None:
+        if label not in self.tasks:
+            self.tasks[label] = self.progress.add_task(label, total=total)
+        self.progress.update(self.tasks[label], completed=done, total=total)
+
+
 def summary_table(title: str, summary: Mapping[str, Any], keys: Iterable[str]) -> Table:
     """A two-column table of the ``keys`` of ``summary`` that are present and not None."""
     table = Table(title=title)
@@ -100,3 +137,55 @@ def print_written(console: Console, out_dir: Path | None, files: Iterable[Path])
     console.print(f"results written to [bold]{out_dir}[/]")
     for path in files:
         console.print(f"  {path}")
+
+
+def add_output_arguments(
+    parser: argparse.ArgumentParser, *, animation_default: bool = True
+) -> None:
+    """Add ``--gif/--no-animation``, ``--mp4``, ``--fps``, ``--stride``, ``--report`` and
+    ``--mcap FILE`` to ``parser`` (in their own argument group); read them back with
+    :meth:`ceamcl.outputs.OutputOptions.from_args`.
+
+    ``animation_default``: whether ``run.gif`` is written unless ``--no-animation`` is given
+    (the demo: yes; batch commands may prefer no).
+    """
+    group = parser.add_argument_group("visual outputs")
+    group.add_argument(
+        "--gif",
+        dest="gif",
+        action="store_true",
+        default=animation_default,
+        help="write run.gif, the animated run" + (" (default)" if animation_default else ""),
+    )
+    group.add_argument(
+        "--no-animation",
+        dest="gif",
+        action="store_false",
+        help="do not write run.gif",
+    )
+    group.add_argument(
+        "--mp4", action="store_true", help="also write run.mp4 (needs ffmpeg on the PATH)"
+    )
+    group.add_argument(
+        "--fps",
+        type=positive_float,
+        default=DEFAULT_FPS,
+        help=f"frames per second of the animation and the replay (default {DEFAULT_FPS:g})",
+    )
+    group.add_argument(
+        "--stride",
+        type=positive_int,
+        default=DEFAULT_STRIDE,
+        help=f"one animation frame every N filter steps (default {DEFAULT_STRIDE})",
+    )
+    group.add_argument(
+        "--report",
+        action="store_true",
+        help="write report.html: summary, figures and an interactive replay in one file",
+    )
+    group.add_argument(
+        "--mcap",
+        metavar="FILE",
+        default=None,
+        help="write the run as MCAP for Foxglove (map, particles, estimate, truth, scans)",
+    )

@@ -8,14 +8,17 @@ from rich.console import Console
 
 from ceamcl.cli.common import (
     RunProgress,
+    add_output_arguments,
     make_progress,
     non_negative_int,
     positive_int,
     print_written,
+    require_available,
     summary_table,
 )
-from ceamcl.filters import ALGORITHMS, SENSOR_MODELS
-from ceamcl.viz.outputs import OutputOptions, add_output_arguments
+from ceamcl.demo import run_demo
+from ceamcl.filters import registry
+from ceamcl.outputs import OutputOptions
 
 DEFAULT_ALGORITHM = "ceamcl"
 
@@ -23,7 +26,12 @@ DEFAULT_ALGORITHM = "ceamcl"
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add ``ceamcl demo``."""
     demo = sub.add_parser("demo", help="simulate the paper's run and localise globally")
-    demo.add_argument("--algorithm", choices=ALGORITHMS, default=DEFAULT_ALGORITHM)
+    demo.add_argument(
+        "--algorithm",
+        choices=registry.names(),
+        default=DEFAULT_ALGORITHM,
+        help="any registered algorithm (nav2-amcl needs the [peers] extra)",
+    )
     demo.add_argument(
         "--world", choices=("symmetric-hall", "marked-hall"), default="symmetric-hall"
     )
@@ -35,7 +43,12 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         help="room the robot starts in (0 SW, 1 SE, 2 NE, 3 NW)",
     )
     demo.add_argument("--seed", type=non_negative_int, default=0)
-    demo.add_argument("--sensor", choices=SENSOR_MODELS, default="likelihood-field")
+    demo.add_argument(
+        "--sensor",
+        choices=registry.SENSOR_MODELS,
+        default="likelihood-field",
+        help="sensor model (nav2-amcl always uses the wheel's own beam model)",
+    )
     demo.add_argument(
         "--particles",
         type=positive_int,
@@ -49,9 +62,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 
 def run(args: argparse.Namespace, console: Console) -> int:
-    from ceamcl.demo import run_demo
-
     outputs = OutputOptions.from_args(args)
+    require_available(args.algorithm)
     progress = make_progress(
         f"[bold]{args.algorithm}[/] on {args.world}", console, quiet=args.quiet
     )

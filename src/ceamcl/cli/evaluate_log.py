@@ -8,15 +8,19 @@ import argparse
 from rich.console import Console
 from rich.table import Table
 
-from ceamcl.cli.common import positive_float, positive_int
+from ceamcl.cli.common import TrialsProgress, positive_float, positive_int
 from ceamcl.cli.run import add_log_arguments, add_truth_arguments, log_path, open_kwargs
+from ceamcl.errors import ConfigError
+from ceamcl.experiments.common import fmt, pct
+from ceamcl.experiments.evaluate_log import evaluate_log
+from ceamcl.experiments.log_windows import DEFAULT_WINDOW_M
+from ceamcl.experiments.metrics import HOLD_STEPS
+from ceamcl.filters import registry
+from ceamcl.replay import obtain_map, prepare_log
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add ``ceamcl evaluate-log``."""
-    from ceamcl.experiments.algorithms import all_algorithms
-    from ceamcl.experiments.evaluate_log import DEFAULT_WINDOW_M, HOLD_STEPS
-
     p = sub.add_parser(
         "evaluate-log",
         help="score global localisation from many start points of a real log",
@@ -35,10 +39,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument(
         "--algorithms",
         nargs="+",
-        choices=all_algorithms(),
+        choices=registry.names(),
         default=None,
         metavar="A",
-        help=f"algorithms to run (default all: {', '.join(all_algorithms())})",
+        help=f"algorithms to run (default all: {', '.join(registry.names())})",
     )
     window = p.add_mutually_exclusive_group()
     window.add_argument(
@@ -83,12 +87,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 
 def run(args: argparse.Namespace, console: Console) -> int:
-    from ceamcl.errors import ConfigError
-    from ceamcl.experiments.algorithms import resolve_algorithms
-    from ceamcl.experiments.common import fmt, pct
-    from ceamcl.experiments.evaluate_log import evaluate_log, obtain_map, prepare_log
-
-    algos, skipped = resolve_algorithms(args.algorithms)
+    algos, skipped = registry.resolve(args.algorithms)
     if not algos:
         raise ConfigError("algorithms: none of the chosen algorithms can run here")
     prepared = prepare_log(log_path(args), seed=args.seed, truth=args.truth, **open_kwargs(args))
@@ -97,23 +96,23 @@ def run(args: argparse.Namespace, console: Console) -> int:
         console.print(f"map: {map_source}")
         for name, why in skipped.items():
             console.print(f"[yellow]{name} skipped[/]: {why}")
-    ev = evaluate_log(
-        prepared,
-        grid,
-        algos,
-        starts=args.starts,
-        scans=args.scans,
-        window_s=args.window_s,
-        window_m=args.window_m,
-        hold=args.hold,
-        map_source=map_source,
-        executor=args.executor,
-        workers=args.workers,
-        out=args.out,
-        console=console,
-        quiet=args.quiet,
-        skipped=skipped,
-    )
+    with TrialsProgress(console, quiet=args.quiet) as progress:
+        ev = evaluate_log(
+            prepared,
+            grid,
+            algos,
+            starts=args.starts,
+            scans=args.scans,
+            window_s=args.window_s,
+            window_m=args.window_m,
+            hold=args.hold,
+            map_source=map_source,
+            executor=args.executor,
+            workers=args.workers,
+            out=args.out,
+            progress=progress,
+            skipped=skipped,
+        )
     if not args.quiet:
         table = Table(
             title=f"evaluate-log {prepared.log.name}: {len(ev.windows)} starts, "

@@ -6,25 +6,184 @@ from __future__ import annotations
 import argparse
 import time
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from rich.console import Console
+from rich.table import Table
 
-from ceamcl.cli.common import non_negative_int, positive_float, positive_int
+from ceamcl.cli.common import (
+    RunProgress,
+    TrialsProgress,
+    add_output_arguments,
+    make_progress,
+    non_negative_int,
+    positive_float,
+    positive_int,
+)
 from ceamcl.errors import ConfigError
-from ceamcl.viz.outputs import OutputOptions, add_output_arguments
+from ceamcl.experiments import delta, kidnapped, marked, table1
+from ceamcl.experiments.common import (
+    ExperimentSettings,
+    TrialOutputs,
+    first_records,
+    fmt,
+    pct,
+    run_metadata,
+    write_trial_outputs,
+)
+from ceamcl.experiments.delta import DeltaResult
+from ceamcl.experiments.executors import ProgressCallback
+from ceamcl.experiments.kidnapped import KidnapResult
+from ceamcl.experiments.marked import MarkedResult
+from ceamcl.experiments.routes import resolve_course
+from ceamcl.experiments.table1 import Table1Result
+from ceamcl.experiments.trials import TrialRecord
+from ceamcl.filters import registry
+from ceamcl.io.results import ensure_output_dir
+from ceamcl.outputs import OutputOptions
 
-if TYPE_CHECKING:
-    from ceamcl.experiments.common import ExperimentSettings, TrialOutputs
-    from ceamcl.experiments.trials import TrialRecord
 
-EXPERIMENTS: dict[str, str] = {
-    "table1": "the paper's Table 1 and Figs. 4-6: every algorithm from each of the four rooms",
-    "delta": "Fig. 7: CEAMCL's sample size over time for several delta",
-    "marked": "marked-hall: share of runs whose final estimate is right",
-    "kidnapped": "kidnapped robot on small-office: recovery rate and time",
+@dataclass(frozen=True)
+class Experiment:
+    """One ``ceamcl experiment NAME``: how to run it, show it and write it.
+
+    ``run(settings, args, progress)`` returns the experiment's result (with ``.records``);
+    ``table(result)`` is the table printed; ``write(result, out, meta)`` writes its files.
+    ``repeats(args)``: runs per trial (the delta experiment runs every trial once per delta);
+    ``algorithms``: a fixed set of algorithms, or ``None`` for the registry's.
+    """
+
+    help: str
+    default_trials: int
+    run: Callable[[ExperimentSettings, argparse.Namespace, ProgressCallback], Any]
+    table: Callable[[Any], Table]
+    write: Callable[[Any, str, dict[str, Any]], list[Path]]
+    repeats: Callable[[argparse.Namespace], int] = lambda args: 1
+    add_arguments: Callable[[argparse.ArgumentParser], None] = lambda p: None
+    algorithms: tuple[str, ...] | None = None
+
+
+# ---------------------------------------------------------------- the tables printed
+def table1_rich(result: Table1Result) -> Table:
+    t = Table(title=f"Table 1 on {result.settings.course.name} (docs/experiments.md)")
+    n_images = result.settings.course.n_images
+    for col in ("algorithm", "conv s", "exp s", "success", f"all {n_images}", "err m", "N", "ms"):
+        t.add_column(col, justify="left" if col == "algorithm" else "right")
+    for s in result.summaries:
+        exp = (
+            "-"
+            if s.converged_runs == 0
+            else f"{fmt(s.expired_s)} {s.expired_runs}/{s.converged_runs}"
+        )
+        t.add_row(
+            s.algorithm,
+            f"{fmt(s.converged_s)} {s.converged_runs}/{s.runs}",
+            exp,
+            pct(s.success_rate),
+            pct(s.kept_all_rate),
+            f"{s.final_error_mean_m:.2f}",
+            f"{s.mean_particles:.0f}",
+            f"{s.median_step_ms:.1f}",
+        )
+    return t
+
+
+def delta_rich(result: DeltaResult) -> Table:
+    t = Table(title=f"delta on {result.settings.course.name}")
+    for col in ("delta", "runs", "initial", "mean", "final", "kept all", "success"):
+        t.add_column(col, justify="right")
+    for s in result.summaries:
+        t.add_row(*delta.summary_cells(s))
+    return t
+
+
+def marked_rich(result: MarkedResult) -> Table:
+    t = Table(title=f"final estimate right on {result.settings.course.name}")
+    t.add_column("algorithm")
+    cols = marked.route_columns(result)
+    for c in cols:
+        t.add_column(c, justify="right")
+    for alg, by_route in result.shares.items():
+        t.add_row(alg, *(pct(by_route.get(c)) for c in cols))
+    return t
+
+
+def kidnapped_rich(result: KidnapResult) -> Table:
+    t = Table(title=f"kidnapped robot on {result.settings.course.name}")
+    for col in ("algorithm", "runs", "localised before", "recovered", "recovery s"):
+        t.add_column(col, justify="left" if col == "algorithm" else "right")
+    for s in result.summaries:
+        t.add_row(
+            s.algorithm,
+            str(s.runs),
+            pct(s.localised_before_rate),
+            pct(s.recovery_rate),
+            fmt(s.mean_recovery_s, 1, "-"),
+        )
+    return t
+
+
+def _delta_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--deltas",
+        type=_floats,
+        default=None,
+        metavar="D1,D2",
+        help="resources per m² to compare (default 20,40,80,160)",
+    )
+
+
+def _kidnapped_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--recovery-window",
+        type=positive_float,
+        default=30.0,
+        metavar="S",
+        help="seconds after the kidnap within which the filter must relocalise (default 30)",
+    )
+
+
+#: The experiments, in the order ``--help`` lists them. Adding one: its module under
+#: ``experiments/`` and one entry here.
+EXPERIMENTS: dict[str, Experiment] = {
+    "table1": Experiment(
+        "the paper's Table 1 and Figs. 4-6: every algorithm from each of the four rooms",
+        5,
+        lambda settings, args, progress: table1.run_table1(settings, progress=progress),
+        table1_rich,
+        table1.write_table1,
+    ),
+    "delta": Experiment(
+        "Fig. 7: CEAMCL's sample size over time for several delta",
+        5,
+        lambda settings, args, progress: delta.run_delta(
+            settings, args.deltas or delta.DEFAULT_DELTAS, progress=progress
+        ),
+        delta_rich,
+        delta.write_delta,
+        repeats=lambda args: len(args.deltas or delta.DEFAULT_DELTAS),
+        add_arguments=_delta_arguments,
+        algorithms=("ceamcl",),
+    ),
+    "marked": Experiment(
+        "marked-hall: share of runs whose final estimate is right",
+        5,
+        lambda settings, args, progress: marked.run_marked(settings, progress=progress),
+        marked_rich,
+        marked.write_marked,
+    ),
+    "kidnapped": Experiment(
+        "kidnapped robot on small-office: recovery rate and time",
+        10,
+        lambda settings, args, progress: kidnapped.run_kidnapped(
+            settings, args.recovery_window, progress=progress
+        ),
+        kidnapped_rich,
+        kidnapped.write_kidnapped,
+        add_arguments=_kidnapped_arguments,
+    ),
 }
 
 
@@ -105,55 +264,36 @@ def _add_common(p: argparse.ArgumentParser, name: str, default_trials: int) -> N
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add ``ceamcl experiment {table1,delta,marked,kidnapped}``."""
-    from ceamcl.experiments.algorithms import all_algorithms
-
     exp = sub.add_parser(
         "experiment",
         help="run the paper's experiments over many seeded trials",
         description="Run an experiment over many seeded trials. Algorithms: "
-        + ", ".join(all_algorithms())
+        + ", ".join(registry.names())
         + ". Definitions of every measure: docs/experiments.md.",
     )
     which = exp.add_subparsers(dest="experiment", required=True)
-    for name, text in EXPERIMENTS.items():
-        p = which.add_parser(name, help=text, description=text)
-        _add_common(p, name, 10 if name == "kidnapped" else 5)
-        if name == "delta":
-            p.add_argument(
-                "--deltas",
-                type=_floats,
-                default=None,
-                metavar="D1,D2",
-                help="resources per m² to compare (default 20,40,80,160)",
-            )
-        if name == "kidnapped":
-            p.add_argument(
-                "--recovery-window",
-                type=positive_float,
-                default=30.0,
-                metavar="S",
-                help="seconds after the kidnap within which the filter must relocalise "
-                "(default 30)",
-            )
+    for name, experiment in EXPERIMENTS.items():
+        p = which.add_parser(name, help=experiment.help, description=experiment.help)
+        _add_common(p, name, experiment.default_trials)
+        experiment.add_arguments(p)
         p.set_defaults(run=run)
 
 
-def _settings(args: argparse.Namespace, console: Console) -> Any:
-    from ceamcl.experiments.algorithms import resolve_algorithms
-    from ceamcl.experiments.common import ExperimentSettings
-    from ceamcl.experiments.routes import resolve_course
-
+def _settings(args: argparse.Namespace, console: Console) -> ExperimentSettings:
     names = None
     if args.algorithms:
         names = [n for a in args.algorithms for n in _names(a)]
     course = resolve_course(args.experiment, args.world, args.routes).select(args.starts)
     skipped: dict[str, str] = {}
-    if args.experiment == "delta":
-        algorithms = ["ceamcl"]
-        if names and names != ["ceamcl"]:
-            raise ConfigError("algorithms: the delta experiment runs CEAMCL only")
+    fixed = EXPERIMENTS[args.experiment].algorithms
+    if fixed is not None:
+        algorithms = list(fixed)
+        if names and names != algorithms:
+            raise ConfigError(
+                f"algorithms: the {args.experiment} experiment runs {', '.join(fixed)} only"
+            )
     else:
-        algorithms, skipped = resolve_algorithms(names)
+        algorithms, skipped = registry.resolve(names)
     for alg, reason in skipped.items():
         console.print(f"[yellow]skipping {alg}[/]: {reason}")
     if not algorithms:
@@ -171,16 +311,12 @@ def _settings(args: argparse.Namespace, console: Console) -> Any:
 
 
 def run(args: argparse.Namespace, console: Console) -> int:
-    from ceamcl.experiments import delta, kidnapped, marked, table1
-    from ceamcl.experiments.common import run_metadata
-    from ceamcl.io.results import ensure_output_dir
-
+    experiment = EXPERIMENTS[args.experiment]
     settings = _settings(args, console)
     outputs = _output_options(args)  # refuses --mp4 without ffmpeg before the trials
     ensure_output_dir(args.out)  # fail on an unwritable folder before hours of trials
     runs = len(settings.algorithms) * len(settings.course.routes) * settings.trials
-    if args.experiment == "delta":
-        runs *= len(args.deltas or delta.DEFAULT_DELTAS)
+    runs *= experiment.repeats(args)
     if not args.quiet:
         console.print(
             f"[bold]{args.experiment}[/] on {settings.course.name}: {runs} runs "
@@ -188,42 +324,19 @@ def run(args: argparse.Namespace, console: Console) -> int:
         )
     meta = run_metadata(settings)
     started = time.perf_counter()
-    write: Callable[[], list[Any]]
-    if args.experiment == "table1":
-        r1 = table1.run_table1(settings, console=console, quiet=args.quiet)
-        records = r1.records
-        table = table1.table1_rich(r1)
-        write = lambda: table1.write_table1(r1, args.out, meta)  # noqa: E731
-    elif args.experiment == "delta":
-        r2 = delta.run_delta(
-            settings, args.deltas or delta.DEFAULT_DELTAS, console=console, quiet=args.quiet
-        )
-        records = r2.records
-        table = delta.delta_rich(r2)
-        write = lambda: delta.write_delta(r2, args.out, meta)  # noqa: E731
-    elif args.experiment == "marked":
-        r3 = marked.run_marked(settings, console=console, quiet=args.quiet)
-        records = r3.records
-        table = marked.marked_rich(r3)
-        write = lambda: marked.write_marked(r3, args.out, meta)  # noqa: E731
-    else:
-        r4 = kidnapped.run_kidnapped(
-            settings, args.recovery_window, console=console, quiet=args.quiet
-        )
-        records = r4.records
-        table = kidnapped.kidnapped_rich(r4)
-        write = lambda: kidnapped.write_kidnapped(r4, args.out, meta)  # noqa: E731
+    with TrialsProgress(console, quiet=args.quiet) as progress:
+        result = experiment.run(settings, args, progress)
     meta["wall_time_s"] = round(time.perf_counter() - started, 1)
-    paths = write()
+    paths = experiment.write(result, args.out, meta)
     if not args.quiet:
-        console.print(table)
+        console.print(experiment.table(result))
         console.print(
             f"{runs} runs in {meta['wall_time_s']:.1f} s; wrote "
             + ", ".join(p.name for p in paths)
             + f" to {args.out}"
         )
     if outputs.any:
-        _write_run_outputs(records, settings, args, outputs, console)
+        _write_run_outputs(result.records, settings, args, outputs, console)
     return 0
 
 
@@ -248,8 +361,6 @@ def _write_run_outputs(
 ) -> None:
     """Run the first trial of each algorithm again, with its particles, and write its visual
     outputs into ``OUT/runs/ALGORITHM/``."""
-    from ceamcl.experiments.common import first_records
-
     for record in first_records(records):
         out_dir = Path(args.out) / "runs" / record.algorithm
         done = _rerun(record, settings, out_dir, outputs, console, quiet=args.quiet)
@@ -276,9 +387,6 @@ def _rerun(
     quiet: bool,
 ) -> TrialOutputs:
     """One re-run with progress bars over its steps and the animation's frames."""
-    from ceamcl.cli.common import RunProgress, make_progress
-    from ceamcl.experiments.common import write_trial_outputs
-
     progress = make_progress(
         f"[bold]{record.algorithm}[/] on {record.route}, repetition {record.repetition}, "
         "again for the visual outputs",

@@ -8,12 +8,13 @@ from rich.console import Console
 
 from ceamcl.cli.common import positive_float, positive_int
 from ceamcl.cli.run import add_log_arguments, log_path, open_kwargs
+from ceamcl.io.logs import open_log
+from ceamcl.mapping import MappingConfig, map_from_log
+from ceamcl.maps.ros_io import save_map
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add ``ceamcl map-from-log``."""
-    from ceamcl.mapping import MappingConfig
-
     d = MappingConfig()
     p = sub.add_parser(
         "map-from-log",
@@ -47,10 +48,6 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 
 def run(args: argparse.Namespace, console: Console) -> int:
-    from ceamcl.io.logs import open_log
-    from ceamcl.mapping import MappingConfig, map_from_log
-    from ceamcl.maps.ros_io import save_map
-
     log = open_log(log_path(args), **open_kwargs(args))
     cfg = MappingConfig(
         resolution_m=args.resolution,

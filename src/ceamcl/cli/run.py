@@ -10,15 +10,19 @@ from rich.console import Console
 
 from ceamcl.cli.common import (
     RunProgress,
+    add_output_arguments,
     make_progress,
     non_negative_int,
     positive_float,
     positive_int,
     print_written,
+    require_available,
     summary_table,
 )
 from ceamcl.errors import ConfigError
-from ceamcl.viz.outputs import OutputOptions, add_output_arguments
+from ceamcl.filters import registry
+from ceamcl.outputs import OutputOptions
+from ceamcl.replay import obtain_map, prepare_log, replay_log
 
 DEFAULT_ALGORITHM = "ceamcl"
 
@@ -93,8 +97,6 @@ def open_kwargs(args: argparse.Namespace) -> dict[str, Any]:
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add ``ceamcl run``."""
-    from ceamcl.experiments.algorithms import all_algorithms
-
     p = sub.add_parser(
         "run",
         help="replay a real log through a filter from global localisation",
@@ -108,7 +110,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument(
         "--resolution", type=positive_float, default=0.05, help="cell side of a built map [m]"
     )
-    p.add_argument("--algorithm", choices=all_algorithms(), default=DEFAULT_ALGORITHM)
+    p.add_argument("--algorithm", choices=registry.names(), default=DEFAULT_ALGORITHM)
     add_truth_arguments(p)
     p.add_argument("--out", default="run-out", help="folder for the results")
     p.add_argument("--quiet", action="store_true", help="no progress bar or table")
@@ -118,13 +120,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 
 def run(args: argparse.Namespace, console: Console) -> int:
-    from ceamcl.experiments.algorithms import resolve_algorithms
-    from ceamcl.experiments.evaluate_log import obtain_map, prepare_log, replay_log
-
     outputs = OutputOptions.from_args(args)  # refuses --mp4 without ffmpeg before the run
-    algos, skipped = resolve_algorithms([args.algorithm])
-    if not algos:
-        raise ConfigError(f"algorithm: {args.algorithm} cannot run here: {skipped[args.algorithm]}")
+    require_available(args.algorithm)
     prepared = prepare_log(log_path(args), seed=args.seed, truth=args.truth, **open_kwargs(args))
     grid, map_source = obtain_map(prepared.log, args.map, args.resolution)
     if not args.quiet:

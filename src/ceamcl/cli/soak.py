@@ -7,9 +7,22 @@ import argparse
 from rich.console import Console
 from rich.table import Table
 
-from ceamcl.cli.common import make_progress, non_negative_int, positive_float, positive_int
-from ceamcl.filters import ALGORITHMS, SENSOR_MODELS
-from ceamcl.soak import DEFAULT_MAX_GROWTH_PCT, SOAK_WORLDS
+from ceamcl.cli.common import (
+    make_progress,
+    non_negative_int,
+    positive_float,
+    positive_int,
+    require_available,
+)
+from ceamcl.filters import registry
+from ceamcl.io.results import ensure_output_dir
+from ceamcl.soak import (
+    DEFAULT_MAX_GROWTH_PCT,
+    SOAK_WORLDS,
+    SoakConfig,
+    run_soak,
+    write_soak_outputs,
+)
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -19,9 +32,14 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         help="run a filter for many steps on a looping simulated drive; check memory and sizes",
     )
     soak.add_argument("--steps", type=positive_int, default=100_000)
-    soak.add_argument("--algorithm", choices=ALGORITHMS, default="ceamcl")
+    soak.add_argument("--algorithm", choices=registry.names(), default="ceamcl")
     soak.add_argument("--world", choices=SOAK_WORLDS, default="small-office")
-    soak.add_argument("--sensor", choices=SENSOR_MODELS, default="likelihood-field")
+    soak.add_argument(
+        "--sensor",
+        choices=registry.SENSOR_MODELS,
+        default="likelihood-field",
+        help="sensor model (nav2-amcl always uses the wheel's own beam model)",
+    )
     soak.add_argument("--seed", type=non_negative_int, default=0)
     soak.add_argument(
         "--particles", type=positive_int, default=None, help="sample size of MCL / GMCL"
@@ -44,9 +62,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 
 def run(args: argparse.Namespace, console: Console) -> int:
-    from ceamcl.io.results import ensure_output_dir
-    from ceamcl.soak import SoakConfig, run_soak, write_soak_outputs
-
+    require_available(args.algorithm)
     config = SoakConfig(
         steps=args.steps,
         algorithm=args.algorithm,

@@ -7,6 +7,7 @@ import argparse
 from rich.console import Console
 
 from ceamcl.errors import ConfigError
+from ceamcl.maps.ros_io import save_map
 from ceamcl.maps.worlds import WORLD_NAMES, describe_worlds, get_world
 
 
@@ -27,8 +28,6 @@ def run(args: argparse.Namespace, console: Console) -> int:
         return 0
     if not args.output:
         raise ConfigError("world: -o/--output MAP.yaml is required to export a world")
-    from ceamcl.maps.ros_io import save_map
-
     path = save_map(get_world(args.name), args.output, image_format=args.format)
     console.print(f"wrote {path}")
     return 0

@@ -9,20 +9,18 @@ import platform
 import sys
 import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
-from rich.console import Console
 
-from ceamcl.experiments.executors import map_trials, open_executor
+from ceamcl.experiments.executors import ProgressCallback, map_trials, open_executor
 from ceamcl.experiments.routes import Course
 from ceamcl.experiments.trials import Trial, TrialRecord, localise_trial, run_trial
-
-if TYPE_CHECKING:
-    from ceamcl.viz.outputs import OutputOptions
+from ceamcl.io.results import ensure_output_dir, write_json
+from ceamcl.outputs import OutputOptions, write_outputs
 
 T = TypeVar("T")
 
@@ -74,17 +72,17 @@ def run_trials(
     settings: ExperimentSettings,
     *,
     label: str,
-    console: Console | None = None,
+    progress: ProgressCallback | None = None,
     quiet: bool = False,
 ) -> list[TrialRecord]:
     """Run the trials on the settings' executor, with a progress bar; records in input order."""
     with open_executor(settings.executor, settings.workers) as ex:
-        return map_trials(ex, run_trial, trials, label=label, console=console, quiet=quiet)
+        return map_trials(ex, run_trial, trials, label=label, progress=progress, quiet=quiet)
 
 
 def run_metadata(settings: ExperimentSettings, argv: Sequence[str] | None = None) -> dict[str, Any]:
     """How and where the numbers were made: command, seed, executor, machine, versions."""
-    import numpy
+
 
     return {
         "command": " ".join(["ceamcl", *(argv if argv is not None else sys.argv[1:])]),
@@ -99,7 +97,7 @@ def run_metadata(settings: ExperimentSettings, argv: Sequence[str] | None = None
         "machine": f"{platform.node()} ({platform.machine()}, {os.cpu_count()} cores, "
         f"{platform.system()} {platform.release()})",
         "python": platform.python_version(),
-        "numpy": numpy.__version__,
+        "numpy": np.__version__,
     }
 
 
@@ -145,18 +143,13 @@ def write_trial_outputs(
     on_frame: Callable[[int, int], None] | None = None,
 ) -> TrialOutputs:
     """Run the trial of ``record`` again in this process, keeping the particles every
-    ``options.stride`` steps, and write ``options``' outputs (``ceamcl.viz.outputs.
+    ``options.stride`` steps, and write ``options``' outputs (``ceamcl.outputs.
     OutputOptions``: ``run.gif``, ``run.mp4``, ``report.html``; ``options.mcap`` is taken as a
     file *name* inside ``out_dir``) plus ``summary.json`` into ``out_dir``.
 
     The run is checked against the record: ``same_as_record`` is whether the estimates of
     every step are bit for bit those the experiment counted (``summary.json`` says so too).
     """
-    from dataclasses import asdict, replace
-
-    from ceamcl.io.results import ensure_output_dir, write_json
-    from ceamcl.viz.outputs import write_outputs
-
     out = ensure_output_dir(out_dir)
     trial = trial_of(record, settings)
     log, result = localise_trial(

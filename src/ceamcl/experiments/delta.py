@@ -9,8 +9,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from rich.console import Console
-from rich.table import Table
 
 from ceamcl.errors import ConfigError
 from ceamcl.experiments.common import (
@@ -27,6 +25,7 @@ from ceamcl.experiments.common import (
     write_csv,
     write_text,
 )
+from ceamcl.experiments.executors import ProgressCallback
 from ceamcl.experiments.trials import TrialRecord
 from ceamcl.io.results import ensure_output_dir
 
@@ -72,7 +71,7 @@ def run_delta(
     settings: ExperimentSettings,
     deltas: Sequence[float] = DEFAULT_DELTAS,
     *,
-    console: Console | None = None,
+    progress: ProgressCallback | None = None,
     quiet: bool = False,
 ) -> DeltaResult:
     """CEAMCL with each delta on every route, ``settings.trials`` times (same logs for all)."""
@@ -80,7 +79,7 @@ def run_delta(
     if not values or any(not (d > 0 and np.isfinite(d)) for d in values):
         raise ConfigError(f"deltas: expected positive numbers, got {list(deltas)}")
     trials = make_trials("delta", settings, algorithms=("ceamcl",), deltas=values)
-    records = run_trials(trials, settings, label="delta trials", console=console, quiet=quiet)
+    records = run_trials(trials, settings, label="delta trials", progress=progress, quiet=quiet)
     groups = group_by(records, lambda r: r.delta_per_m2)
     return DeltaResult(settings, values, records, [summarise(d, groups[d]) for d in values])
 
@@ -90,6 +89,19 @@ def sample_curves(result: DeltaResult) -> list[Curve]:
     return [
         curve(f"delta = {d:g} / m²", groups[d], lambda r: r.n_particles.astype(float), stat="mean")
         for d in result.deltas
+    ]
+
+
+def summary_cells(s: DeltaSummary) -> list[str]:
+    """delta, runs, initial/mean/final sample size, kept all, success: a row of its tables."""
+    return [
+        f"{s.delta_per_m2:g}",
+        str(s.runs),
+        f"{s.initial_particles:.0f}",
+        f"{s.mean_particles:.0f}",
+        f"{s.final_particles:.0f}",
+        pct(s.kept_all_rate),
+        pct(s.success_rate),
     ]
 
 
@@ -105,19 +117,7 @@ def delta_markdown(result: DeltaResult, meta: dict[str, Any]) -> str:
         "success",
         "step ms",
     ]
-    rows = [
-        [
-            f"{s.delta_per_m2:g}",
-            str(s.runs),
-            f"{s.initial_particles:.0f}",
-            f"{s.mean_particles:.0f}",
-            f"{s.final_particles:.0f}",
-            pct(s.kept_all_rate),
-            pct(s.success_rate),
-            f"{s.mean_step_ms:.1f}",
-        ]
-        for s in result.summaries
-    ]
+    rows = [[*summary_cells(s), f"{s.mean_step_ms:.1f}"] for s in result.summaries]
     return "\n".join(
         [
             f"# Effect of delta on CEAMCL's sample size on {result.settings.course.name} (Fig. 7)",
@@ -148,20 +148,3 @@ def write_delta(
         ),
         write_text(out_dir / "delta.md", delta_markdown(result, meta)),
     ]
-
-
-def delta_rich(result: DeltaResult) -> Table:
-    t = Table(title=f"delta on {result.settings.course.name}")
-    for col in ("delta", "runs", "initial", "mean", "final", "kept all", "success"):
-        t.add_column(col, justify="right")
-    for s in result.summaries:
-        t.add_row(
-            f"{s.delta_per_m2:g}",
-            str(s.runs),
-            f"{s.initial_particles:.0f}",
-            f"{s.mean_particles:.0f}",
-            f"{s.final_particles:.0f}",
-            pct(s.kept_all_rate),
-            pct(s.success_rate),
-        )
-    return t

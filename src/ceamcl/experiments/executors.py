@@ -34,12 +34,13 @@ from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_complet
 from contextlib import contextmanager
 from typing import Any, TypeVar
 
-from rich.console import Console
-
 from ceamcl.errors import CeamclError, ConfigError
 
 T = TypeVar("T")
 R = TypeVar("R")
+
+#: ``progress(label, done, total)``: how far a batch of trials is; the front end supplies it.
+ProgressCallback = Callable[[str, int, int], None]
 
 EXECUTOR_SPECS: tuple[str, ...] = ("local", "serial", "dask", "dask://HOST:PORT")
 
@@ -174,40 +175,40 @@ def map_trials(
     items: Sequence[T],
     *,
     label: str,
-    console: Console | None = None,
+    progress: ProgressCallback | None = None,
     quiet: bool = False,
 ) -> list[R]:
-    """``[fn(item) for item in items]`` on ``executor``, with a progress bar over trials.
+    """``[fn(item) for item in items]`` on ``executor``, reporting progress over trials.
 
-    All items are submitted at once; the bar advances as trials complete (in any order); the
-    results come back in input order. A trial that raises stops the experiment: the trials
+    All items are submitted at once; ``progress(label, done, total)`` is called once before
+    any completes and again as each trial completes (in any order; the front end draws it,
+    e.g. the CLI's progress bar); ``quiet`` reports nothing. The results come back in input
+    order. A trial that raises stops the experiment: the trials
     not yet started are cancelled and the exception is re-raised naming the trial (its
     ``name`` attribute, else its repr). A :class:`CeamclError` becomes a :class:`TrialError`
     (one clean line on the command line); any other exception is re-raised as it is, with a
     note naming the trial, so its traceback is kept.
     """
-    from ceamcl.cli.common import make_progress
-
-    console = console if console is not None else Console(stderr=True)
-    results: list[Any] = [None] * len(items)
-    with make_progress(label, console, quiet=quiet) as progress:
-        task = progress.add_task(label, total=len(items))
-        futures: dict[Future[R], int] = {
-            executor.submit(fn, item): i for i, item in enumerate(items)
-        }
-        try:
-            for future in as_completed(futures):
-                i = futures[future]
-                exc = future.exception()
-                if exc is not None:
-                    name = _describe(items[i])
-                    if isinstance(exc, CeamclError):
-                        raise TrialError(f"trial {name} failed: {exc}") from exc
-                    exc.add_note(f"(in trial {name} of {label})")
-                    raise exc
-                results[i] = future.result()
-                progress.advance(task)
-        finally:
-            for future in futures:
-                future.cancel()
+    report = None if quiet else progress
+    total = len(items)
+    results: list[Any] = [None] * total
+    if report is not None:
+        report(label, 0, total)
+    futures: dict[Future[R], int] = {executor.submit(fn, item): i for i, item in enumerate(items)}
+    try:
+        for done, future in enumerate(as_completed(futures), start=1):
+            i = futures[future]
+            exc = future.exception()
+            if exc is not None:
+                name = _describe(items[i])
+                if isinstance(exc, CeamclError):
+                    raise TrialError(f"trial {name} failed: {exc}") from exc
+                exc.add_note(f"(in trial {name} of {label})")
+                raise exc
+            results[i] = future.result()
+            if report is not None:
+                report(label, done, total)
+    finally:
+        for future in futures:
+            future.cancel()
     return results

@@ -6,14 +6,20 @@ from __future__ import annotations
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import matplotlib
+import numpy as np
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 from matplotlib.axes import Axes
 
 from ceamcl.experiments.common import Curve
+from ceamcl.experiments.metrics import POSITION_TOL_M
+
+if TYPE_CHECKING:
+    from ceamcl.experiments.evaluate_log import Evaluation
 
 
 def _save(fig: plt.Figure, path: str | os.PathLike[str]) -> Path:
@@ -130,3 +136,37 @@ def plot_kidnapped(
     ax.legend(fontsize=8)
     ax.set_title(title)
     return _save(fig, path)
+
+
+def plot_evaluation(ev: Evaluation, out_dir: Path) -> None:
+    """``errors.png``: median and quartiles of the position error over time per algorithm;
+    ``success.png``: success rate per algorithm."""
+    algos = [row["algorithm"] for row in ev.table]
+    fig, ax = plt.subplots(figsize=(8, 5))
+    cmap = plt.get_cmap("tab10")
+    for i, algo in enumerate(algos):
+        rs = [r for r in ev.results if r.algorithm == algo]
+        n = min(r.position_errors.size for r in rs)
+        err = np.vstack([r.position_errors[:n] for r in rs])
+        t = np.median(np.vstack([r.elapsed_s[:n] for r in rs]), axis=0)
+        q1, med, q3 = np.percentile(err, [25, 50, 75], axis=0)
+        ax.plot(t, med, color=cmap(i), label=algo)
+        ax.fill_between(t, q1, q3, color=cmap(i), alpha=0.2)
+    ax.axhline(POSITION_TOL_M, color="k", ls=":", lw=1, label=f"{POSITION_TOL_M} m")
+    ax.set_yscale("log")
+    ax.set_xlabel("time since start [s] (median over starts)")
+    ax.set_ylabel("position error [m] (median, quartiles)")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out_dir / "errors.png", dpi=110)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    rates = [100 * row["success_rate"] for row in ev.table]
+    ax.bar(algos, rates, color=[cmap(i) for i in range(len(algos))])
+    ax.set_ylim(0, 100)
+    ax.set_ylabel("success [%]")
+    ax.set_title(f"global localisation from {len(ev.windows)} starts")
+    fig.tight_layout()
+    fig.savefig(out_dir / "success.png", dpi=110)
+    plt.close(fig)

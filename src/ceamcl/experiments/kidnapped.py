@@ -17,8 +17,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from rich.console import Console
-from rich.table import Table
 
 from ceamcl.errors import ConfigError
 from ceamcl.experiments.common import (
@@ -36,6 +34,7 @@ from ceamcl.experiments.common import (
     write_csv,
     write_text,
 )
+from ceamcl.experiments.executors import ProgressCallback
 from ceamcl.experiments.metrics import HEADING_TOL_RAD, POSITION_TOL_M, recovery_step, within
 from ceamcl.experiments.trials import TrialRecord
 from ceamcl.io.results import ensure_output_dir
@@ -114,7 +113,7 @@ def run_kidnapped(
     settings: ExperimentSettings,
     window_s: float = DEFAULT_WINDOW_S,
     *,
-    console: Console | None = None,
+    progress: ProgressCallback | None = None,
     quiet: bool = False,
 ) -> KidnapResult:
     missing = [r.name for r in settings.course.routes if r.kidnap is None]
@@ -126,7 +125,7 @@ def run_kidnapped(
     if not window_s > 0:
         raise ConfigError(f"recovery-window: expected a positive time, got {window_s}")
     trials = make_trials("kidnapped", settings)
-    records = run_trials(trials, settings, label="kidnapped trials", console=console, quiet=quiet)
+    records = run_trials(trials, settings, label="kidnapped trials", progress=progress, quiet=quiet)
     outcomes = [kidnap_outcome(r, window_s) for r in records]
     summaries = []
     for alg, idx in group_by(range(len(records)), lambda i: records[i].algorithm).items():
@@ -199,18 +198,3 @@ def write_kidnapped(
         ),
         write_text(out_dir / "kidnapped.md", kidnapped_markdown(result, meta)),
     ]
-
-
-def kidnapped_rich(result: KidnapResult) -> Table:
-    t = Table(title=f"kidnapped robot on {result.settings.course.name}")
-    for col in ("algorithm", "runs", "localised before", "recovered", "recovery s"):
-        t.add_column(col, justify="left" if col == "algorithm" else "right")
-    for s in result.summaries:
-        t.add_row(
-            s.algorithm,
-            str(s.runs),
-            pct(s.localised_before_rate),
-            pct(s.recovery_rate),
-            fmt(s.mean_recovery_s, 1, "-"),
-        )
-    return t

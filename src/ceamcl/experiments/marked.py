@@ -13,8 +13,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from rich.console import Console
-from rich.table import Table
 
 from ceamcl.experiments.common import (
     ExperimentSettings,
@@ -28,6 +26,7 @@ from ceamcl.experiments.common import (
     write_csv,
     write_text,
 )
+from ceamcl.experiments.executors import ProgressCallback
 from ceamcl.experiments.metrics import HEADING_TOL_RAD, POSITION_TOL_M
 from ceamcl.experiments.trials import TrialRecord
 from ceamcl.io.results import ensure_output_dir
@@ -60,20 +59,20 @@ def final_estimate_shares(
 
 
 def run_marked(
-    settings: ExperimentSettings, *, console: Console | None = None, quiet: bool = False
+    settings: ExperimentSettings, *, progress: ProgressCallback | None = None, quiet: bool = False
 ) -> MarkedResult:
     trials = make_trials("marked", settings)
-    records = run_trials(trials, settings, label="marked trials", console=console, quiet=quiet)
+    records = run_trials(trials, settings, label="marked trials", progress=progress, quiet=quiet)
     shares, runs = final_estimate_shares(records)
     return MarkedResult(settings, records, shares, runs)
 
 
-def _columns(result: MarkedResult) -> list[str]:
+def route_columns(result: MarkedResult) -> list[str]:
     return [r.name for r in result.settings.course.routes] + [ALL_ROUTES]
 
 
 def marked_markdown(result: MarkedResult, meta: dict[str, Any]) -> str:
-    cols = _columns(result)
+    cols = route_columns(result)
     rows = [
         [alg, *(f"{pct(result.shares[alg].get(c))} of {result.runs[alg].get(c, 0)}" for c in cols)]
         for alg in result.shares
@@ -114,14 +113,3 @@ def write_marked(
         ),
         write_text(out_dir / "marked.md", marked_markdown(result, meta)),
     ]
-
-
-def marked_rich(result: MarkedResult) -> Table:
-    t = Table(title=f"final estimate right on {result.settings.course.name}")
-    t.add_column("algorithm")
-    cols = _columns(result)
-    for c in cols:
-        t.add_column(c, justify="right")
-    for alg, by_route in result.shares.items():
-        t.add_row(alg, *(pct(by_route.get(c)) for c in cols))
-    return t

@@ -13,10 +13,18 @@ Definitions (docs/experiments.md gives the reasons):
   the estimate covers no image for that long.
 * *Success*: the true pose is covered at the last step (the goal).
 * *Kept all*: every image is covered at the last step (hypothesis algorithms only).
+
+Real logs (``ceamcl run``, ``ceamcl evaluate-log``), as :func:`score_errors` computes it. A
+step is *inside* when the estimate is within ``pos_tol_m`` (0.5 m) and ``head_tol_rad``
+(0.3 rad) of the truth. The run *converges* at the first step ``c`` from which every later step
+of the window is inside; it *succeeds* when that inside stretch lasts at least ``hold`` steps
+(default :data:`HOLD_STEPS` = 10) and so is not a lucky last step. Time and scans to converge
+are ``t[c] - t[0]`` and ``c``; the RMSEs are over steps ``c..end``.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,6 +36,8 @@ POSITION_TOL_M = 0.5
 HEADING_TOL_RAD = 0.3
 GATHERED_SHARE = 0.9
 HOLD_S = 1.0
+#: Steps a real-log run must stay inside the tolerances at the end to count as a success.
+HOLD_STEPS = 10
 
 
 def within(
@@ -168,4 +178,40 @@ def trial_metrics(
         final_particles=int(n_particles[-1]),
         mean_step_ms=float(np.mean(steps)),
         median_step_ms=float(np.median(steps)),
+    )
+
+
+@dataclass(frozen=True)
+class Score:
+    """Convergence of one run (module docstring). NaN/None where it did not converge."""
+
+    success: bool
+    scans_to_converge: int | None
+    time_to_converge_s: float
+    position_rmse_m: float
+    heading_rmse_rad: float
+
+
+def score_errors(
+    times: NDArray[np.float64],
+    pos_err: NDArray[np.float64],
+    head_err: NDArray[np.float64],
+    *,
+    pos_tol_m: float = POSITION_TOL_M,
+    head_tol_rad: float = HEADING_TOL_RAD,
+    hold: int = HOLD_STEPS,
+) -> Score:
+    """Convergence step, success and RMSE after convergence of an error series."""
+    inside = (pos_err <= pos_tol_m) & (head_err <= head_tol_rad)
+    n = inside.size
+    outside = np.flatnonzero(~inside)
+    c = 0 if outside.size == 0 else int(outside[-1]) + 1
+    if c >= n or n - c < min(hold, n):
+        return Score(False, None, math.nan, math.nan, math.nan)
+    return Score(
+        True,
+        c,
+        float(times[c] - times[0]),
+        float(np.sqrt(np.mean(pos_err[c:] ** 2))),
+        float(np.sqrt(np.mean(head_err[c:] ** 2))),
     )

@@ -45,6 +45,7 @@ from numpy.typing import NDArray
 from ceamcl.angles import wrap
 from ceamcl.errors import ConfigError
 from ceamcl.maps.grid import OccupancyGrid
+from ceamcl.maps.ros_io import load_map
 from ceamcl.maps.worlds import HALL_SIZE_M, WORLD_NAMES, get_world
 from ceamcl.simulation.scenarios import (
     HALL_WORLDS,
@@ -151,9 +152,7 @@ class Course:
 def load_grid(world: str | None, map_path: str | None) -> OccupancyGrid:
     """A built-in world or a ROS map, loaded once per process (trial workers reuse it)."""
     if map_path is not None:
-        from ceamcl.maps.ros_io import load_map
-
-        return load_map(map_path)
+            return load_map(map_path)
     if world is None:
         raise ConfigError("course: neither a built-in world nor a map file was given")
     return get_world(world)

@@ -16,8 +16,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from rich.console import Console
-from rich.table import Table
 
 from ceamcl.experiments.common import (
     Curve,
@@ -34,6 +32,7 @@ from ceamcl.experiments.common import (
     write_csv,
     write_text,
 )
+from ceamcl.experiments.executors import ProgressCallback
 from ceamcl.experiments.metrics import GATHERED_SHARE, HEADING_TOL_RAD, HOLD_S, POSITION_TOL_M
 from ceamcl.experiments.trials import TrialRecord
 from ceamcl.io.results import ensure_output_dir
@@ -101,11 +100,11 @@ class Table1Result:
 
 
 def run_table1(
-    settings: ExperimentSettings, *, console: Console | None = None, quiet: bool = False
+    settings: ExperimentSettings, *, progress: ProgressCallback | None = None, quiet: bool = False
 ) -> Table1Result:
     """Run every algorithm on every route ``settings.trials`` times and summarise."""
     trials = make_trials("table1", settings)
-    records = run_trials(trials, settings, label="table1 trials", console=console, quiet=quiet)
+    records = run_trials(trials, settings, label="table1 trials", progress=progress, quiet=quiet)
     groups = group_by(records, lambda r: r.algorithm)
     return Table1Result(settings, records, [summarise(a, rs) for a, rs in groups.items()])
 
@@ -244,27 +243,3 @@ def write_table1(
         ),
         write_text(out_dir / "table1.md", table1_markdown(result, meta)),
     ]
-
-
-def table1_rich(result: Table1Result) -> Table:
-    t = Table(title=f"Table 1 on {result.settings.course.name} (docs/experiments.md)")
-    n_images = result.settings.course.n_images
-    for col in ("algorithm", "conv s", "exp s", "success", f"all {n_images}", "err m", "N", "ms"):
-        t.add_column(col, justify="left" if col == "algorithm" else "right")
-    for s in result.summaries:
-        exp = (
-            "-"
-            if s.converged_runs == 0
-            else f"{fmt(s.expired_s)} {s.expired_runs}/{s.converged_runs}"
-        )
-        t.add_row(
-            s.algorithm,
-            f"{fmt(s.converged_s)} {s.converged_runs}/{s.runs}",
-            exp,
-            pct(s.success_rate),
-            pct(s.kept_all_rate),
-            f"{s.final_error_mean_m:.2f}",
-            f"{s.mean_particles:.0f}",
-            f"{s.median_step_ms:.1f}",
-        )
-    return t

@@ -69,7 +69,7 @@ from numpy.typing import NDArray
 
 from ceamcl.angles import diff
 from ceamcl.errors import LogFormatError
-from ceamcl.io.logs import RecordedLog, interpolate_poses
+from ceamcl.io.recorded import RecordedLog, interpolate_poses
 
 __all__ = [
     "CARMEN_DEFAULT_MAX_RANGE_M",

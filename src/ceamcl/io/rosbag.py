@@ -26,8 +26,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ceamcl.errors import LogFormatError
-from ceamcl.io.logs import RecordedLog, interpolate_poses
 from ceamcl.io.quaternion import quaternion_yaw
+from ceamcl.io.recorded import RecordedLog, interpolate_poses
 
 __all__ = ["LASER_SCAN", "ODOMETRY", "TF", "read_bag"]
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ceamcl.io.logs import RecordedLog
+from ceamcl.io.recorded import RecordedLog
 from ceamcl.mapping.occupancy import MappingConfig, MapStats, build_map, classify, log_odds_map
 from ceamcl.maps.grid import OccupancyGrid
 

@@ -35,9 +35,9 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from ceamcl.io.recorded import RobotLog
 from ceamcl.maps.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
 from ceamcl.maps.ros_io import SAVE_FREE_THRESH, SAVE_OCCUPIED_THRESH
-from ceamcl.runner import RobotLog
 
 __all__ = ["MapStats", "MappingConfig", "build_map", "log_odds_map"]
 

@@ -52,6 +52,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ceamcl import peers
 from ceamcl.angles import wrap
 from ceamcl.errors import ConfigError
 from ceamcl.filters.base import (
@@ -504,8 +505,6 @@ def _build(
 
 
 def _unavailable() -> str | None:
-    from ceamcl import peers
-
     return (
         None if peers.available() else "Nav2's AMCL is not installed (pip install 'ceamcl[peers]')"
     )

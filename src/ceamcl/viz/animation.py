@@ -36,6 +36,7 @@ from ceamcl.filters.ceamcl.competition import living_domain
 from ceamcl.io.results import atomic_write
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.runner import RunResult
+from ceamcl.viz.draw import draw_map
 
 #: Matplotlib's ``tab10``: species ``i`` is drawn in ``SPECIES_COLOURS[i % 10]`` everywhere
 #: (run.png, the animation, the report).
@@ -267,8 +268,6 @@ class _Renderer:
 
     @staticmethod
     def _draw_map(ax: matplotlib.axes.Axes, grid: OccupancyGrid) -> None:
-        from ceamcl.viz.plots import draw_map
-
         draw_map(ax, grid)
         x0, x1, y0, y1 = grid.bounds
         ax.set_xlim(x0, x1)

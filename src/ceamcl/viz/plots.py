@@ -10,35 +10,11 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
-from matplotlib.axes import Axes
 
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.runner import RunResult
-
-
-def draw_map(ax: Axes, grid: OccupancyGrid) -> None:
-    """The grid in world coordinates: occupied black, unknown grey, free white."""
-    img = np.full(grid.data.shape, 1.0)
-    img[grid.unknown_mask] = 0.75
-    img[grid.occupied_mask] = 0.0
-    x0, x1, y0, y1 = grid.bounds
-    if grid.origin[2] == 0.0:
-        ax.imshow(
-            img,
-            origin="lower",
-            cmap="gray",
-            vmin=0,
-            vmax=1,
-            interpolation="nearest",
-            extent=(x0, x1, y0, y1),
-        )
-    else:
-        iy, ix = np.nonzero(grid.occupied_mask)
-        x, y = grid.cell_to_world(ix, iy)
-        ax.scatter(x, y, s=0.5, c="k", marker="s")
-    ax.set_aspect("equal")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
+from ceamcl.viz.animation import series
+from ceamcl.viz.draw import draw_map
 
 
 def plot_run(
@@ -126,8 +102,6 @@ def _species_tracks(result: RunResult) -> dict[int, np.ndarray]:
 def plot_species(result: RunResult, path: str | os.PathLike[str], title: str = "") -> Path:
     """``species.png`` (the paper's Fig. 6): total sample size and total resources over time,
     and each species' size."""
-    from ceamcl.viz.animation import series
-
     t = result.times
     total_n, total_r = series(result)
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7), sharex=True)

@@ -31,6 +31,7 @@ from ceamcl.io.results import atomic_write
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.runner import RunResult
 from ceamcl.viz.animation import SPECIES_COLOURS, replay_frames, series
+from ceamcl.viz.plots import plot_run, plot_species
 
 _TEMPLATE = "report_template.html"
 
@@ -158,8 +159,6 @@ def _png_b64(path: Path) -> str:
 
 def figures_html(result: RunResult, grid: OccupancyGrid, title: str) -> str:
     """``run.png`` and (with species) ``species.png``, rendered afresh and embedded."""
-    from ceamcl.viz.plots import plot_run, plot_species
-
     parts = []
     with tempfile.TemporaryDirectory(prefix="ceamcl-report-") as tmp:
         run_png = plot_run(result, grid, Path(tmp) / "run.png", title=title)

@@ -1,31 +1,33 @@
-"""The visual outputs every command can write: ``run.gif``/``run.mp4``, ``report.html``, MCAP.
+"""Everything a run writes: its files (``trajectory.tum``, ``groundtruth.tum``,
+``diagnostics.csv``, ``summary.json``, ``run.png``, ``species.png``) and the visual outputs
+(``run.gif``/``run.mp4``, ``report.html``, MCAP for Foxglove).
 
-Commands share them in three lines::
+The runner (:mod:`ceamcl.runner`) runs a filter and returns a :class:`~ceamcl.runner.RunResult`;
+this module, one layer above it, turns results into files. In Python::
 
-    add_output_arguments(parser)                       # --gif/--no-animation --mp4 --fps ...
-    options = OutputOptions.from_args(args)            # checks ffmpeg before any work
+    options = OutputOptions(gif=True, report=True)       # or OutputOptions.from_args(args)
     result = run_filter(f, log, snapshot_every=options.snapshot_every)
-    files = write_outputs(result, grid, out_dir, options, log=log, summary=summary)
+    files = write_run_files(result, grid, "run-out", summary, title="...", log=log, outputs=options)
 
 ``snapshot_every`` is the stride when an output needs the particles of every frame, else 0
-(no snapshots kept, no memory spent).
+(no snapshots kept, no memory spent). The command-line options that build
+:class:`OutputOptions` are added by :func:`ceamcl.cli.common.add_output_arguments`.
 """
 
 from __future__ import annotations
 
-import argparse
 import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from ceamcl.errors import ConfigError
+from ceamcl.io.mcap_export import ScanLog, write_mcap
+from ceamcl.io.results import write_diagnostics_csv, write_json
+from ceamcl.io.tum import write_tum
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.runner import RunResult
-
-if TYPE_CHECKING:
-    from ceamcl.io.mcap_export import ScanLog
 
 DEFAULT_FPS = 10.0
 DEFAULT_STRIDE = 5
@@ -65,10 +67,11 @@ class OutputOptions:
         return cls(gif=False)
 
     @classmethod
-    def from_args(cls, args: argparse.Namespace | Mapping[str, Any]) -> OutputOptions:
-        """Options from the arguments :func:`add_output_arguments` added (missing ones take
-        their defaults). ``--mp4`` without ffmpeg on the PATH is an error, raised here, before
-        the run."""
+    def from_args(cls, args: Mapping[str, Any] | Any) -> OutputOptions:
+        """Options from parsed command-line arguments (an ``argparse.Namespace`` from
+        :func:`ceamcl.cli.common.add_output_arguments`, or a mapping; missing ones take their
+        defaults). ``--mp4`` without ffmpeg on the PATH is an error, raised here, before the
+        run."""
         get: Callable[[str, Any], Any]
         if isinstance(args, Mapping):
             get = args.get
@@ -89,7 +92,7 @@ class OutputOptions:
         if options.mcap is not None:
             _check_mcap_target(options.mcap)
         if options.mp4:
-            from ceamcl.viz.animation import ffmpeg_path
+            from ceamcl.viz.animation import ffmpeg_path  # matplotlib: see write_run_files
 
             if ffmpeg_path() is None:
                 raise ConfigError(
@@ -120,74 +123,11 @@ def _check_mcap_target(path: Path) -> None:
         raise ConfigError(f"mcap: {str(path)!r} is a folder; expected a file name")
 
 
-def _positive_int(text: str) -> int:
-    from ceamcl.cli.common import positive_int
-
-    return positive_int(text)
-
-
-def _positive_float(text: str) -> float:
-    from ceamcl.cli.common import positive_float
-
-    return positive_float(text)
-
-
-def add_output_arguments(
-    parser: argparse.ArgumentParser, *, animation_default: bool = True
-) -> None:
-    """Add ``--gif/--no-animation``, ``--mp4``, ``--fps``, ``--stride``, ``--report`` and
-    ``--mcap FILE`` to ``parser`` (in their own argument group).
-
-    ``animation_default``: whether ``run.gif`` is written unless ``--no-animation`` is given
-    (the demo: yes; batch commands may prefer no).
-    """
-    group = parser.add_argument_group("visual outputs")
-    group.add_argument(
-        "--gif",
-        dest="gif",
-        action="store_true",
-        default=animation_default,
-        help="write run.gif, the animated run" + (" (default)" if animation_default else ""),
-    )
-    group.add_argument(
-        "--no-animation",
-        dest="gif",
-        action="store_false",
-        help="do not write run.gif",
-    )
-    group.add_argument(
-        "--mp4", action="store_true", help="also write run.mp4 (needs ffmpeg on the PATH)"
-    )
-    group.add_argument(
-        "--fps",
-        type=_positive_float,
-        default=DEFAULT_FPS,
-        help=f"frames per second of the animation and the replay (default {DEFAULT_FPS:g})",
-    )
-    group.add_argument(
-        "--stride",
-        type=_positive_int,
-        default=DEFAULT_STRIDE,
-        help=f"one animation frame every N filter steps (default {DEFAULT_STRIDE})",
-    )
-    group.add_argument(
-        "--report",
-        action="store_true",
-        help="write report.html: summary, figures and an interactive replay in one file",
-    )
-    group.add_argument(
-        "--mcap",
-        metavar="FILE",
-        default=None,
-        help="write the run as MCAP for Foxglove (map, particles, estimate, truth, scans)",
-    )
-
-
 def write_outputs(
     result: RunResult,
     grid: OccupancyGrid,
     out_dir: str | os.PathLike[str],
-    args_or_options: OutputOptions | argparse.Namespace | Mapping[str, Any],
+    args_or_options: OutputOptions | Mapping[str, Any] | Any,
     *,
     log: ScanLog | None = None,
     summary: Mapping[str, Any] | None = None,
@@ -208,7 +148,7 @@ def write_outputs(
     out = Path(out_dir)
     written: list[Path] = []
     if options.gif or options.mp4:
-        from ceamcl.viz.animation import animate_run
+        from ceamcl.viz.animation import animate_run  # matplotlib: see write_run_files
 
         written += animate_run(
             result,
@@ -222,7 +162,7 @@ def write_outputs(
             on_frame=on_frame,
         )
     if options.report:
-        from ceamcl.viz.report import write_report
+        from ceamcl.viz.report import write_report  # matplotlib: see write_run_files
 
         written.append(
             write_report(
@@ -236,8 +176,56 @@ def write_outputs(
             )
         )
     if options.mcap is not None:
-        from ceamcl.io.mcap_export import write_mcap
-
         _check_mcap_target(options.mcap)
         written.append(write_mcap(options.mcap, result, grid, log))
     return written
+
+
+def write_run_files(
+    result: RunResult,
+    grid: OccupancyGrid,
+    out_dir: str | os.PathLike[str] | None,
+    summary: Mapping[str, Any],
+    *,
+    title: str,
+    log: ScanLog | None = None,
+    outputs: OutputOptions | None = None,
+    on_frame: Callable[[int, int], None] | None = None,
+) -> list[Path]:
+    """The files of one run, as ``ceamcl demo`` and ``ceamcl run`` write them.
+
+    With ``out_dir``: ``trajectory.tum``, ``groundtruth.tum`` (where the run has a truth),
+    ``diagnostics.csv``, ``run.png``, ``species.png`` (filters with species) and
+    ``summary.json``. ``outputs`` (:class:`OutputOptions`) adds the visual
+    outputs (without ``out_dir`` only the MCAP file, a path of its own); ``log`` gives the MCAP
+    file its scans, ``on_frame(i, total)`` reports the animation's progress. Returns the
+    visual outputs written.
+    """
+    out = None if out_dir is None else Path(out_dir)
+    if out is not None:
+        # matplotlib (~0.7 s to import) only when a figure is drawn: the CLI imports this
+        # module to parse its options.
+        from ceamcl.viz.plots import plot_run, plot_species
+
+        write_tum(out / "trajectory.tum", result.times, result.estimates)
+        if result.truth is not None:
+            write_tum(out / "groundtruth.tum", result.times, result.truth)
+        write_diagnostics_csv(out / "diagnostics.csv", result.diagnostics, list(result.times))
+        plot_run(result, grid, out / "run.png", title=title)
+        if any(d.species for d in result.diagnostics):
+            plot_species(
+                result, out / "species.png", title=f"{title}: sample size and resources (Fig. 6)"
+            )
+        write_json(out / "summary.json", summary)
+    if outputs is None or not outputs.any:
+        return []
+    return write_outputs(
+        result,
+        grid,
+        out if out is not None else Path(),
+        outputs if out is not None else outputs.only_mcap(),
+        log=log,
+        summary=summary,
+        title=title,
+        on_frame=on_frame,
+    )

@@ -1,4 +1,4 @@
-"""Tests of ``ceamcl.viz.outputs`` (the shared output options) and of ``ceamcl demo`` writing
+"""Tests of ``ceamcl.outputs`` (the shared output options) and of ``ceamcl demo`` writing
 the animation, the report and the MCAP file."""
 
 from __future__ import annotations
@@ -12,8 +12,9 @@ from mcap.reader import make_reader
 from PIL import Image
 
 from ceamcl.cli import build_parser, main
+from ceamcl.cli.common import add_output_arguments
 from ceamcl.errors import ConfigError
-from ceamcl.viz.outputs import OutputOptions, add_output_arguments, write_outputs
+from ceamcl.outputs import OutputOptions, write_outputs
 from tests.viz.runs import short_run
 
 

@@ -1,0 +1,94 @@
+"""The files of ``ceamcl evaluate-log``: ``evaluate.csv`` (per run), ``evaluate.md`` (per
+algorithm), ``errors.png`` and ``success.png``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from ceamcl.experiments.common import fmt, write_csv, write_text
+from ceamcl.experiments.metrics import HEADING_TOL_RAD, HOLD_STEPS, POSITION_TOL_M
+
+if TYPE_CHECKING:
+    from ceamcl.experiments.evaluate_log import Evaluation
+    from ceamcl.replay import PreparedLog
+
+_CSV_FIELDS = (
+    "algorithm",
+    "start_index",
+    "start_time_s",
+    "scans",
+    "window_s",
+    "window_m",
+    "success",
+    "scans_to_converge",
+    "time_to_converge_s",
+    "position_rmse_m",
+    "heading_rmse_rad",
+    "final_position_error_m",
+    "final_heading_error_rad",
+    "mean_particles",
+    "mean_step_ms",
+    "initialisation_ms",
+)
+
+
+def write_evaluation(
+    ev: Evaluation, prepared: PreparedLog, out_dir: Path, *, hold: int = HOLD_STEPS
+) -> None:
+    """``evaluate.csv`` (per run), ``evaluate.md`` (per algorithm) and two figures."""
+    # matplotlib (~0.4 s) only when figures are drawn, as in the other experiments' writers:
+    # `ceamcl --help` imports this module.
+    from ceamcl.experiments.figures import plot_evaluation
+
+    rows = [{k: getattr(r, k) for k in _CSV_FIELDS} for r in ev.results]
+    write_csv(out_dir / "evaluate.csv", rows)
+    write_text(out_dir / "evaluate.md", evaluation_markdown(ev, prepared, hold=hold))
+    plot_evaluation(ev, out_dir)
+
+
+def evaluation_markdown(ev: Evaluation, prepared: PreparedLog, *, hold: int = HOLD_STEPS) -> str:
+    log = prepared.log
+    lengths = [e - s for s, e in ev.windows]
+    lines = [
+        f"# Global localisation on {log.name}",
+        "",
+        f"- log: `{log.path}` ({len(log)} scans, {log.duration_s:.0f} s, "
+        f"{log.path_length_m:.0f} m of travel)",
+        f"- map: {ev.map_source}",
+        f"- odometry: {prepared.odometry}"
+        + (
+            f" (alpha1..4 = {prepared.noise.alpha1:g}, {prepared.noise.alpha2:g}, "
+            f"{prepared.noise.alpha3:g}, {prepared.noise.alpha4:g}; seed {prepared.seed})"
+            if prepared.noise is not None
+            else ""
+        ),
+        f"- {len(ev.windows)} start points, windows of {ev.window} "
+        f"({min(lengths)}-{max(lengths)} scans)",
+        f"- success: within {POSITION_TOL_M} m and {HEADING_TOL_RAD} rad from a step on to the "
+        f"end of the window, for at least {hold} steps; times and RMSEs over successful runs",
+        "",
+        "| algorithm | runs | success | time to converge [s] | scans to converge | "
+        "position RMSE [m] | heading RMSE [rad] | mean particles | mean step [ms] | "
+        "initialisation [ms] |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+    ]
+    digits = {
+        "time_to_converge_s": 1,
+        "scans_to_converge": 1,
+        "position_rmse_m": 3,
+        "heading_rmse_rad": 3,
+        "mean_particles": 0,
+        "mean_step_ms": 1,
+        "initialisation_ms": 0,
+    }
+    for row in ev.table:
+        cells = [fmt(row[key], d, "-") for key, d in digits.items()]
+        lines.append(
+            f"| {row['algorithm']} | {row['runs']} | {100 * row['success_rate']:.0f}% | "
+            + " | ".join(cells)
+            + " |"
+        )
+    for algo, why in ev.skipped.items():
+        lines.append(f"\n{algo} skipped: {why}")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,69 @@
+"""Where the runs of ``ceamcl evaluate-log`` start and stop: evenly spread windows of a log,
+each a whole window of scans, seconds or metres of travel."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ceamcl.errors import ConfigError
+from ceamcl.io.recorded import RecordedLog
+
+#: Default window of each evaluation run: 50 m of travel along the true path.
+DEFAULT_WINDOW_M = 50.0
+
+
+def _progress(
+    log: RecordedLog, scans: int | None, window_s: float | None, window_m: float | None
+) -> tuple[NDArray[np.float64], float, str]:
+    """What a window's length is measured in, the length, and its description."""
+    if sum(v is not None for v in (scans, window_s, window_m)) > 1:
+        raise ConfigError("window: give one of scans, window_s and window_m, not several")
+    if scans is not None:
+        if scans < 2:
+            raise ConfigError(f"scans: expected at least 2 scans per window, got {scans}")
+        return np.arange(len(log), dtype=np.float64), float(scans - 1), f"{scans} scans"
+    if window_s is not None:
+        if not window_s > 0:
+            raise ConfigError(f"window-s: expected a positive duration, got {window_s}")
+        # a log's clock may step back a little (intel-corrected does): measure forward time
+        elapsed = np.maximum.accumulate(log.times - log.times[0])
+        return elapsed, float(window_s), f"{window_s:g} s"
+    dist_m = DEFAULT_WINDOW_M if window_m is None else window_m
+    if not dist_m > 0:
+        raise ConfigError(f"window-m: expected a positive distance, got {dist_m}")
+    truth = log.true_poses if log.true_poses is not None else log.poses
+    step = np.hypot(*np.diff(truth[:, :2], axis=0).T)
+    return np.concatenate([[0.0], np.cumsum(step)]), float(dist_m), f"{dist_m:g} m of travel"
+
+
+def start_windows(
+    log: RecordedLog,
+    starts: int,
+    *,
+    scans: int | None = None,
+    window_s: float | None = None,
+    window_m: float | None = None,
+) -> tuple[list[tuple[int, int]], str]:
+    """``starts`` windows ``(start, stop)`` with evenly spread starts, each a whole window
+    (``scans`` scans, ``window_s`` seconds or ``window_m`` metres of travel; default
+    :data:`DEFAULT_WINDOW_M`), and the window's description.
+
+    A window ends at the first scan where the length is reached. The latest start is the last
+    one whose whole window lies in the log.
+    """
+    progress, length, what = _progress(log, scans, window_s, window_m)
+    fits = np.flatnonzero(progress[-1] - progress >= length - 1e-9)
+    if fits.size == 0:
+        raise ConfigError(
+            f"{log.path}: the log ({len(log)} scans, {log.duration_s:.0f} s, "
+            f"{log.path_length_m:.0f} m) is shorter than one evaluation window of {what}; "
+            "choose a shorter --scans/--window-s/--window-m"
+        )
+    last = int(fits[-1])
+    picks = np.unique(np.round(np.linspace(0, last, starts)).astype(int))
+    windows = []
+    for s in picks:
+        stop = int(np.searchsorted(progress, progress[s] + length - 1e-9, side="left")) + 1
+        windows.append((int(s), max(stop, int(s) + 2)))
+    return windows, what
