@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from ceamcl.errors import LogFormatError
-from ceamcl.io.logs import RecordedLog
+from ceamcl.io.recorded import RecordedLog
 from ceamcl.io.truth import pair_truth
 
 DATA = Path(__file__).resolve().parents[2] / ".." / "shared" / "data"

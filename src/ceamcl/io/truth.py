@@ -32,7 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ceamcl.errors import LogFormatError
-from ceamcl.io.logs import RecordedLog
+from ceamcl.io.recorded import RecordedLog
 
 #: Ranges are compared after rounding to millimetres (the logs print centimetres or finer).
 DEFAULT_DECIMALS = 3
