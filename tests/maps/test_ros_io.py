@@ -10,7 +10,7 @@ import pytest
 import yaml
 from PIL import Image
 
-from ceamcl.errors import CeamclError, MapFormatError
+from ceamcl.errors import CeamclError, InputWarning, MapFormatError
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.maps.ros_io import load_map, save_map
 
@@ -357,12 +357,30 @@ def test_missing_key(tmp_path: Path, key: str) -> None:
     assert_map_error(path, f"'{key}'", "missing")
 
 
-def test_unknown_key(tmp_path: Path) -> None:
+def test_unknown_key_is_ignored_with_a_warning_as_map_server_does(tmp_path: Path) -> None:
     write_pgm(tmp_path / "map.pgm", PATTERN)
     path = write_yaml(tmp_path / "unknown.yaml", extra="occupied_thres: 0.6\n")
-    message = assert_map_error(path, "'occupied_thres'", "unknown")
+    with pytest.warns(InputWarning, match="ignoring unknown key.*'occupied_thres'") as record:
+        grid = load_map(path)
+    message = str(record[0].message)
+    assert str(path) in message
     for expected in ("image", "resolution", "origin", "negate", "free_thresh", "mode"):
         assert expected in message
+    assert grid == load_map(write_yaml(tmp_path / "plain.yaml"))
+
+
+def test_yaml_12_numbers_are_read_as_ros_reads_them(tmp_path: Path) -> None:
+    """yaml-cpp (YAML 1.2) reads 5e-2 as a number; PyYAML's YAML 1.1 resolver does not."""
+    write_pgm(tmp_path / "map.pgm", PATTERN)
+    for text, value in (("5e-2", 0.05), ("5E-2", 0.05), (".5", 0.5), ("1e0", 1.0)):
+        path = write_yaml(tmp_path / "sci.yaml", resolution=text)
+        assert load_map(path).resolution == value
+
+
+def test_aliases_are_refused_with_the_line(tmp_path: Path) -> None:
+    write_pgm(tmp_path / "map.pgm", PATTERN)
+    path = write_yaml(tmp_path / "alias.yaml", extra="a: &x [1, 2]\nb: *x\n")
+    assert_map_error(path, "aliases (*x) are not accepted", f"{path}:")
 
 
 @pytest.mark.parametrize(

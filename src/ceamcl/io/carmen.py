@@ -67,8 +67,10 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from ceamcl import budget
 from ceamcl.angles import diff
 from ceamcl.errors import LogFormatError
+from ceamcl.io import streams
 from ceamcl.io.logs import RecordedLog, interpolate_poses
 
 __all__ = [
@@ -321,27 +323,55 @@ def parse_line(text: str, path: str = "<string>", lineno: int = 1) -> CarmenMess
     return CarmenSkipped(kind, lineno)
 
 
-def _open_text(path: Path) -> io.TextIOBase:
-    """A text stream over the file, gunzipped on the fly when it starts with the gzip magic."""
+def _open_binary(path: Path) -> io.BufferedIOBase:
+    """A binary stream over the file (or pipe), gunzipped on the fly when it starts with the
+    gzip magic. The magic is sniffed from a kept buffer, so a pipe loses nothing."""
     try:
-        with path.open("rb") as fh:
-            magic = fh.read(2)
+        magic = streams.sniff(path, 2, "CARMEN log")
+        raw = streams.open_input(path, "CARMEN log")
     except FileNotFoundError:
         raise LogFormatError(f"{path}: log file not found") from None
     except OSError as exc:
         raise LogFormatError(f"{path}: cannot read the log: {exc.strerror or exc}") from None
     if magic == b"\x1f\x8b":
-        return io.TextIOWrapper(gzip.open(path, "rb"), encoding="ascii", errors="replace")
-    return io.TextIOWrapper(path.open("rb"), encoding="ascii", errors="replace")
+        return gzip.GzipFile(fileobj=raw, mode="rb")  # type: ignore[return-value]
+    return raw
+
+
+def _lines(path: Path, fh: io.BufferedIOBase) -> Iterator[tuple[int, str]]:
+    """Numbered text lines, each at most the budget's line length, UTF-8 (ASCII in practice)."""
+    limit = budget.current().line_bytes
+    lineno = 0
+    while True:
+        raw = fh.readline(limit + 1)
+        if not raw:
+            return
+        lineno += 1
+        if len(raw) > limit and not raw.endswith(b"\n"):
+            raise budget.BudgetError(
+                f"{path}:{lineno}: line longer than {budget.format_bytes(limit)}, the line-length "
+                "bound of the memory budget (raise it with --memory-budget)"
+            )
+        if b"\x00" in raw:
+            raise LogFormatError(
+                f"{path}:{lineno}: binary data (NUL bytes); expected a CARMEN text log"
+            )
+        try:
+            yield lineno, raw.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise LogFormatError(
+                f"{path}:{lineno}: not UTF-8/ASCII text (byte {raw[exc.start]:#04x} at column "
+                f"{exc.start + 1}); expected a CARMEN text log"
+            ) from None
 
 
 def iter_carmen(path: str | os.PathLike[str]) -> Iterator[CarmenMessage]:
     """Every message of a CARMEN log, in file order, read as a stream (gzip or plain text)."""
     p = Path(path)
     lineno = 0
-    with _open_text(p) as fh:
+    with _open_binary(p) as fh:
         try:
-            for lineno, text in enumerate(fh, start=1):
+            for lineno, text in _lines(p, fh):
                 msg = parse_line(text, str(p), lineno)
                 if msg is not None:
                     yield msg
