@@ -8,13 +8,16 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 from collections.abc import Sequence
 from importlib import import_module
 
 from rich.console import Console
 
-from ceamcl import __version__
-from ceamcl.errors import CeamclError
+from ceamcl import __version__, budget
+from ceamcl.budget import Budget, default_memory_bytes, format_bytes, parse_bytes
+from ceamcl.errors import CeamclError, InputWarning
+from ceamcl.io import created
 
 #: Subcommand modules, in the order ``ceamcl --help`` lists them.
 COMMAND_MODULES: tuple[str, ...] = (
@@ -29,29 +32,98 @@ COMMAND_MODULES: tuple[str, ...] = (
 )
 
 
+class DefaultsFormatter(argparse.HelpFormatter):
+    """Help that shows each option's default, except where there is none to show (None,
+    False) or the help text already states it."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        text = action.help or ""
+        default = action.default
+        if (
+            not action.option_strings
+            or action.nargs == 0  # flags: their default is the flag's absence
+            or default in (None, False, argparse.SUPPRESS)
+            or "default" in text
+            or text == argparse.SUPPRESS
+            or isinstance(action, argparse._HelpAction | argparse._VersionAction)
+        ):
+            return action.help
+        shown = " ".join(map(str, default)) if isinstance(default, list | tuple) else "%(default)s"
+        return f"{text} (default: {shown})" if text else f"default: {shown}"
+
+
+def _memory_budget(text: str) -> Budget:
+    try:
+        return Budget(parse_bytes(text))
+    except CeamclError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("memory-budget: ")) from None
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="ceamcl",
         description="Coevolution-based adaptive Monte Carlo localisation and its baselines.",
+        formatter_class=DefaultsFormatter,
     )
     parser.add_argument("--version", action="version", version=f"ceamcl {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     for name in COMMAND_MODULES:
         import_module(f"ceamcl.cli.{name}").register(sub)
+    for command in sub.choices.values():
+        command.formatter_class = DefaultsFormatter
+        command.add_argument(
+            "--memory-budget",
+            type=_memory_budget,
+            default=None,
+            metavar="SIZE",
+            help="refuse inputs that would need more memory than this, e.g. 16GiB "
+            f"(default: {format_bytes(default_memory_bytes())}, a quarter of this machine's "
+            "memory; docs/robustness.md)",
+        )
     return parser
 
 
+def _show_warning(
+    message: Warning | str, category: type[Warning], *_: object, **__: object
+) -> None:
+    if issubclass(category, InputWarning):
+        print(f"ceamcl: warning: {message}", file=sys.stderr)
+    else:
+        _default_showwarning(message, category, *_, **__)  # type: ignore[arg-type]
+
+
+_default_showwarning = warnings.showwarning
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run one command. Bad input: one line on stderr, exit 2. Ctrl-C: one line, exit 130.
+    Either way an output folder the command created is removed again."""
     parser = build_parser()
     args = parser.parse_args(argv)
     console = Console(stderr=False)
+    limits = args.memory_budget or Budget.default()
+    ok = False
     try:
-        code: int = args.run(args, console)
+        with budget.use(limits), warnings.catch_warnings():
+            warnings.showwarning = _show_warning
+            code: int = args.run(args, console)
+        ok = code == 0
     except CeamclError as exc:
         print(f"ceamcl: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("ceamcl: interrupted", file=sys.stderr)
+        return 130
+    except MemoryError:
+        print(
+            f"ceamcl: error: out of memory ({limits.describe()}); an input size escaped the "
+            "budget checks, please report it",
+            file=sys.stderr,
+        )
+        return 3
+    finally:
+        if ok:
+            created.forget()
+        else:
+            created.remove_created()
     return code
-
-
-if __name__ == "__main__":
-    sys.exit(main())

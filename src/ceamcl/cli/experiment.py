@@ -144,8 +144,13 @@ def _settings(args: argparse.Namespace, console: Console) -> Any:
     from ceamcl.experiments.routes import resolve_course
 
     names = None
-    if args.algorithms:
+    if args.algorithms is not None:
         names = [n for a in args.algorithms for n in _names(a)]
+        if not names:
+            raise ConfigError(
+                f"algorithms: expected one or more algorithm names, got {args.algorithms!r} "
+                "(leave --algorithms out to run all)"
+            )
     course = resolve_course(args.experiment, args.world, args.routes).select(args.starts)
     skipped: dict[str, str] = {}
     if args.experiment == "delta":

@@ -28,8 +28,7 @@ def log_path(args: argparse.Namespace) -> str:
     given = [v for v in (args.log, args.log_option) if v is not None]
     if len(given) != 1:
         raise ConfigError(
-            "log: give the log once, as LOG or --log LOG"
-            + ("" if given else " (none given)")
+            "log: give the log once, as LOG or --log LOG" + ("" if given else " (none given)")
         )
     return str(given[0])
 
@@ -77,7 +76,12 @@ def add_truth_arguments(p: argparse.ArgumentParser) -> None:
         help="are the log's poses SLAM-corrected ground truth? auto: when the file name says "
         "'corrected'. With truth the filter gets synthetic odometry drawn from it",
     )
-    p.add_argument("--seed", type=non_negative_int, default=0)
+    p.add_argument(
+        "--seed",
+        type=non_negative_int,
+        default=0,
+        help="seed of the filter and of synthetic odometry",
+    )
 
 
 def open_kwargs(args: argparse.Namespace) -> dict[str, Any]:
@@ -108,7 +112,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument(
         "--resolution", type=positive_float, default=0.05, help="cell side of a built map [m]"
     )
-    p.add_argument("--algorithm", choices=all_algorithms(), default=DEFAULT_ALGORITHM)
+    p.add_argument(
+        "--algorithm", choices=all_algorithms(), default=DEFAULT_ALGORITHM, help="filter to run"
+    )
     add_truth_arguments(p)
     p.add_argument("--out", default="run-out", help="folder for the results")
     p.add_argument("--quiet", action="store_true", help="no progress bar or table")

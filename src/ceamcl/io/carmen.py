@@ -334,7 +334,7 @@ def _open_binary(path: Path) -> io.BufferedIOBase:
     except OSError as exc:
         raise LogFormatError(f"{path}: cannot read the log: {exc.strerror or exc}") from None
     if magic == b"\x1f\x8b":
-        return gzip.GzipFile(fileobj=raw, mode="rb")  # type: ignore[return-value]
+        return gzip.GzipFile(fileobj=raw, mode="rb")
     return raw
 
 

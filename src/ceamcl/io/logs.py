@@ -30,6 +30,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ceamcl.angles import wrap
 from ceamcl.errors import ConfigError, LogFormatError
+from ceamcl.io import streams
 from ceamcl.motion.odometry import OdometryNoise, synthetic_odometry
 from ceamcl.sensors.scan import LaserScan, laser_poses
 
@@ -215,8 +216,7 @@ def log_format(path: str | os.PathLike[str]) -> LogFormat:
     if p.suffix in (".db3", ".mcap") and (p.parent / "metadata.yaml").is_file():
         return "ros2"
     try:
-        with p.open("rb") as fh:
-            head = fh.read(13)
+        head = streams.sniff(p, 13, "log")  # a pipe keeps these bytes for the reader
     except OSError as exc:
         raise LogFormatError(f"{p}: cannot read the log: {exc.strerror or exc}") from None
     if head.startswith(b"#ROSBAG V2.0") or p.suffix == ".bag":

@@ -66,6 +66,7 @@ class _SniffedStream(io.RawIOBase):
         self.head = b""
         self.pos = 0  # position within head while replaying it
         self.delivered = 0
+        self.started = False
         self.limit = budget.current().stream_bytes
 
     def readable(self) -> bool:
@@ -81,6 +82,9 @@ class _SniffedStream(io.RawIOBase):
             )
 
     def _read_fd(self, n: int) -> bytes:
+        if not self.started:  # a FIFO with no writer reads as EOF: wait for one (or data)
+            self._wait()
+            self.started = True
         while True:
             try:
                 data = os.read(self.fd, n)
