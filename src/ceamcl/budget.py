@@ -30,6 +30,8 @@ from dataclasses import dataclass
 from ceamcl.errors import ConfigError
 
 __all__ = [
+    "MAP_CELL_BYTES",
+    "PARTICLE_BYTES",
     "Budget",
     "BudgetError",
     "current",
@@ -41,6 +43,12 @@ __all__ = [
 ]
 
 _MIB = 1 << 20
+
+#: Bytes per map cell: the int8 cells, their masks, the float64 distance field with its
+#: indices and the sensor models' tables derived from it.
+MAP_CELL_BYTES = 64
+#: Bytes per particle, with the per-beam work of weighting it (a scan of a few hundred beams).
+PARTICLE_BYTES = 1024
 _UNITS = {"": 1, "b": 1, "k": 1 << 10, "m": 1 << 20, "g": 1 << 30, "t": 1 << 40}
 
 

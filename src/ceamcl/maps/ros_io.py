@@ -75,6 +75,7 @@ import yaml
 from numpy.typing import NDArray
 from PIL import Image
 
+from ceamcl import budget
 from ceamcl.errors import InputWarning, MapFormatError
 from ceamcl.io.safe_yaml import load_yaml_file
 from ceamcl.maps.grid import OccupancyGrid
@@ -229,9 +230,16 @@ def _read_image(
         raise MapFormatError(f"{where} (key 'image'): expected an image file, not a folder")
     try:
         with Image.open(image_path) as img:
+            w, h = img.size  # from the header: checked before the pixels are decoded
+            budget.require(
+                f"{where} (key 'image'): {w} x {h} pixels",
+                w * h,
+                budget.MAP_CELL_BYTES,
+                "map cells",
+            )
             img.load()
             return _image_channels(img, where)
-    except MapFormatError:
+    except (MapFormatError, budget.BudgetError):
         raise
     except Exception as e:  # Pillow raises many types on corrupt files: OSError, SyntaxError...
         raise MapFormatError(
