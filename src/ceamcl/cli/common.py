@@ -18,6 +18,8 @@ from rich.progress import (
 )
 from rich.table import Table
 
+from ceamcl import budget
+
 
 def non_negative_int(text: str) -> int:
     """argparse type: a whole number >= 0, with a clear message otherwise."""
@@ -47,6 +49,12 @@ def positive_float(text: str) -> float:
     if not (value > 0.0 and value < float("inf")):
         raise argparse.ArgumentTypeError(f"expected a positive finite number, got {text}")
     return value
+
+
+def check_particles(count: int | None) -> None:
+    """Refuse a ``--particles`` count beyond the memory budget, before any filter is built."""
+    if count is not None:
+        budget.require("--particles", count, budget.PARTICLE_BYTES, "particles")
 
 
 def make_progress(label: str, console: Console, *, quiet: bool = False) -> Progress:

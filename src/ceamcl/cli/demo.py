@@ -8,6 +8,7 @@ from rich.console import Console
 
 from ceamcl.cli.common import (
     RunProgress,
+    check_particles,
     make_progress,
     non_negative_int,
     positive_int,
@@ -51,6 +52,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 def run(args: argparse.Namespace, console: Console) -> int:
     from ceamcl.demo import run_demo
 
+    check_particles(args.particles)
     outputs = OutputOptions.from_args(args)
     progress = make_progress(
         f"[bold]{args.algorithm}[/] on {args.world}", console, quiet=args.quiet

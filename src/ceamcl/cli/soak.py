@@ -7,7 +7,13 @@ import argparse
 from rich.console import Console
 from rich.table import Table
 
-from ceamcl.cli.common import make_progress, non_negative_int, positive_float, positive_int
+from ceamcl.cli.common import (
+    check_particles,
+    make_progress,
+    non_negative_int,
+    positive_float,
+    positive_int,
+)
 from ceamcl.filters import ALGORITHMS, SENSOR_MODELS
 from ceamcl.soak import DEFAULT_MAX_GROWTH_PCT, SOAK_WORLDS
 
@@ -47,6 +53,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     from ceamcl.io.results import ensure_output_dir
     from ceamcl.soak import SoakConfig, run_soak, write_soak_outputs
 
+    check_particles(args.particles)
     config = SoakConfig(
         steps=args.steps,
         algorithm=args.algorithm,
