@@ -8,8 +8,15 @@ import argparse
 from rich.console import Console
 from rich.table import Table
 
+from ceamcl.checks import physical_warnings
 from ceamcl.cli.common import positive_float, positive_int
-from ceamcl.cli.run import add_log_arguments, add_truth_arguments, log_path, open_kwargs
+from ceamcl.cli.run import (
+    add_log_arguments,
+    add_truth_arguments,
+    log_path,
+    open_kwargs,
+    print_truth,
+)
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -91,10 +98,18 @@ def run(args: argparse.Namespace, console: Console) -> int:
     algos, skipped = resolve_algorithms(args.algorithms)
     if not algos:
         raise ConfigError("algorithms: none of the chosen algorithms can run here")
-    prepared = prepare_log(log_path(args), seed=args.seed, truth=args.truth, **open_kwargs(args))
+    prepared = prepare_log(
+        log_path(args),
+        seed=args.seed,
+        truth=args.truth,
+        repair_times=args.repair_times,
+        **open_kwargs(args),
+    )
     grid, map_source = obtain_map(prepared.log, args.map, args.resolution)
+    physical_warnings(prepared.log, grid, args.map or map_source)
     if not args.quiet:
         console.print(f"map: {map_source}")
+        print_truth(console, prepared)
         for name, why in skipped.items():
             console.print(f"[yellow]{name} skipped[/]: {why}")
     ev = evaluate_log(

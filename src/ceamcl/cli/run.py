@@ -8,6 +8,7 @@ from typing import Any
 
 from rich.console import Console
 
+from ceamcl.checks import physical_warnings
 from ceamcl.cli.common import (
     RunProgress,
     make_progress,
@@ -73,8 +74,15 @@ def add_truth_arguments(p: argparse.ArgumentParser) -> None:
         "--truth",
         choices=("auto", "yes", "no"),
         default="auto",
-        help="are the log's poses SLAM-corrected ground truth? auto: when the file name says "
-        "'corrected'. With truth the filter gets synthetic odometry drawn from it",
+        help="are the log's poses SLAM-corrected ground truth? auto: when the log's content "
+        "says so (NEFF messages of a SLAM run, laser pose = robot pose; the file name plays no "
+        "part). With truth the filter gets synthetic odometry drawn from it (default: auto)",
+    )
+    p.add_argument(
+        "--repair-times",
+        action="store_true",
+        help="raise scan times that go back by more than 1 s (or are not numbers) to the "
+        "latest time before them, instead of refusing the log",
     )
     p.add_argument(
         "--seed",
@@ -93,6 +101,16 @@ def open_kwargs(args: argparse.Namespace) -> dict[str, Any]:
         "odom_frame": args.odom_frame,
         "base_frame": args.base_frame,
     }
+
+
+def print_truth(console: Console, prepared: Any) -> None:
+    """What was decided about ground truth and odometry, and repaired scan times."""
+    console.print(f"ground truth: {prepared.truth_reason}")
+    if not prepared.has_truth:
+        console.print("odometry: the log's recorded odometry (no ground truth: no errors scored)")
+    repaired = int(prepared.log.info.get("repaired_times", 0))
+    if repaired:
+        console.print(f"scan times: {repaired} raised to the latest before them (--repair-times)")
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -131,10 +149,18 @@ def run(args: argparse.Namespace, console: Console) -> int:
     algos, skipped = resolve_algorithms([args.algorithm])
     if not algos:
         raise ConfigError(f"algorithm: {args.algorithm} cannot run here: {skipped[args.algorithm]}")
-    prepared = prepare_log(log_path(args), seed=args.seed, truth=args.truth, **open_kwargs(args))
+    prepared = prepare_log(
+        log_path(args),
+        seed=args.seed,
+        truth=args.truth,
+        repair_times=args.repair_times,
+        **open_kwargs(args),
+    )
     grid, map_source = obtain_map(prepared.log, args.map, args.resolution)
+    physical_warnings(prepared.log, grid, args.map or map_source)
     if not args.quiet:
         console.print(f"map: {map_source}")
+        print_truth(console, prepared)
         if prepared.noise is not None:
             n = prepared.noise
             console.print(

@@ -33,6 +33,7 @@ from numpy.typing import NDArray
 from ceamcl.errors import ConfigError
 from ceamcl.experiments.metrics import HEADING_TOL_RAD, POSITION_TOL_M
 from ceamcl.io.logs import DEFAULT_SYNTHETIC_NOISE, RecordedLog, open_log, poses_look_corrected
+from ceamcl.io.timestamps import check_times
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryNoise
 from ceamcl.runner import RunResult, run_filter, write_run_files
@@ -60,6 +61,7 @@ class PreparedLog:
     odometry: str
     noise: OdometryNoise | None
     seed: int
+    truth_reason: str = ""
 
 
 def prepare_log(
@@ -68,18 +70,28 @@ def prepare_log(
     seed: int = 0,
     truth: TruthMode = "auto",
     noise: OdometryNoise = DEFAULT_SYNTHETIC_NOISE,
+    repair_times: bool = False,
     **open_kwargs: Any,
 ) -> PreparedLog:
     """Open a log and decide ground truth and odometry (module docstring, steps 1-2).
 
-    ``truth="auto"`` takes the poses as ground truth when the file name says "corrected".
+    ``truth="auto"`` takes the poses as ground truth when the log's content shows a corrected
+    log (:func:`ceamcl.io.logs.poses_look_corrected`); ``truth_reason`` says what was decided
+    and why. Scan times are checked (:func:`ceamcl.io.timestamps.check_times`), and repaired
+    with ``repair_times``.
     """
-    log = open_log(path, **open_kwargs)
-    use_truth = poses_look_corrected(path) if truth == "auto" else truth == "yes"
+    log = check_times(open_log(path, **open_kwargs), repair=repair_times)
+    looks, why = poses_look_corrected(log)
+    if truth == "auto":
+        use_truth, reason = looks, f"{why} (--truth auto)"
+    else:
+        use_truth, reason = truth == "yes", f"{truth}: as --truth {truth} says (content: {why})"
     if not use_truth:
-        return PreparedLog(log, False, "recorded", None, seed)
+        return PreparedLog(log, False, "recorded", None, seed, reason)
     odo_rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(1)[0])
-    return PreparedLog(log.with_synthetic_odometry(noise, odo_rng), True, "synthetic", noise, seed)
+    return PreparedLog(
+        log.with_synthetic_odometry(noise, odo_rng), True, "synthetic", noise, seed, reason
+    )
 
 
 def obtain_map(
@@ -177,7 +189,9 @@ def run_summary(
         "duration_s": log.duration_s,
         "path_length_m": log.path_length_m,
         "ground_truth": "the log's poses (SLAM-corrected)" if prepared.has_truth else None,
+        "ground_truth_decision": prepared.truth_reason,
         "odometry": prepared.odometry,
+        "repaired_times": int(log.info.get("repaired_times", 0)),
         "map": map_source,
         "map_size_m": list(grid.size_m),
         "map_free_area_m2": grid.free_area_m2,

@@ -227,7 +227,10 @@ class _Line:
         """The IPC timestamp if the line has one (host and logger time may follow)."""
         if self.pos >= len(self.tokens):
             return math.nan
-        return self.number("timestamp")
+        value = self.number("timestamp")
+        if not math.isfinite(value):
+            raise self.error(f"timestamp: expected a finite number of seconds, got {value}")
+        return value
 
 
 def _is_number(tok: str) -> bool:
@@ -393,9 +396,11 @@ class _Stream:
     max_range: list[float] = field(default_factory=list)
     laser_pose: list[tuple[float, float, float]] = field(default_factory=list)
     robot_pose: list[tuple[float, float, float]] = field(default_factory=list)
+    lines: list[int] = field(default_factory=list)
 
     def add(self, m: CarmenLaser) -> None:
         self.times.append(m.timestamp)
+        self.lines.append(m.line)
         self.ranges.append(m.ranges)
         self.start.append(m.start_angle)
         self.inc.append(m.angle_increment)
@@ -497,6 +502,7 @@ def read_carmen(
         "skipped_messages": dict(sorted(skipped.items())),
         "poses_from": "laser messages" if stream is with_pose else "ODOM (interpolated)",
         "params": params,
+        "scan_lines": np.asarray(stream.lines, dtype=np.int64),  # for errors naming the line
     }
     return RecordedLog(
         path=str(p),

@@ -196,9 +196,27 @@ def interpolate_poses(times: ArrayLike, poses: ArrayLike, at: ArrayLike) -> NDAr
     )
 
 
-def poses_look_corrected(path: str | os.PathLike[str]) -> bool:
-    """Whether a log's poses are taken as ground truth by default: its name says "corrected"."""
-    return "corrected" in Path(path).name.lower()
+def poses_look_corrected(log: RecordedLog) -> tuple[bool, str]:
+    """Whether a log's poses are SLAM-corrected ground truth, decided by its content, and why.
+
+    A Radish "corrected" CARMEN log is what a SLAM run wrote: an ``NEFF`` message (the
+    effective sample size of the run) for its scans, and every laser message's laser pose equal
+    to its robot pose (both are the corrected pose). Raw logs have no ``NEFF``; a raw log's laser
+    pose may equal its robot pose too (intel's does), so that alone is not evidence. Bags record
+    odometry, never corrected poses. The file's name plays no part.
+    """
+    if log.info.get("format") != "carmen":
+        return False, f"no: a {log.info.get('format', 'bag')} bag records odometry"
+    neff = int(log.info.get("skipped_messages", {}).get("NEFF", 0))
+    same = bool(len(log)) and not np.any(log.laser_mount)
+    if neff and same:
+        return True, (
+            f"yes: the log holds {neff} NEFF messages of a SLAM run and its laser and robot "
+            "poses are identical (a corrected log)"
+        )
+    if not neff:
+        return False, "no: the log has no NEFF messages of a SLAM run (a raw log)"
+    return False, "no: the laser pose differs from the robot pose (raw odometry)"
 
 
 def log_format(path: str | os.PathLike[str]) -> LogFormat:
@@ -257,5 +275,11 @@ def open_log(
         base_frame=base_frame,
     )
     if max_range_m is not None:
+        lowest = float(np.max(log.range_min)) if len(log) else 0.0
+        if not max_range_m > lowest:
+            raise ConfigError(
+                f"max-range: {max_range_m:g} m is not above the sensor's minimum range "
+                f"{lowest:g} m in {path}; expected a larger maximum"
+            )
         log = replace(log, range_max=np.full(len(log), float(max_range_m)))
     return log
