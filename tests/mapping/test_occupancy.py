@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from ceamcl.errors import LogFormatError
 from ceamcl.io.logs import RecordedLog
 from ceamcl.mapping import MappingConfig, build_map, log_odds_map, map_from_log
 from ceamcl.maps.grid import OccupancyGrid
@@ -82,10 +83,9 @@ def test_inf_is_no_return_and_nan_and_zero_are_dropped() -> None:
     assert value_at(grid, 1.5) == 0
 
 
-def test_all_nan_scans_map_nothing() -> None:
-    grid, stats = map_from_log(beam_log([math.nan] * 5, repeats=10), CFG)
-    assert stats.beams == 0 and stats.no_return == 0
-    assert stats.free_area_m2 == 0.0 and not grid.free_mask.any()
+def test_all_nan_scans_are_refused_rather_than_mapped_as_free() -> None:
+    with pytest.raises(LogFormatError, match=r"beams\.log: no usable reading in 10 scans"):
+        map_from_log(beam_log([math.nan] * 5, repeats=10), CFG)
 
 
 def test_a_map_beyond_the_memory_budget_is_refused_before_allocating() -> None:
@@ -98,7 +98,9 @@ def test_a_map_beyond_the_memory_budget_is_refused_before_allocating() -> None:
     with budget.use(budget.Budget(1 << 30)), pytest.raises(budget.BudgetError) as info:
         map_from_log(far, CFG)
     message = str(info.value)
-    assert message.startswith("beams.log: map built at resolution 0.1 m over the log's 3004 m x 3001 m")
+    assert message.startswith(
+        "beams.log: map built at resolution 0.1 m over the log's 3004 m x 3001 m"
+    )
     assert "map cells would need" in message and "memory budget of 1.0 GiB" in message
 
 

@@ -40,6 +40,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ceamcl import budget
+from ceamcl.errors import LogFormatError
 from ceamcl.maps.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
 from ceamcl.maps.ros_io import SAVE_FREE_THRESH, SAVE_OCCUPIED_THRESH
 from ceamcl.runner import RobotLog
@@ -215,6 +216,11 @@ def _map(
     if len(log) == 0:
         raise ValueError("log_odds_map: the log has no scans")
     start, end, hit, no_return = _beams(log, laser_world, cfg)
+    if hit.size == 0:
+        raise LogFormatError(
+            f"{getattr(log, 'path', 'log')}: no usable reading in {len(log)} scans (all NaN, "
+            "-inf or at or below the sensor's minimum); nothing to build a map from"
+        )
     pts = np.vstack([laser_world[:, :2], end]) if end.size else laser_world[:, :2]
     res = cfg.resolution_m
     x_min, y_min = pts.min(axis=0) - cfg.margin_m
