@@ -108,8 +108,9 @@ def test_round_trip(tmp_path: Path, fmt: str) -> None:
 
 def test_round_trip_awkward_floats(tmp_path: Path) -> None:
     # 1e-05 is written by repr() without a dot, which PyYAML would read back as a string.
-    grid = OccupancyGrid(np.array([[0, -1], [100, 0]], dtype=np.int8), 1e-5,
-                         (-1e-7, 123456789.125, -3.0))
+    grid = OccupancyGrid(
+        np.array([[0, -1], [100, 0]], dtype=np.int8), 1e-5, (-1e-7, 123456789.125, -3.0)
+    )
     assert load_map(save_map(grid, tmp_path / "m.yaml")) == grid
 
 
@@ -144,8 +145,11 @@ def test_saved_files_respect_umask(tmp_path: Path) -> None:
 
 def test_trinary_negate_0_and_orientation(tmp_path: Path) -> None:
     write_pgm(tmp_path / "map.pgm", PATTERN)
-    grid = load_map(write_yaml(tmp_path / "map.yaml", free_thresh="0.25",
-                               origin="[2.0, 3.0, 0.5]", resolution="0.1"))
+    grid = load_map(
+        write_yaml(
+            tmp_path / "map.yaml", free_thresh="0.25", origin="[2.0, 3.0, 0.5]", resolution="0.1"
+        )
+    )
     assert (grid.width, grid.height) == (3, 2)
     # p = (255 - v) / 255: 0 -> 1.0 occ; 254 -> 0.004 free; 205 -> 0.196 < 0.25 free (as nav2);
     # 255 -> 0 free; 100 -> 0.61 unknown; 50 -> 0.80 occ.
@@ -192,8 +196,7 @@ def test_scale_mode(tmp_path: Path, mode: str) -> None:
 
 def test_scale_mode_negate(tmp_path: Path) -> None:
     write_pgm(tmp_path / "map.pgm", [[0, 115, 255]])
-    grid = load_map(write_yaml(tmp_path / "map.yaml", mode="scale", negate="1",
-                               free_thresh="0.25"))
+    grid = load_map(write_yaml(tmp_path / "map.yaml", mode="scale", negate="1", free_thresh="0.25"))
     # p = v / 255: 0 -> free, 115 -> 0.451 -> 50, 255 -> occupied.
     assert grid.data.tolist() == [[0, 50, 100]]
 
@@ -351,8 +354,9 @@ def test_bad_values(tmp_path: Path, overrides: dict[str, str], key: str) -> None
 def test_missing_key(tmp_path: Path, key: str) -> None:
     write_pgm(tmp_path / "map.pgm", PATTERN)
     path = write_yaml(tmp_path / "missing.yaml")
-    text = "".join(line + "\n" for line in path.read_text().splitlines()
-                   if not line.startswith(f"{key}:"))
+    text = "".join(
+        line + "\n" for line in path.read_text().splitlines() if not line.startswith(f"{key}:")
+    )
     path.write_text(text)
     assert_map_error(path, f"'{key}'", "missing")
 

@@ -25,6 +25,7 @@ Setup = Callable[[Path], None]
 #: The box the generated logs drive in: x0, x1, y0, y1 (metres).
 BOX = (-1.0, 3.0, -1.5, 1.5)
 BEAMS = 37
+QUIET_MCL = ("--quiet", "--algorithm", "mcl")
 
 
 @dataclass(frozen=True)
@@ -164,7 +165,8 @@ def combine(*setups: Setup) -> Setup:
 
 def routes_yaml(sim: str = "", routes: str | None = None, symmetry: str = "") -> str:
     body = routes or (
-        "routes:\n  - name: a\n    start: [0.5, 0.5, 0.0]\n    waypoints: [[2.5, 0.5], [2.5, 2.5]]\n"
+        "routes:\n  - name: a\n    start: [0.5, 0.5, 0.0]\n"
+        "    waypoints: [[2.5, 0.5], [2.5, 2.5]]\n"
     )
     return f"map: map.yaml\n{body}{symmetry}{sim}"
 
@@ -193,9 +195,13 @@ def memory_cases() -> list[Case]:
     for depth in (4, 6, 8, 10):
         for key in ("origin", "resolution", "image"):
             text = billion_laughs(depth, key=key)
-            text = "\n".join(
-                line for line in map_yaml().splitlines() if not line.startswith(f"{key}:")
-            ) + "\n" + text
+            text = (
+                "\n".join(
+                    line for line in map_yaml().splitlines() if not line.startswith(f"{key}:")
+                )
+                + "\n"
+                + text
+            )
             out.append(
                 Case(
                     "memory",
@@ -237,7 +243,7 @@ def memory_cases() -> list[Case]:
             )
         )
     for far in (3000.0, 1e5, 1e9, -1e7):
-        lines = box_log_lines(6) + [flaser(0.0, "1.0", pose=(far, far, 0.0))]
+        lines = [*box_log_lines(6), flaser(0.0, "1.0", pose=(far, far, 0.0))]
         out.append(
             Case(
                 "memory",
@@ -258,6 +264,25 @@ def memory_cases() -> list[Case]:
                     ("--particles:", "memory budget"),
                 )
             )
+    for n in ("1000000000", str(2**40)):
+        out.append(
+            Case(
+                "memory",
+                f"experiment-trials-{n}",
+                ("experiment", "table1", "--trials", n, "--out", "out"),
+                lambda d: None,
+                ("--trials x routes x algorithms", "memory budget"),
+            )
+        )
+        out.append(
+            Case(
+                "memory",
+                f"evaluate-log-starts-{n}",
+                ("evaluate-log", "box.log", "--starts", n, "--out", "out"),
+                log,
+                ("--starts x algorithms", "memory budget"),
+            )
+        )
     sims = {
         "speed": "simulation:\n  speed_mps: 1.0e-9\n",
         "rate": "simulation:\n  rate_hz: 1.0e+12\n",
@@ -274,12 +299,12 @@ def memory_cases() -> list[Case]:
                 ("routes.yaml: routes[0]", "steps", "memory budget"),
             )
         )
-    for n in (10**9, 10**12, 2**62):
-        sym = f"symmetry:\n  rotations: {n}\n  centre: [2.0, 2.0]\n"
+    for rotations in (10**9, 10**12, 2**62):
+        sym = f"symmetry:\n  rotations: {rotations}\n  centre: [2.0, 2.0]\n"
         out.append(
             Case(
                 "memory",
-                f"routes-rotations-{n}",
+                f"routes-rotations-{rotations}",
                 ("experiment", "table1", "--routes", "routes.yaml", "--out", "out"),
                 combine(room_map(), write_bytes("routes.yaml", routes_yaml(symmetry=sym).encode())),
                 ("routes.yaml: symmetry", "memory budget"),
@@ -344,7 +369,14 @@ def stream_cases() -> list[Case]:
         ("evaluate-log", "fifo", "--out", "out"),
     ):
         out.append(
-            Case("stream", f"fifo-no-writer-{cmd[0]}", cmd, fifo("fifo"), ("fifo", "no data"), env=wait)
+            Case(
+                "stream",
+                f"fifo-no-writer-{cmd[0]}",
+                cmd,
+                fifo("fifo"),
+                ("fifo", "no data"),
+                env=wait,
+            )
         )
     out.append(
         Case(
@@ -521,7 +553,13 @@ def encoding_cases() -> list[Case]:
         ]
     ):
         out.append(
-            Case("encoding", f"ros2-bag-junk-{i}", ("run", "bag2", "--out", "out"), ros2(meta, db), ("bag2",))
+            Case(
+                "encoding",
+                f"ros2-bag-junk-{i}",
+                ("run", "bag2", "--out", "out"),
+                ros2(meta, db),
+                ("bag2",),
+            )
         )
     text = ("\n".join(box_log_lines()) + "\n").encode()
     packed = gzip.compress(text, mtime=0)
@@ -569,7 +607,7 @@ def physical_cases() -> list[Case]:
     base = box_log_lines(12)
     for k, bad in (
         (5, "-130.6"),
-        (3, "0.05"),
+        (3, "-2.0"),
         (8, "nan"),
         (8, "inf"),
         (4, "-inf"),
@@ -591,12 +629,15 @@ def physical_cases() -> list[Case]:
     nan_lines = ["PARAM robot_front_laser_max 8.0 nohost 0"] + [
         flaser(0.1 * k, f"{0.1 * k:g}", ["nan"] * BEAMS) for k in range(6)
     ]
-    for cmd in (("run", "nan.log", "--out", "out"), ("map-from-log", "nan.log", "-o", "out/m.yaml")):
+    for nan_cmd in (
+        ("run", "nan.log", "--out", "out"),
+        ("map-from-log", "nan.log", "-o", "out/m.yaml"),
+    ):
         out.append(
             Case(
                 "physical",
-                f"all-nan-ranges-{cmd[0]}",
-                cmd,
+                f"all-nan-ranges-{nan_cmd[0]}",
+                nan_cmd,
                 write_lines("nan.log", nan_lines),
                 ("nan.log", "no usable reading"),
             )
@@ -640,7 +681,9 @@ def cli_cases() -> list[Case]:
             ("--memory-budget", "lots"),
             ("--memory-budget", "0"),
         ):
-            out.append(Case("cli", f"{cmd}{flag}={v}", (cmd, flag, v, "--out", "out"), none, (flag,)))
+            out.append(
+                Case("cli", f"{cmd}{flag}={v}", (cmd, flag, v, "--out", "out"), none, (flag,))
+            )
     log = write_lines("box.log", box_log_lines())
     for flag, v in (
         ("--resolution", "0"),
@@ -651,11 +694,23 @@ def cli_cases() -> list[Case]:
         ("--truth", "maybe"),
         ("--seed", "s"),
     ):
-        out.append(Case("cli", f"run{flag}={v}", ("run", "box.log", flag, v, "--out", "out"), log, (flag,)))
-    out.append(Case("cli", "run-missing-log", ("run", "nowhere.log", "--out", "out"), none, ("nowhere.log",)))
+        out.append(
+            Case("cli", f"run{flag}={v}", ("run", "box.log", flag, v, "--out", "out"), log, (flag,))
+        )
+    out.append(
+        Case(
+            "cli", "run-missing-log", ("run", "nowhere.log", "--out", "out"), none, ("nowhere.log",)
+        )
+    )
     out.append(Case("cli", "run-no-log", ("run", "--out", "out"), none, ("log:",)))
     out.append(
-        Case("cli", "run-laser-absent", ("run", "box.log", "--laser", "3", "--out", "out"), log, ("box.log", "laser 3"))
+        Case(
+            "cli",
+            "run-laser-absent",
+            ("run", "box.log", "--laser", "3", "--out", "out"),
+            log,
+            ("box.log", "laser 3"),
+        )
     )
     out.append(
         Case(
@@ -734,7 +789,17 @@ def accepted_cases() -> list[Case]:
         Case(
             "accepted",
             "yaml-12-float-and-unknown-key",
-            ("run", "box.log", "--map", "map.yaml", "--out", "out", "--quiet", "--algorithm", "mcl"),
+            (
+                "run",
+                "box.log",
+                "--map",
+                "map.yaml",
+                "--out",
+                "out",
+                "--quiet",
+                "--algorithm",
+                "mcl",
+            ),
             combine(log, write_map(map_yaml(resolution="5e-2") + "comment: made by hand\n")),
             ("ignoring unknown key(s) 'comment'",),
             exit_code=0,
@@ -743,7 +808,17 @@ def accepted_cases() -> list[Case]:
         Case(
             "accepted",
             "map-smaller-than-the-robot",
-            ("run", "box.log", "--map", "map.yaml", "--out", "out", "--quiet", "--algorithm", "mcl"),
+            (
+                "run",
+                "box.log",
+                "--map",
+                "map.yaml",
+                "--out",
+                "out",
+                "--quiet",
+                "--algorithm",
+                "mcl",
+            ),
             combine(log, write_map(one_cell, b"P5\n1 1\n255\n\xfe")),
             ("smaller than the robot",),
             exit_code=0,
@@ -752,16 +827,26 @@ def accepted_cases() -> list[Case]:
         Case(
             "accepted",
             "tiny-max-range",
-            ("run", "box.log", "--max-range", "1e-300", "--out", "out", "--quiet", "--algorithm", "mcl"),
+            (
+                "run",
+                "box.log",
+                "--max-range",
+                "1e-300",
+                "--out",
+                "out",
+                "--quiet",
+                "--algorithm",
+                "mcl",
+            ),
             log,
-            ("max range 1e-300 m",),
+            ("max range 1e-300 m", "smaller than the robot"),
             exit_code=0,
-            warnings=1,
+            warnings=2,
         ),
         Case(
             "accepted",
             "clock-jitter-kept",
-            ("run", "jitter.log", "--out", "out", "--quiet", "--algorithm", "mcl"),
+            ("run", "jitter.log", "--out", "out", *QUIET_MCL),
             write_lines("jitter.log", back),
             (),
             exit_code=0,
@@ -770,7 +855,7 @@ def accepted_cases() -> list[Case]:
             "accepted",
             "times-repaired-on-request",
             ("run", "times.log", "--out", "out", "--repair-times", "--algorithm", "mcl"),
-            write_lines("times.log", box_log_lines(6) + [flaser(0.6, "-130.6")]),
+            write_lines("times.log", [*box_log_lines(6), flaser(0.6, "-130.6")]),
             (),
             exit_code=0,
         ),

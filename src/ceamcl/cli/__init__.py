@@ -11,6 +11,7 @@ import sys
 import warnings
 from collections.abc import Sequence
 from importlib import import_module
+from typing import NoReturn
 
 from rich.console import Console
 
@@ -52,6 +53,14 @@ class DefaultsFormatter(argparse.HelpFormatter):
         return f"{text} (default: {shown})" if text else f"default: {shown}"
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line (and a pointer to ``--help``), not the
+    whole usage block."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message}\n(see '{self.prog} --help')\n")
+
+
 def _memory_budget(text: str) -> Budget:
     try:
         return Budget(parse_bytes(text))
@@ -60,13 +69,13 @@ def _memory_budget(text: str) -> Budget:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="ceamcl",
         description="Coevolution-based adaptive Monte Carlo localisation and its baselines.",
         formatter_class=DefaultsFormatter,
     )
     parser.add_argument("--version", action="version", version=f"ceamcl {__version__}")
-    sub = parser.add_subparsers(dest="command", required=True)
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     for name in COMMAND_MODULES:
         import_module(f"ceamcl.cli.{name}").register(sub)
     for command in sub.choices.values():
@@ -105,6 +114,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ok = False
     try:
         with budget.use(limits), warnings.catch_warnings():
+            warnings.simplefilter("always", InputWarning)
             warnings.showwarning = _show_warning
             code: int = args.run(args, console)
         ok = code == 0

@@ -8,8 +8,10 @@ import argparse
 from rich.console import Console
 from rich.table import Table
 
+from ceamcl import budget
 from ceamcl.checks import physical_warnings
 from ceamcl.cli.common import positive_float, positive_int
+from ceamcl.cli.experiment import RUN_BYTES
 from ceamcl.cli.run import (
     add_log_arguments,
     add_truth_arguments,
@@ -98,6 +100,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     algos, skipped = resolve_algorithms(args.algorithms)
     if not algos:
         raise ConfigError("algorithms: none of the chosen algorithms can run here")
+    budget.require("--starts x algorithms", args.starts * len(algos), RUN_BYTES, "runs")
     prepared = prepare_log(
         log_path(args),
         seed=args.seed,
@@ -106,7 +109,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
         **open_kwargs(args),
     )
     grid, map_source = obtain_map(prepared.log, args.map, args.resolution)
-    physical_warnings(prepared.log, grid, args.map or map_source)
+    physical_warnings(prepared.log, grid, args.map or f"the map built from {prepared.log.path}")
     if not args.quiet:
         console.print(f"map: {map_source}")
         print_truth(console, prepared)

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 
 from rich.console import Console
 
+from ceamcl import budget
 from ceamcl.cli.common import non_negative_int, positive_float, positive_int
 from ceamcl.errors import ConfigError
 from ceamcl.viz.outputs import OutputOptions, add_output_arguments
@@ -175,6 +176,10 @@ def _settings(args: argparse.Namespace, console: Console) -> Any:
     )
 
 
+#: Memory a finished trial's record holds (its error and sample-size series).
+RUN_BYTES = 256 * 1024
+
+
 def run(args: argparse.Namespace, console: Console) -> int:
     from ceamcl.experiments import delta, kidnapped, marked, table1
     from ceamcl.experiments.common import run_metadata
@@ -182,10 +187,11 @@ def run(args: argparse.Namespace, console: Console) -> int:
 
     settings = _settings(args, console)
     outputs = _output_options(args)  # refuses --mp4 without ffmpeg before the trials
-    ensure_output_dir(args.out)  # fail on an unwritable folder before hours of trials
     runs = len(settings.algorithms) * len(settings.course.routes) * settings.trials
     if args.experiment == "delta":
         runs *= len(args.deltas or delta.DEFAULT_DELTAS)
+    budget.require("--trials x routes x algorithms", runs, RUN_BYTES, "runs")
+    ensure_output_dir(args.out)  # fail on an unwritable folder before hours of trials
     if not args.quiet:
         console.print(
             f"[bold]{args.experiment}[/] on {settings.course.name}: {runs} runs "

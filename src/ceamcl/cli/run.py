@@ -157,7 +157,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
         **open_kwargs(args),
     )
     grid, map_source = obtain_map(prepared.log, args.map, args.resolution)
-    physical_warnings(prepared.log, grid, args.map or map_source)
+    physical_warnings(prepared.log, grid, args.map or f"the map built from {prepared.log.path}")
     if not args.quiet:
         console.print(f"map: {map_source}")
         print_truth(console, prepared)
