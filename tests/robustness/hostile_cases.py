@@ -10,7 +10,6 @@ per category as real subprocesses.
 from __future__ import annotations
 
 import gzip
-import math
 import os
 import struct
 import zlib
@@ -20,10 +19,10 @@ from pathlib import Path
 
 import numpy as np
 
+from tests.box_room import box_ranges
+
 Setup = Callable[[Path], None]
 
-#: The box the generated logs drive in: x0, x1, y0, y1 (metres).
-BOX = (-1.0, 3.0, -1.5, 1.5)
 BEAMS = 37
 QUIET_MCL = ("--quiet", "--algorithm", "mcl")
 
@@ -48,32 +47,13 @@ class Case:
 
 
 # ---------------------------------------------------------------------------- file makers
-def box_ranges(x: float, y: float = 0.0) -> list[float]:
-    x0, x1, y0, y1 = BOX
-    out = []
-    for i in range(BEAMS):
-        a = -math.pi / 2 + math.pi * i / (BEAMS - 1)
-        dx, dy = math.cos(a), math.sin(a)
-        hits = []
-        if dx > 1e-9:
-            hits.append((x1 - x) / dx)
-        if dx < -1e-9:
-            hits.append((x0 - x) / dx)
-        if dy > 1e-9:
-            hits.append((y1 - y) / dy)
-        if dy < -1e-9:
-            hits.append((y0 - y) / dy)
-        out.append(min(hits))
-    return out
-
-
 def flaser(
     x: float,
     t: float | str,
     ranges: list[float] | list[str] | None = None,
     pose: tuple[float, float, float] | None = None,
 ) -> str:
-    r = ranges if ranges is not None else box_ranges(x)
+    r = ranges if ranges is not None else box_ranges(x, 0.0, BEAMS)
     p = "{:g} {:g} {:g}".format(*(pose or (x, 0.0, 0.0)))
     return f"FLASER {len(r)} " + " ".join(str(v) for v in r) + f" {p} {p} {t} nohost {t}"
 
@@ -187,6 +167,35 @@ def rng_text_bytes(seed: int, n: int) -> bytes:
     return bytes(data)
 
 
+RUN_WITH_MAP = ("run", "box.log", "--map", "map.yaml", "--out", "out")
+TABLE1_WITH_ROUTES = ("experiment", "table1", "--routes", "routes.yaml", "--out", "out")
+
+
+def map_case(
+    category: str,
+    name: str,
+    fragments: tuple[str, ...],
+    yaml_text: str | None = None,
+    image: bytes | None = None,
+    image_name: str = "map.pgm",
+) -> Case:
+    """``ceamcl run`` on the box log with a map of this YAML text and image."""
+    log = write_lines("box.log", box_log_lines())
+    return Case(
+        category,
+        name,
+        RUN_WITH_MAP,
+        combine(log, write_map(yaml_text, image, image_name)),
+        fragments,
+    )
+
+
+def routes_case(category: str, name: str, fragments: tuple[str, ...], routes: bytes) -> Case:
+    """``ceamcl experiment table1`` with this route file over a 4 m room."""
+    setup = combine(room_map(), write_bytes("routes.yaml", routes))
+    return Case(category, name, TABLE1_WITH_ROUTES, setup, fragments)
+
+
 # ---------------------------------------------------------------------------- categories
 def memory_cases() -> list[Case]:
     """Inputs whose sizes ask for unbounded memory: refused against the budget."""
@@ -203,45 +212,26 @@ def memory_cases() -> list[Case]:
                 + text
             )
             out.append(
-                Case(
-                    "memory",
-                    f"map-alias-bomb-{key}-{depth}",
-                    ("run", "box.log", "--map", "map.yaml", "--out", "out"),
-                    combine(log, write_map(text)),
-                    ("map.yaml:", "aliases"),
-                )
+                map_case("memory", f"map-alias-bomb-{key}-{depth}", ("map.yaml:", "aliases"), text)
             )
     for depth in (6, 10):
         for key in ("routes", "symmetry", "simulation"):
             text = "map: map.yaml\n" + billion_laughs(depth, key=key)
             out.append(
-                Case(
+                routes_case(
                     "memory",
                     f"routes-alias-bomb-{key}-{depth}",
-                    ("experiment", "table1", "--routes", "routes.yaml", "--out", "out"),
-                    combine(room_map(), write_bytes("routes.yaml", text.encode())),
                     ("routes.yaml:", "aliases"),
+                    text.encode(),
                 )
             )
     for res in ("0.0005", "0.0001", "1e-6", "1e-9"):
-        out.append(
-            Case(
-                "memory",
-                f"map-from-log-resolution-{res}",
-                ("map-from-log", "box.log", "--resolution", res, "-o", "out/map.yaml"),
-                log,
-                ("box.log: map built at resolution", "memory budget"),
-            )
-        )
-        out.append(
-            Case(
-                "memory",
-                f"run-resolution-{res}",
-                ("run", "box.log", "--resolution", res, "--out", "out"),
-                log,
-                ("box.log: map built at resolution", "memory budget"),
-            )
-        )
+        for argv in (
+            ("map-from-log", "box.log", "--resolution", res, "-o", "out/map.yaml"),
+            ("run", "box.log", "--resolution", res, "--out", "out"),
+        ):
+            refusal = ("box.log: map built at resolution", "memory budget")
+            out.append(Case("memory", f"{argv[0]}-resolution-{res}", argv, log, refusal))
     for far in (3000.0, 1e5, 1e9, -1e7):
         lines = [*box_log_lines(6), flaser(0.0, "1.0", pose=(far, far, 0.0))]
         out.append(
@@ -291,33 +281,32 @@ def memory_cases() -> list[Case]:
     }
     for what, sim in sims.items():
         out.append(
-            Case(
+            routes_case(
                 "memory",
                 f"routes-absurd-{what}",
-                ("experiment", "table1", "--routes", "routes.yaml", "--out", "out"),
-                combine(room_map(), write_bytes("routes.yaml", routes_yaml(sim).encode())),
                 ("routes.yaml: routes[0]", "steps", "memory budget"),
+                routes_yaml(sim).encode(),
             )
         )
     for rotations in (10**9, 10**12, 2**62):
         sym = f"symmetry:\n  rotations: {rotations}\n  centre: [2.0, 2.0]\n"
         out.append(
-            Case(
+            routes_case(
                 "memory",
                 f"routes-rotations-{rotations}",
-                ("experiment", "table1", "--routes", "routes.yaml", "--out", "out"),
-                combine(room_map(), write_bytes("routes.yaml", routes_yaml(symmetry=sym).encode())),
                 ("routes.yaml: symmetry", "memory budget"),
+                routes_yaml(symmetry=sym).encode(),
             )
         )
     for w, h in ((20000, 20000), (60000, 60000), (2**31 - 1, 2)):
         out.append(
-            Case(
+            map_case(
                 "memory",
                 f"map-image-header-{w}x{h}",
-                ("run", "box.log", "--map", "map.yaml", "--out", "out"),
-                combine(log, write_map(map_yaml("map.png"), png_header_only(w, h), "map.png")),
                 ("map.yaml", "map.png"),
+                map_yaml("map.png"),
+                png_header_only(w, h),
+                "map.png",
             )
         )
     out.append(
@@ -340,12 +329,11 @@ def memory_cases() -> list[Case]:
         )
     )
     out.append(
-        Case(
+        map_case(
             "memory",
             "map-yaml-over-1mib",
-            ("run", "box.log", "--map", "map.yaml", "--out", "out"),
-            combine(log, write_map(map_yaml() + "#" * (2 << 20) + "\n")),
             ("map.yaml: larger than 1.0 MiB",),
+            map_yaml() + "#" * (2 << 20) + "\n",
         )
     )
     return out
@@ -353,111 +341,86 @@ def memory_cases() -> list[Case]:
 
 def stream_cases() -> list[Case]:
     """Non-regular files: FIFOs with no writer, endless devices, folders."""
-    out: list[Case] = []
     log = write_lines("box.log", box_log_lines())
 
-    def fifo(name: str) -> Setup:
-        def setup(d: Path) -> None:
-            os.mkfifo(d / name)
+    def fifo(d: Path) -> None:
+        os.mkfifo(d / "fifo")
 
-        return setup
+    def folder(d: Path) -> None:
+        (d / "folder").mkdir()
+
+    def nothing(d: Path) -> None:
+        return None
 
     wait = {"CEAMCL_STREAM_WAIT_S": "0.5"}
-    for cmd in (
-        ("run", "fifo", "--out", "out"),
-        ("map-from-log", "fifo", "-o", "out/map.yaml"),
-        ("evaluate-log", "fifo", "--out", "out"),
-    ):
-        out.append(
-            Case(
-                "stream",
-                f"fifo-no-writer-{cmd[0]}",
-                cmd,
-                fifo("fifo"),
-                ("fifo", "no data"),
-                env=wait,
-            )
-        )
-    out.append(
-        Case(
-            "stream",
+    no_data = ("fifo", "no data")
+    specs: list[tuple[str, tuple[str, ...], Setup, tuple[str, ...], dict[str, str]]] = [
+        ("fifo-no-writer-run", ("run", "fifo", "--out", "out"), fifo, no_data, wait),
+        (
+            "fifo-no-writer-map-from-log",
+            ("map-from-log", "fifo", "-o", "out/m.yaml"),
+            fifo,
+            no_data,
+            wait,
+        ),
+        (
+            "fifo-no-writer-evaluate-log",
+            ("evaluate-log", "fifo", "--out", "out"),
+            fifo,
+            no_data,
+            wait,
+        ),
+        (
             "fifo-no-writer-map",
             ("run", "box.log", "--map", "fifo", "--out", "out"),
-            combine(log, fifo("fifo")),
-            ("fifo", "no data"),
-            env=wait,
-        )
-    )
-    out.append(
-        Case(
-            "stream",
+            combine(log, fifo),
+            no_data,
+            wait,
+        ),
+        (
             "fifo-no-writer-routes",
             ("experiment", "table1", "--routes", "fifo", "--out", "out"),
-            fifo("fifo"),
-            ("fifo", "no data"),
-            env=wait,
-        )
-    )
-    for dev in ("/dev/zero", "/dev/urandom"):
-        tag = dev.rsplit("/", 1)[1]
-        out.append(
-            Case("stream", f"{tag}-log-run", ("run", dev, "--out", "out"), lambda d: None, (dev,))
-        )
-        out.append(
-            Case(
-                "stream",
-                f"{tag}-log-map",
-                ("map-from-log", dev, "-o", "out/map.yaml"),
-                lambda d: None,
-                (dev,),
-            )
-        )
-        out.append(
-            Case(
-                "stream",
-                f"{tag}-map-yaml",
-                ("run", "box.log", "--map", dev, "--out", "out"),
-                log,
-                (dev,),
-            )
-        )
-        out.append(
-            Case(
-                "stream",
-                f"{tag}-routes",
-                ("experiment", "table1", "--routes", dev, "--out", "out"),
-                lambda d: None,
-                (dev,),
-            )
-        )
-    out.append(
-        Case(
-            "stream",
+            fifo,
+            no_data,
+            wait,
+        ),
+        (
             "dev-null-log",
             ("run", "/dev/null", "--out", "out"),
-            lambda d: None,
+            nothing,
             ("/dev/null", "no scan"),
-        )
-    )
-    out.append(
-        Case(
-            "stream",
+            {},
+        ),
+        (
             "folder-as-log",
             ("run", "folder", "--out", "out"),
-            lambda d: (d / "folder").mkdir(),
+            folder,
             ("folder", "not a ROS 2 bag"),
-        )
-    )
-    out.append(
-        Case(
-            "stream",
+            {},
+        ),
+        (
             "folder-as-map",
             ("run", "box.log", "--map", "folder", "--out", "out"),
-            combine(log, lambda d: (d / "folder").mkdir()),
+            combine(log, folder),
             ("folder",),
-        )
-    )
-    return out
+            {},
+        ),
+    ]
+    for dev in ("/dev/zero", "/dev/urandom"):
+        tag = dev.rsplit("/", 1)[1]
+        specs += [
+            (f"{tag}-log-run", ("run", dev, "--out", "out"), nothing, (dev,), {}),
+            (f"{tag}-log-map", ("map-from-log", dev, "-o", "out/m.yaml"), nothing, (dev,), {}),
+            (f"{tag}-map-yaml", ("run", "box.log", "--map", dev, "--out", "out"), log, (dev,), {}),
+            (
+                f"{tag}-routes",
+                ("experiment", "table1", "--routes", dev, "--out", "out"),
+                nothing,
+                (dev,),
+                {},
+            ),
+        ]
+    return [Case("stream", n, argv, setup, frags, env=env) for n, argv, setup, frags, env in specs]
 
 
 def encoding_cases() -> list[Case]:
@@ -471,15 +434,7 @@ def encoding_cases() -> list[Case]:
             if enc != "cp1252-bad"
             else good_routes.replace("name: a", "name: caf\xe9").encode("cp1252")
         )
-        out.append(
-            Case(
-                "encoding",
-                f"routes-{enc}",
-                ("experiment", "table1", "--routes", "routes.yaml", "--out", "out"),
-                combine(room_map(), write_bytes("routes.yaml", data)),
-                ("routes.yaml",),
-            )
-        )
+        out.append(routes_case("encoding", f"routes-{enc}", ("routes.yaml",), data))
         yaml_data = (
             map_yaml().encode(enc)
             if enc != "cp1252-bad"
@@ -590,12 +545,13 @@ def encoding_cases() -> list[Case]:
     }
     for name, (data, image_name) in images.items():
         out.append(
-            Case(
+            map_case(
                 "encoding",
                 f"image-{name}",
-                ("run", "box.log", "--map", "map.yaml", "--out", "out"),
-                combine(log, write_map(map_yaml(image_name), data, image_name)),
                 ("map.yaml", image_name),
+                map_yaml(image_name),
+                data,
+                image_name,
             )
         )
     return out
@@ -743,15 +699,7 @@ def cli_cases() -> list[Case]:
         "tabs": "image:\tmap.pgm\n\tresolution: 0.05\n",
     }
     for name, text in bad_yaml.items():
-        out.append(
-            Case(
-                "cli",
-                f"map-{name}",
-                ("run", "box.log", "--map", "map.yaml", "--out", "out"),
-                combine(log, write_map(text)),
-                ("map.yaml",),
-            )
-        )
+        out.append(map_case("cli", f"map-{name}", ("map.yaml",), text))
     bad_routes = {
         "no-map": "routes: []\n",
         "no-routes": "map: map.yaml\n",
@@ -767,98 +715,50 @@ def cli_cases() -> list[Case]:
         ),
     }
     for name, text in bad_routes.items():
-        out.append(
-            Case(
-                "cli",
-                f"routes-{name}",
-                ("experiment", "table1", "--routes", "routes.yaml", "--out", "out"),
-                combine(room_map(), write_bytes("routes.yaml", text.encode())),
-                ("routes.yaml",),
-            )
-        )
+        out.append(routes_case("cli", f"routes-{name}", ("routes.yaml",), text.encode()))
     return out
 
 
 def accepted_cases() -> list[Case]:
     """Inputs that are odd but legitimate: they run (exit 0), with the warnings they deserve."""
     log = write_lines("box.log", box_log_lines(12))
-    one_cell = map_yaml(resolution="0.05")
     back = box_log_lines(12)
     back[6] = flaser(0.5, "0.1")  # 0.4 s back: jitter, kept
-    return [
-        Case(
-            "accepted",
+    run_map = ("run", "box.log", "--map", "map.yaml")
+    specs: list[tuple[str, tuple[str, ...], Setup, tuple[str, ...], int]] = [
+        (
             "yaml-12-float-and-unknown-key",
-            (
-                "run",
-                "box.log",
-                "--map",
-                "map.yaml",
-                "--out",
-                "out",
-                "--quiet",
-                "--algorithm",
-                "mcl",
-            ),
+            run_map,
             combine(log, write_map(map_yaml(resolution="5e-2") + "comment: made by hand\n")),
             ("ignoring unknown key(s) 'comment'",),
-            exit_code=0,
-            warnings=1,
+            1,
         ),
-        Case(
-            "accepted",
+        (
             "map-smaller-than-the-robot",
-            (
-                "run",
-                "box.log",
-                "--map",
-                "map.yaml",
-                "--out",
-                "out",
-                "--quiet",
-                "--algorithm",
-                "mcl",
-            ),
-            combine(log, write_map(one_cell, b"P5\n1 1\n255\n\xfe")),
+            run_map,
+            combine(log, write_map(map_yaml(), b"P5\n1 1\n255\n\xfe")),
             ("smaller than the robot",),
-            exit_code=0,
-            warnings=1,
+            1,
         ),
-        Case(
-            "accepted",
+        (
             "tiny-max-range",
-            (
-                "run",
-                "box.log",
-                "--max-range",
-                "1e-300",
-                "--out",
-                "out",
-                "--quiet",
-                "--algorithm",
-                "mcl",
-            ),
+            ("run", "box.log", "--max-range", "1e-300"),
             log,
             ("max range 1e-300 m", "smaller than the robot"),
-            exit_code=0,
-            warnings=2,
+            2,
         ),
-        Case(
-            "accepted",
-            "clock-jitter-kept",
-            ("run", "jitter.log", "--out", "out", *QUIET_MCL),
-            write_lines("jitter.log", back),
-            (),
-            exit_code=0,
-        ),
-        Case(
-            "accepted",
+        ("clock-jitter-kept", ("run", "jitter.log"), write_lines("jitter.log", back), (), 0),
+        (
             "times-repaired-on-request",
-            ("run", "times.log", "--out", "out", "--repair-times", "--algorithm", "mcl"),
+            ("run", "times.log", "--repair-times"),
             write_lines("times.log", [*box_log_lines(6), flaser(0.6, "-130.6")]),
             (),
-            exit_code=0,
+            0,
         ),
+    ]
+    return [
+        Case("accepted", name, (*argv, "--out", "out", *QUIET_MCL), setup, frags, 0, warns)
+        for name, argv, setup, frags, warns in specs
     ]
 
 
