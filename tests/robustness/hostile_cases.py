@@ -298,7 +298,7 @@ def memory_cases() -> list[Case]:
                 routes_yaml(symmetry=sym).encode(),
             )
         )
-    for w, h in ((20000, 20000), (60000, 60000), (2**31 - 1, 2)):
+    for w, h in ((10000, 10000), (20000, 20000), (60000, 60000), (2**31 - 1, 2)):
         out.append(
             map_case(
                 "memory",

@@ -229,7 +229,11 @@ def _read_image(
     if not image_path.is_file():
         raise MapFormatError(f"{where} (key 'image'): expected an image file, not a folder")
     try:
-        with Image.open(image_path) as img:
+        with warnings.catch_warnings():
+            # The budget below decides what is too large, not Pillow's warning threshold.
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            img = Image.open(image_path)
+        with img:
             w, h = img.size  # from the header: checked before the pixels are decoded
             budget.require(
                 f"{where} (key 'image'): {w} x {h} pixels",
