@@ -318,6 +318,15 @@ def memory_cases() -> list[Case]:
             ("map.yaml: image", "3000 x 3000 pixels", "memory budget of 64.0 MiB"),
         )
     )
+    out.append(
+        Case(
+            "memory",
+            "gzip-expands-beyond-budget",
+            ("map-from-log", "bomb.log.gz", "-o", "out/map.yaml", "--memory-budget", "1MiB"),
+            write_lines("bomb.log.gz", box_log_lines(3000), gz=True),
+            ("bomb.log.gz:", "scans kept", "memory budget of 1.0 MiB"),
+        )
+    )
     big_line = ["FLASER 400000 " + " ".join(["1.0"] * 400000) + " 0 0 0 0 0 0 1 nohost 1"]
     out.append(
         Case(

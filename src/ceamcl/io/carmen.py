@@ -86,6 +86,9 @@ __all__ = [
     "read_carmen",
 ]
 
+#: Memory a kept scan holds beyond its ranges (array header, time, geometry, poses, line).
+SCAN_OVERHEAD_BYTES = 400
+
 #: The maximum range CARMEN assumes for old-style laser messages (readlog.c).
 CARMEN_DEFAULT_MAX_RANGE_M = 80.0
 
@@ -397,8 +400,18 @@ class _Stream:
     laser_pose: list[tuple[float, float, float]] = field(default_factory=list)
     robot_pose: list[tuple[float, float, float]] = field(default_factory=list)
     lines: list[int] = field(default_factory=list)
+    bytes_held: int = 0
 
-    def add(self, m: CarmenLaser) -> None:
+    def add(self, m: CarmenLaser, path: Path) -> None:
+        # a few MB of gzip can expand to gigabytes of scans: keep them within the budget
+        self.bytes_held += 8 * m.ranges.size + SCAN_OVERHEAD_BYTES
+        if self.bytes_held > budget.current().memory_bytes:
+            budget.require(
+                f"{path}:{m.line}: scans kept",
+                len(self.times) + 1,
+                self.bytes_held / (len(self.times) + 1),
+                "scans",
+            )
         self.times.append(m.timestamp)
         self.lines.append(m.line)
         self.ranges.append(m.ranges)
@@ -447,7 +460,7 @@ def read_carmen(
         if isinstance(msg, CarmenLaser):
             counts[msg.kind] += 1
             if msg.laser_id == laser:
-                (with_pose if msg.laser_pose is not None else raw).add(msg)
+                (with_pose if msg.laser_pose is not None else raw).add(msg, p)
         elif isinstance(msg, CarmenOdometry):
             counts["ODOM"] += 1
             odom.append((msg.timestamp, msg.x, msg.y, msg.theta))
