@@ -212,3 +212,19 @@ def test_a_failed_command_removes_only_the_folder_it_created(
     assert main(["soak", "--steps", "10", "--quiet", "--out", str(kept)]) == 2
     assert (kept / "notes.txt").read_text() == "keep me"  # existed before: left alone
     assert "failing on purpose" in capsys.readouterr().err
+
+
+def test_a_command_that_returns_keeps_its_folder_whatever_its_exit_code(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``soak`` exits 1 when memory grew: a finding written to its folder, not a failure."""
+    import ceamcl.cli.soak as soak_cli
+    from ceamcl.io.results import ensure_output_dir
+
+    def finding(args: Any, console: Any) -> int:
+        (ensure_output_dir(args.out) / "soak.json").write_text("{}")
+        return 1
+
+    monkeypatch.setattr(soak_cli, "run", finding)
+    assert main(["soak", "--quiet", "--out", str(tmp_path / "new")]) == 1
+    assert (tmp_path / "new" / "soak.json").is_file()
