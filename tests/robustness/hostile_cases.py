@@ -649,6 +649,11 @@ def cli_cases() -> list[Case]:
             out.append(
                 Case("cli", f"{cmd}{flag}={v}", (cmd, flag, v, "--out", "out"), none, (flag,))
             )
+    for v in ("lots", "-1GiB", "0"):
+        argv = ("experiment", "table1", "--memory-budget", v, "--out", "out")
+        out.append(
+            Case("cli", f"experiment-table1--memory-budget={v}", argv, none, ("--memory-budget",))
+        )
     log = write_lines("box.log", box_log_lines())
     for flag, v in (
         ("--resolution", "0"),

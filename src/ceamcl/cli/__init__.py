@@ -68,6 +68,15 @@ def _memory_budget(text: str) -> Budget:
         raise argparse.ArgumentTypeError(str(exc).removeprefix("memory-budget: ")) from None
 
 
+def _leaf_parsers(parser: argparse.ArgumentParser) -> list[argparse.ArgumentParser]:
+    """The parsers of the commands that run (``run``, ``experiment table1``, ...)."""
+    subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    if not subs:
+        return [parser]
+    parser.formatter_class = DefaultsFormatter
+    return [leaf for a in subs for p in a.choices.values() for leaf in _leaf_parsers(p)]
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="ceamcl",
@@ -78,7 +87,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     for name in COMMAND_MODULES:
         import_module(f"ceamcl.cli.{name}").register(sub)
-    for command in sub.choices.values():
+    for command in _leaf_parsers(parser):
         command.formatter_class = DefaultsFormatter
         command.add_argument(
             "--memory-budget",
