@@ -129,7 +129,9 @@ def test_bad_arguments_exit_2_without_traceback(
         main([*argv, "--out", str(tmp_path / "x")] if argv[:1] == ["demo"] else argv)
     assert info.value.code == 2
     err = capsys.readouterr().err
-    assert "usage:" in err
+    lines = err.strip().splitlines()
+    assert len(lines) == 2 and ": error: " in lines[0]  # the error, then where help is
+    assert lines[1].startswith("(see 'ceamcl") and lines[1].endswith("--help')")
     assert "Traceback" not in err
     assert not (tmp_path / "x").exists()  # nothing ran
 

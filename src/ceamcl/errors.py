@@ -22,3 +22,7 @@ class LogFormatError(CeamclError, ValueError):
 
 class ConfigError(CeamclError, ValueError):
     """A configuration value or command-line argument is out of range or unknown."""
+
+
+class InputWarning(UserWarning):
+    """Input that is accepted but probably not what was meant (the CLI prints one line)."""

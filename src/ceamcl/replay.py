@@ -37,6 +37,7 @@ from ceamcl.filters.registry import make_filter
 from ceamcl.io.logs import DEFAULT_SYNTHETIC_NOISE, open_log, poses_look_corrected
 from ceamcl.io.recorded import RecordedLog
 from ceamcl.io.results import ensure_output_dir
+from ceamcl.io.timestamps import check_times
 from ceamcl.mapping import MappingConfig, map_from_log
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.maps.ros_io import load_map
@@ -56,6 +57,7 @@ class PreparedLog:
     odometry: str
     noise: OdometryNoise | None
     seed: int
+    truth_reason: str = ""
 
 
 def prepare_log(
@@ -64,18 +66,28 @@ def prepare_log(
     seed: int = 0,
     truth: TruthMode = "auto",
     noise: OdometryNoise = DEFAULT_SYNTHETIC_NOISE,
+    repair_times: bool = False,
     **open_kwargs: Any,
 ) -> PreparedLog:
     """Open a log and decide ground truth and odometry (module docstring, steps 1-2).
 
-    ``truth="auto"`` takes the poses as ground truth when the file name says "corrected".
+    ``truth="auto"`` takes the poses as ground truth when the log's content shows a corrected
+    log (:func:`ceamcl.io.logs.poses_look_corrected`); ``truth_reason`` says what was decided
+    and why. Scan times are checked (:func:`ceamcl.io.timestamps.check_times`), and repaired
+    with ``repair_times``.
     """
-    log = open_log(path, **open_kwargs)
-    use_truth = poses_look_corrected(path) if truth == "auto" else truth == "yes"
+    log = check_times(open_log(path, **open_kwargs), repair=repair_times)
+    looks, why = poses_look_corrected(log)
+    if truth == "auto":
+        use_truth, reason = looks, f"{why} (--truth auto)"
+    else:
+        use_truth, reason = truth == "yes", f"{truth}: as --truth {truth} says (content: {why})"
     if not use_truth:
-        return PreparedLog(log, False, "recorded", None, seed)
+        return PreparedLog(log, False, "recorded", None, seed, reason)
     odo_rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(1)[0])
-    return PreparedLog(log.with_synthetic_odometry(noise, odo_rng), True, "synthetic", noise, seed)
+    return PreparedLog(
+        log.with_synthetic_odometry(noise, odo_rng), True, "synthetic", noise, seed, reason
+    )
 
 
 def obtain_map(
@@ -162,7 +174,9 @@ def run_summary(
         "duration_s": log.duration_s,
         "path_length_m": log.path_length_m,
         "ground_truth": "the log's poses (SLAM-corrected)" if prepared.has_truth else None,
+        "ground_truth_decision": prepared.truth_reason,
         "odometry": prepared.odometry,
+        "repaired_times": int(log.info.get("repaired_times", 0)),
         "map": map_source,
         "map_size_m": list(grid.size_m),
         "map_free_area_m2": grid.free_area_m2,

@@ -116,6 +116,7 @@ def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
 
 #: The core: what a filter needs to run. It knows nothing of the front ends.
 CORE = (
+    "ceamcl.budget",
     "ceamcl.angles",
     "ceamcl.pose",
     "ceamcl.errors",
@@ -163,11 +164,31 @@ def core_violations(src: Path = SRC) -> list[str]:
 #: prefix that names it (``ceamcl.io.results`` is an output, the other ``ceamcl.io`` modules
 #: read data). docs/architecture.md draws this.
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
-    ("base", ("ceamcl", "ceamcl.angles", "ceamcl.pose", "ceamcl.errors")),
+    (
+        "base",
+        (
+            "ceamcl",
+            "ceamcl.angles",
+            "ceamcl.pose",
+            "ceamcl.errors",
+            "ceamcl.budget",
+            # file reading that knows nothing of robots: bounded streams, safe YAML
+            "ceamcl.io.streams",
+            "ceamcl.io.safe_yaml",
+            "ceamcl.io.created",
+        ),
+    ),
     ("models", ("ceamcl.maps", "ceamcl.motion", "ceamcl.sensors")),
     (
         "filters and data",
-        ("ceamcl.filters", "ceamcl.peers", "ceamcl.simulation", "ceamcl.mapping", "ceamcl.io"),
+        (
+            "ceamcl.filters",
+            "ceamcl.peers",
+            "ceamcl.simulation",
+            "ceamcl.mapping",
+            "ceamcl.io",
+            "ceamcl.checks",
+        ),
     ),
     ("runner", ("ceamcl.runner",)),
     (

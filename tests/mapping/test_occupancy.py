@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from ceamcl.errors import LogFormatError
 from ceamcl.io.logs import RecordedLog
 from ceamcl.mapping import MappingConfig, build_map, log_odds_map, map_from_log
 from ceamcl.maps.grid import OccupancyGrid
@@ -74,11 +75,33 @@ def test_reading_beyond_usable_range_clears_to_it_without_hit() -> None:
     assert value_at(grid, 5.3) == -1
 
 
-def test_nan_is_no_return_and_zero_is_ignored() -> None:
-    grid, stats = map_from_log(beam_log([math.nan, 0.0], repeats=10), CFG)
+def test_inf_is_no_return_and_nan_and_zero_are_dropped() -> None:
+    """REP 117: +inf is "no return" (clears free space), NaN an erroneous reading (dropped)."""
+    grid, stats = map_from_log(beam_log([math.inf, math.nan, 0.0], repeats=10), CFG)
     assert stats.no_return == 10
-    assert stats.beams == 10  # the zero reading is dropped
+    assert stats.beams == 10  # only the +inf readings are traced
     assert value_at(grid, 1.5) == 0
+
+
+def test_all_nan_scans_are_refused_rather_than_mapped_as_free() -> None:
+    with pytest.raises(LogFormatError, match=r"beams\.log: no usable reading in 10 scans"):
+        map_from_log(beam_log([math.nan] * 5, repeats=10), CFG)
+
+
+def test_a_map_beyond_the_memory_budget_is_refused_before_allocating() -> None:
+    from ceamcl import budget
+
+    log = beam_log([3.0], repeats=2)
+    far = RecordedLog(
+        **{**log.__dict__, "poses": np.array([[0.0, 0.0, 0.0], [3000.0, 3000.0, 0.0]])}
+    )
+    with budget.use(budget.Budget(1 << 30)), pytest.raises(budget.BudgetError) as info:
+        map_from_log(far, CFG)
+    message = str(info.value)
+    assert message.startswith(
+        "beams.log: map built at resolution 0.1 m over the log's 3004 m x 3001 m"
+    )
+    assert "map cells would need" in message and "memory budget of 1.0 GiB" in message
 
 
 def test_diagonal_beam_passes_through_contiguous_cells() -> None:

@@ -10,7 +10,7 @@ import pytest
 import yaml
 from PIL import Image
 
-from ceamcl.errors import CeamclError, MapFormatError
+from ceamcl.errors import CeamclError, InputWarning, MapFormatError
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.maps.ros_io import load_map, save_map
 
@@ -108,8 +108,9 @@ def test_round_trip(tmp_path: Path, fmt: str) -> None:
 
 def test_round_trip_awkward_floats(tmp_path: Path) -> None:
     # 1e-05 is written by repr() without a dot, which PyYAML would read back as a string.
-    grid = OccupancyGrid(np.array([[0, -1], [100, 0]], dtype=np.int8), 1e-5,
-                         (-1e-7, 123456789.125, -3.0))
+    grid = OccupancyGrid(
+        np.array([[0, -1], [100, 0]], dtype=np.int8), 1e-5, (-1e-7, 123456789.125, -3.0)
+    )
     assert load_map(save_map(grid, tmp_path / "m.yaml")) == grid
 
 
@@ -144,8 +145,11 @@ def test_saved_files_respect_umask(tmp_path: Path) -> None:
 
 def test_trinary_negate_0_and_orientation(tmp_path: Path) -> None:
     write_pgm(tmp_path / "map.pgm", PATTERN)
-    grid = load_map(write_yaml(tmp_path / "map.yaml", free_thresh="0.25",
-                               origin="[2.0, 3.0, 0.5]", resolution="0.1"))
+    grid = load_map(
+        write_yaml(
+            tmp_path / "map.yaml", free_thresh="0.25", origin="[2.0, 3.0, 0.5]", resolution="0.1"
+        )
+    )
     assert (grid.width, grid.height) == (3, 2)
     # p = (255 - v) / 255: 0 -> 1.0 occ; 254 -> 0.004 free; 205 -> 0.196 < 0.25 free (as nav2);
     # 255 -> 0 free; 100 -> 0.61 unknown; 50 -> 0.80 occ.
@@ -192,8 +196,7 @@ def test_scale_mode(tmp_path: Path, mode: str) -> None:
 
 def test_scale_mode_negate(tmp_path: Path) -> None:
     write_pgm(tmp_path / "map.pgm", [[0, 115, 255]])
-    grid = load_map(write_yaml(tmp_path / "map.yaml", mode="scale", negate="1",
-                               free_thresh="0.25"))
+    grid = load_map(write_yaml(tmp_path / "map.yaml", mode="scale", negate="1", free_thresh="0.25"))
     # p = v / 255: 0 -> free, 115 -> 0.451 -> 50, 255 -> occupied.
     assert grid.data.tolist() == [[0, 50, 100]]
 
@@ -351,18 +354,37 @@ def test_bad_values(tmp_path: Path, overrides: dict[str, str], key: str) -> None
 def test_missing_key(tmp_path: Path, key: str) -> None:
     write_pgm(tmp_path / "map.pgm", PATTERN)
     path = write_yaml(tmp_path / "missing.yaml")
-    text = "".join(line + "\n" for line in path.read_text().splitlines()
-                   if not line.startswith(f"{key}:"))
+    text = "".join(
+        line + "\n" for line in path.read_text().splitlines() if not line.startswith(f"{key}:")
+    )
     path.write_text(text)
     assert_map_error(path, f"'{key}'", "missing")
 
 
-def test_unknown_key(tmp_path: Path) -> None:
+def test_unknown_key_is_ignored_with_a_warning_as_map_server_does(tmp_path: Path) -> None:
     write_pgm(tmp_path / "map.pgm", PATTERN)
     path = write_yaml(tmp_path / "unknown.yaml", extra="occupied_thres: 0.6\n")
-    message = assert_map_error(path, "'occupied_thres'", "unknown")
+    with pytest.warns(InputWarning, match="ignoring unknown key.*'occupied_thres'") as record:
+        grid = load_map(path)
+    message = str(record[0].message)
+    assert str(path) in message
     for expected in ("image", "resolution", "origin", "negate", "free_thresh", "mode"):
         assert expected in message
+    assert grid == load_map(write_yaml(tmp_path / "plain.yaml"))
+
+
+def test_yaml_12_numbers_are_read_as_ros_reads_them(tmp_path: Path) -> None:
+    """yaml-cpp (YAML 1.2) reads 5e-2 as a number; PyYAML's YAML 1.1 resolver does not."""
+    write_pgm(tmp_path / "map.pgm", PATTERN)
+    for text, value in (("5e-2", 0.05), ("5E-2", 0.05), (".5", 0.5), ("1e0", 1.0)):
+        path = write_yaml(tmp_path / "sci.yaml", resolution=text)
+        assert load_map(path).resolution == value
+
+
+def test_aliases_are_refused_with_the_line(tmp_path: Path) -> None:
+    write_pgm(tmp_path / "map.pgm", PATTERN)
+    path = write_yaml(tmp_path / "alias.yaml", extra="a: &x [1, 2]\nb: *x\n")
+    assert_map_error(path, "aliases (*x) are not accepted", f"{path}:")
 
 
 @pytest.mark.parametrize(

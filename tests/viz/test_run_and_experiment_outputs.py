@@ -6,7 +6,6 @@ from __future__ import annotations
 import csv
 import dataclasses
 import json
-import math
 from pathlib import Path
 from typing import Any
 
@@ -25,6 +24,7 @@ from ceamcl.experiments.routes import resolve_course
 from ceamcl.experiments.trials import run_trial
 from ceamcl.outputs import OutputOptions
 from ceamcl.replay import obtain_map, prepare_log, replay_log
+from tests.box_room import box_ranges
 
 SCANS = 24
 BEAMS = 180
@@ -34,24 +34,10 @@ BOX = (-1.0, 3.0, -1.5, 1.5)  # x_min, x_max, y_min, y_max of the room [m]
 def box_log(tmp_path: Path) -> Path:
     """A CARMEN log of a robot driving 2.3 m along a 4 m x 3 m box, one FLASER a step (the
     poses are exact, so with ``--truth yes`` they are the ground truth)."""
-    x0, x1, y0, y1 = BOX
     lines = ["PARAM robot_front_laser_max 8.0 nohost 0"]
     for k in range(SCANS):
         x, t = 0.1 * k, 0.1 * k
-        ranges = []
-        for i in range(BEAMS):
-            a = -math.pi / 2 + math.pi * i / (BEAMS - 1)
-            dx, dy = math.cos(a), math.sin(a)
-            hits = []
-            if dx > 1e-9:
-                hits.append((x1 - x) / dx)
-            if dx < -1e-9:
-                hits.append((x0 - x) / dx)
-            if dy > 1e-9:
-                hits.append(y1 / dy)
-            if dy < -1e-9:
-                hits.append(y0 / dy)
-            ranges.append(min(hits))
+        ranges = box_ranges(x, 0.0, BEAMS, BOX)
         pose = f"{x:g} 0 0"
         lines.append(
             f"FLASER {BEAMS} "

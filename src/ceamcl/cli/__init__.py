@@ -8,13 +8,17 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 from collections.abc import Sequence
 from importlib import import_module
+from typing import NoReturn
 
 from rich.console import Console
 
-from ceamcl import __version__
-from ceamcl.errors import CeamclError
+from ceamcl import __version__, budget
+from ceamcl.budget import Budget, default_memory_bytes, format_bytes, parse_bytes
+from ceamcl.errors import CeamclError, InputWarning
+from ceamcl.io import created
 
 #: Subcommand modules, in the order ``ceamcl --help`` lists them.
 COMMAND_MODULES: tuple[str, ...] = (
@@ -29,27 +33,118 @@ COMMAND_MODULES: tuple[str, ...] = (
 )
 
 
+class DefaultsFormatter(argparse.HelpFormatter):
+    """Help that shows each option's default, except where there is none to show (None,
+    False) or the help text already states it."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        text = action.help or ""
+        default = action.default
+        if (
+            not action.option_strings
+            or action.nargs == 0  # flags: their default is the flag's absence
+            or default in (None, False, argparse.SUPPRESS)
+            or "default" in text
+            or text == argparse.SUPPRESS
+            or isinstance(action, argparse._HelpAction | argparse._VersionAction)
+        ):
+            return action.help
+        shown = " ".join(map(str, default)) if isinstance(default, list | tuple) else "%(default)s"
+        return f"{text} (default: {shown})" if text else f"default: {shown}"
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line (and a pointer to ``--help``), not the
+    whole usage block."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message}\n(see '{self.prog} --help')\n")
+
+
+def _memory_budget(text: str) -> Budget:
+    try:
+        return Budget(parse_bytes(text))
+    except CeamclError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("memory-budget: ")) from None
+
+
+def _leaf_parsers(parser: argparse.ArgumentParser) -> list[argparse.ArgumentParser]:
+    """The parsers of the commands that run (``run``, ``experiment table1``, ...)."""
+    subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    if not subs:
+        return [parser]
+    parser.formatter_class = DefaultsFormatter
+    return [leaf for a in subs for p in a.choices.values() for leaf in _leaf_parsers(p)]
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="ceamcl",
         description="Coevolution-based adaptive Monte Carlo localisation and its baselines.",
+        formatter_class=DefaultsFormatter,
     )
     parser.add_argument("--version", action="version", version=f"ceamcl {__version__}")
-    sub = parser.add_subparsers(dest="command", required=True)
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     for name in COMMAND_MODULES:
         import_module(f"ceamcl.cli.{name}").register(sub)
+    for command in _leaf_parsers(parser):
+        command.formatter_class = DefaultsFormatter
+        command.add_argument(
+            "--memory-budget",
+            type=_memory_budget,
+            default=None,
+            metavar="SIZE",
+            help="refuse inputs that would need more memory than this, e.g. 16GiB "
+            f"(default: {format_bytes(default_memory_bytes())}, a quarter of this machine's "
+            "memory; docs/robustness.md)",
+        )
     return parser
 
 
+def _show_warning(
+    message: Warning | str, category: type[Warning], *_: object, **__: object
+) -> None:
+    if issubclass(category, InputWarning):
+        print(f"ceamcl: warning: {message}", file=sys.stderr)
+    else:
+        _default_showwarning(message, category, *_, **__)  # type: ignore[arg-type]
+
+
+_default_showwarning = warnings.showwarning
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run one command. Bad input: one line on stderr, exit 2. Ctrl-C: one line, exit 130.
+    Either way an output folder the command created is removed again."""
     parser = build_parser()
     args = parser.parse_args(argv)
     console = Console(stderr=False)
+    limits = args.memory_budget or Budget.default()
+    ok = False
     try:
-        code: int = args.run(args, console)
+        with budget.use(limits), warnings.catch_warnings():
+            warnings.simplefilter("always", InputWarning)
+            warnings.showwarning = _show_warning
+            code: int = args.run(args, console)
+        ok = True  # a command that returns has written its results (soak exits 1 on a finding)
     except CeamclError as exc:
         print(f"ceamcl: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("ceamcl: interrupted", file=sys.stderr)
+        return 130
+    except MemoryError:
+        print(
+            f"ceamcl: error: out of memory ({limits.describe()}); an input size escaped the "
+            "budget checks, please report it",
+            file=sys.stderr,
+        )
+        return 3
+    finally:
+        if ok:
+            created.forget()
+        else:
+            created.remove_created()
     return code
 
 

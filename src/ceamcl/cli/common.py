@@ -19,6 +19,7 @@ from rich.progress import (
 )
 from rich.table import Table
 
+from ceamcl import budget
 from ceamcl.errors import ConfigError
 from ceamcl.filters import registry
 from ceamcl.outputs import DEFAULT_FPS, DEFAULT_STRIDE
@@ -60,6 +61,10 @@ def require_available(algorithm: str) -> None:
     reason = registry.unavailable_reason(algorithm)
     if reason is not None:
         raise ConfigError(f"algorithm: {algorithm} cannot run here: {reason}")
+def check_particles(count: int | None) -> None:
+    """Refuse a ``--particles`` count beyond the memory budget, before any filter is built."""
+    if count is not None:
+        budget.require("--particles", count, budget.PARTICLE_BYTES, "particles")
 
 
 def make_progress(label: str, console: Console, *, quiet: bool = False) -> Progress:

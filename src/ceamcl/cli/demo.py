@@ -9,6 +9,7 @@ from rich.console import Console
 from ceamcl.cli.common import (
     RunProgress,
     add_output_arguments,
+    check_particles,
     make_progress,
     non_negative_int,
     positive_int,
@@ -62,6 +63,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 
 def run(args: argparse.Namespace, console: Console) -> int:
+    check_particles(args.particles)
     outputs = OutputOptions.from_args(args)
     require_available(args.algorithm)
     progress = make_progress(

@@ -8,8 +8,17 @@ import argparse
 from rich.console import Console
 from rich.table import Table
 
+from ceamcl import budget
+from ceamcl.checks import physical_warnings
 from ceamcl.cli.common import TrialsProgress, positive_float, positive_int
-from ceamcl.cli.run import add_log_arguments, add_truth_arguments, log_path, open_kwargs
+from ceamcl.cli.experiment import RUN_BYTES
+from ceamcl.cli.run import (
+    add_log_arguments,
+    add_truth_arguments,
+    log_path,
+    open_kwargs,
+    print_truth,
+)
 from ceamcl.errors import ConfigError
 from ceamcl.experiments.common import fmt, pct
 from ceamcl.experiments.evaluate_log import evaluate_log
@@ -90,10 +99,19 @@ def run(args: argparse.Namespace, console: Console) -> int:
     algos, skipped = registry.resolve(args.algorithms)
     if not algos:
         raise ConfigError("algorithms: none of the chosen algorithms can run here")
-    prepared = prepare_log(log_path(args), seed=args.seed, truth=args.truth, **open_kwargs(args))
+    budget.require("--starts x algorithms", args.starts * len(algos), RUN_BYTES, "runs")
+    prepared = prepare_log(
+        log_path(args),
+        seed=args.seed,
+        truth=args.truth,
+        repair_times=args.repair_times,
+        **open_kwargs(args),
+    )
     grid, map_source = obtain_map(prepared.log, args.map, args.resolution)
+    physical_warnings(prepared.log, grid, args.map or f"the map built from {prepared.log.path}")
     if not args.quiet:
         console.print(f"map: {map_source}")
+        print_truth(console, prepared)
         for name, why in skipped.items():
             console.print(f"[yellow]{name} skipped[/]: {why}")
     with TrialsProgress(console, quiet=args.quiet) as progress:

@@ -13,6 +13,7 @@ from typing import Any
 from rich.console import Console
 from rich.table import Table
 
+from ceamcl import budget
 from ceamcl.cli.common import (
     RunProgress,
     TrialsProgress,
@@ -281,8 +282,13 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 def _settings(args: argparse.Namespace, console: Console) -> ExperimentSettings:
     names = None
-    if args.algorithms:
+    if args.algorithms is not None:
         names = [n for a in args.algorithms for n in _names(a)]
+        if not names:
+            raise ConfigError(
+                f"algorithms: expected one or more algorithm names, got {args.algorithms!r} "
+                "(leave --algorithms out to run all)"
+            )
     course = resolve_course(args.experiment, args.world, args.routes).select(args.starts)
     skipped: dict[str, str] = {}
     fixed = EXPERIMENTS[args.experiment].algorithms
@@ -310,13 +316,18 @@ def _settings(args: argparse.Namespace, console: Console) -> ExperimentSettings:
     )
 
 
+#: Memory a finished trial's record holds (its error and sample-size series).
+RUN_BYTES = 256 * 1024
+
+
 def run(args: argparse.Namespace, console: Console) -> int:
     experiment = EXPERIMENTS[args.experiment]
     settings = _settings(args, console)
     outputs = _output_options(args)  # refuses --mp4 without ffmpeg before the trials
-    ensure_output_dir(args.out)  # fail on an unwritable folder before hours of trials
     runs = len(settings.algorithms) * len(settings.course.routes) * settings.trials
     runs *= experiment.repeats(args)
+    budget.require("--trials x routes x algorithms", runs, RUN_BYTES, "runs")
+    ensure_output_dir(args.out)  # fail on an unwritable folder before hours of trials
     if not args.quiet:
         console.print(
             f"[bold]{args.experiment}[/] on {settings.course.name}: {runs} runs "

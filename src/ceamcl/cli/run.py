@@ -8,6 +8,7 @@ from typing import Any
 
 from rich.console import Console
 
+from ceamcl.checks import physical_warnings
 from ceamcl.cli.common import (
     RunProgress,
     add_output_arguments,
@@ -32,8 +33,7 @@ def log_path(args: argparse.Namespace) -> str:
     given = [v for v in (args.log, args.log_option) if v is not None]
     if len(given) != 1:
         raise ConfigError(
-            "log: give the log once, as LOG or --log LOG"
-            + ("" if given else " (none given)")
+            "log: give the log once, as LOG or --log LOG" + ("" if given else " (none given)")
         )
     return str(given[0])
 
@@ -78,10 +78,22 @@ def add_truth_arguments(p: argparse.ArgumentParser) -> None:
         "--truth",
         choices=("auto", "yes", "no"),
         default="auto",
-        help="are the log's poses SLAM-corrected ground truth? auto: when the file name says "
-        "'corrected'. With truth the filter gets synthetic odometry drawn from it",
+        help="are the log's poses SLAM-corrected ground truth? auto: when the log's content "
+        "says so (NEFF messages of a SLAM run, laser pose = robot pose; the file name plays no "
+        "part). With truth the filter gets synthetic odometry drawn from it (default: auto)",
     )
-    p.add_argument("--seed", type=non_negative_int, default=0)
+    p.add_argument(
+        "--repair-times",
+        action="store_true",
+        help="raise scan times that go back by more than 1 s (or are not numbers) to the "
+        "latest time before them, instead of refusing the log",
+    )
+    p.add_argument(
+        "--seed",
+        type=non_negative_int,
+        default=0,
+        help="seed of the filter and of synthetic odometry",
+    )
 
 
 def open_kwargs(args: argparse.Namespace) -> dict[str, Any]:
@@ -93,6 +105,16 @@ def open_kwargs(args: argparse.Namespace) -> dict[str, Any]:
         "odom_frame": args.odom_frame,
         "base_frame": args.base_frame,
     }
+
+
+def print_truth(console: Console, prepared: Any) -> None:
+    """What was decided about ground truth and odometry, and repaired scan times."""
+    console.print(f"ground truth: {prepared.truth_reason}")
+    if not prepared.has_truth:
+        console.print("odometry: the log's recorded odometry (no ground truth: no errors scored)")
+    repaired = int(prepared.log.info.get("repaired_times", 0))
+    if repaired:
+        console.print(f"scan times: {repaired} raised to the latest before them (--repair-times)")
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -110,7 +132,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument(
         "--resolution", type=positive_float, default=0.05, help="cell side of a built map [m]"
     )
-    p.add_argument("--algorithm", choices=registry.names(), default=DEFAULT_ALGORITHM)
+    p.add_argument(
+        "--algorithm", choices=registry.names(), default=DEFAULT_ALGORITHM, help="filter to run"
+    )
     add_truth_arguments(p)
     p.add_argument("--out", default="run-out", help="folder for the results")
     p.add_argument("--quiet", action="store_true", help="no progress bar or table")
@@ -122,10 +146,18 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 def run(args: argparse.Namespace, console: Console) -> int:
     outputs = OutputOptions.from_args(args)  # refuses --mp4 without ffmpeg before the run
     require_available(args.algorithm)
-    prepared = prepare_log(log_path(args), seed=args.seed, truth=args.truth, **open_kwargs(args))
+    prepared = prepare_log(
+        log_path(args),
+        seed=args.seed,
+        truth=args.truth,
+        repair_times=args.repair_times,
+        **open_kwargs(args),
+    )
     grid, map_source = obtain_map(prepared.log, args.map, args.resolution)
+    physical_warnings(prepared.log, grid, args.map or f"the map built from {prepared.log.path}")
     if not args.quiet:
         console.print(f"map: {map_source}")
+        print_truth(console, prepared)
         if prepared.noise is not None:
             n = prepared.noise
             console.print(

@@ -8,6 +8,7 @@ from rich.console import Console
 from rich.table import Table
 
 from ceamcl.cli.common import (
+    check_particles,
     make_progress,
     non_negative_int,
     positive_float,
@@ -62,6 +63,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 
 def run(args: argparse.Namespace, console: Console) -> int:
+    check_particles(args.particles)
     require_available(args.algorithm)
     config = SoakConfig(
         steps=args.steps,

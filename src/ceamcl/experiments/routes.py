@@ -39,11 +39,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 from numpy.typing import NDArray
 
+from ceamcl import budget
 from ceamcl.angles import wrap
 from ceamcl.errors import ConfigError
+from ceamcl.io.safe_yaml import load_yaml_file
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.maps.ros_io import load_map
 from ceamcl.maps.worlds import HALL_SIZE_M, WORLD_NAMES, get_world
@@ -183,6 +184,28 @@ def kidnapped_course() -> Course:
 
 
 # ------------------------------------------------------------------ route files
+#: Memory a simulated step holds in a trial (scan, odometry, estimate, diagnostics): a bound
+#: used to refuse routes whose speed, rate or turn rate ask for too many steps.
+STEP_BYTES = 16 * 1024
+
+
+def simulated_steps_bound(route: Route, config: SimulationConfig) -> float:
+    """An upper bound on the steps :func:`ceamcl.simulation.simulator.drive_path` records for a
+    route (each leg: at most two turns of pi, then the leg's length at ``speed_mps``)."""
+    dt = 1.0 / config.rate_hz
+    legs = [(route.start, route.waypoints)]
+    if route.kidnap is not None:
+        legs.append((route.kidnap.pose, tuple(route.kidnap.waypoints)))
+    steps = 1.0
+    for start, wps in legs:
+        here = np.asarray(start[:2], dtype=np.float64)
+        for w in wps:
+            steps += float(np.hypot(*(w[:2] - here))) / (config.speed_mps * dt) + 1.0
+            steps += 2.0 * (math.ceil(math.pi / (config.turn_rate_rps * dt)) + 1.0)
+            here = w[:2]
+    return steps
+
+
 class _Reader:
     """Checks a parsed route file, naming the file and the field on every error."""
 
@@ -221,16 +244,7 @@ class _Reader:
 def load_route_file(path: str | os.PathLike[str]) -> Course:
     """Read a route file (format in the module docstring) and check it against its map."""
     p = Path(path)
-    try:
-        text = p.read_text()
-    except OSError as exc:
-        raise ConfigError(f"routes: cannot read route file {str(p)!r}: {exc.strerror}") from None
-    try:
-        doc = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        line = f" line {mark.line + 1}" if mark is not None else ""
-        raise ConfigError(f"{p}:{line}: not valid YAML: {exc}") from None
+    doc = load_yaml_file(p, "route file", ConfigError)
     r = _Reader(p)
     doc = r.mapping(doc, "top level")
     allowed = {"map", "routes", "symmetry", "simulation"}
@@ -292,6 +306,7 @@ def load_route_file(path: str | os.PathLike[str]) -> Course:
             n = sym["rotations"]
             if not isinstance(n, int) or isinstance(n, bool) or n < 1:
                 raise r.fail("symmetry.rotations", f"expected a whole number >= 1, got {n!r}")
+            budget.require(f"{p}: symmetry.rotations", n, 1024, "symmetric images")
             centre = r.numbers(sym.get("centre"), "symmetry.centre", (2,))
             transforms = rotation_transforms(n, (float(centre[0]), float(centre[1])))
         else:
@@ -312,6 +327,13 @@ def load_route_file(path: str | os.PathLike[str]) -> Course:
             config = SimulationConfig(**values)
         except (TypeError, ValueError) as exc:
             raise r.fail("simulation", str(exc)) from None
+    for i, route in enumerate(routes):
+        steps = simulated_steps_bound(route, config)
+        budget.require(f"{p}: routes[{i}] with its simulation settings", steps, STEP_BYTES, "steps")
+        if transforms.shape[0] > 1:
+            budget.require(
+                f"{p}: symmetry", steps * transforms.shape[0], 24, "pose images over the route"
+            )
     return Course(p.stem, tuple(routes), transforms, world, map_path, config)
 
 

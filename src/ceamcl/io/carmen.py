@@ -67,8 +67,10 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from ceamcl import budget
 from ceamcl.angles import diff
 from ceamcl.errors import LogFormatError
+from ceamcl.io import streams
 from ceamcl.io.recorded import RecordedLog, interpolate_poses
 
 __all__ = [
@@ -83,6 +85,9 @@ __all__ = [
     "iter_carmen",
     "read_carmen",
 ]
+
+#: Memory a kept scan holds beyond its ranges (array header, time, geometry, poses, line).
+SCAN_OVERHEAD_BYTES = 400
 
 #: The maximum range CARMEN assumes for old-style laser messages (readlog.c).
 CARMEN_DEFAULT_MAX_RANGE_M = 80.0
@@ -225,7 +230,10 @@ class _Line:
         """The IPC timestamp if the line has one (host and logger time may follow)."""
         if self.pos >= len(self.tokens):
             return math.nan
-        return self.number("timestamp")
+        value = self.number("timestamp")
+        if not math.isfinite(value):
+            raise self.error(f"timestamp: expected a finite number of seconds, got {value}")
+        return value
 
 
 def _is_number(tok: str) -> bool:
@@ -321,27 +329,55 @@ def parse_line(text: str, path: str = "<string>", lineno: int = 1) -> CarmenMess
     return CarmenSkipped(kind, lineno)
 
 
-def _open_text(path: Path) -> io.TextIOBase:
-    """A text stream over the file, gunzipped on the fly when it starts with the gzip magic."""
+def _open_binary(path: Path) -> io.BufferedIOBase:
+    """A binary stream over the file (or pipe), gunzipped on the fly when it starts with the
+    gzip magic. The magic is sniffed from a kept buffer, so a pipe loses nothing."""
     try:
-        with path.open("rb") as fh:
-            magic = fh.read(2)
+        magic = streams.sniff(path, 2, "CARMEN log")
+        raw = streams.open_input(path, "CARMEN log")
     except FileNotFoundError:
         raise LogFormatError(f"{path}: log file not found") from None
     except OSError as exc:
         raise LogFormatError(f"{path}: cannot read the log: {exc.strerror or exc}") from None
     if magic == b"\x1f\x8b":
-        return io.TextIOWrapper(gzip.open(path, "rb"), encoding="ascii", errors="replace")
-    return io.TextIOWrapper(path.open("rb"), encoding="ascii", errors="replace")
+        return gzip.GzipFile(fileobj=raw, mode="rb")
+    return raw
+
+
+def _lines(path: Path, fh: io.BufferedIOBase) -> Iterator[tuple[int, str]]:
+    """Numbered text lines, each at most the budget's line length, UTF-8 (ASCII in practice)."""
+    limit = budget.current().line_bytes
+    lineno = 0
+    while True:
+        raw = fh.readline(limit + 1)
+        if not raw:
+            return
+        lineno += 1
+        if len(raw) > limit and not raw.endswith(b"\n"):
+            raise budget.BudgetError(
+                f"{path}:{lineno}: line longer than {budget.format_bytes(limit)}, the line-length "
+                "bound of the memory budget (raise it with --memory-budget)"
+            )
+        if b"\x00" in raw:
+            raise LogFormatError(
+                f"{path}:{lineno}: binary data (NUL bytes); expected a CARMEN text log"
+            )
+        try:
+            yield lineno, raw.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise LogFormatError(
+                f"{path}:{lineno}: not UTF-8/ASCII text (byte {raw[exc.start]:#04x} at column "
+                f"{exc.start + 1}); expected a CARMEN text log"
+            ) from None
 
 
 def iter_carmen(path: str | os.PathLike[str]) -> Iterator[CarmenMessage]:
     """Every message of a CARMEN log, in file order, read as a stream (gzip or plain text)."""
     p = Path(path)
     lineno = 0
-    with _open_text(p) as fh:
+    with _open_binary(p) as fh:
         try:
-            for lineno, text in enumerate(fh, start=1):
+            for lineno, text in _lines(p, fh):
                 msg = parse_line(text, str(p), lineno)
                 if msg is not None:
                     yield msg
@@ -363,9 +399,21 @@ class _Stream:
     max_range: list[float] = field(default_factory=list)
     laser_pose: list[tuple[float, float, float]] = field(default_factory=list)
     robot_pose: list[tuple[float, float, float]] = field(default_factory=list)
+    lines: list[int] = field(default_factory=list)
+    bytes_held: int = 0
 
-    def add(self, m: CarmenLaser) -> None:
+    def add(self, m: CarmenLaser, path: Path) -> None:
+        # a few MB of gzip can expand to gigabytes of scans: keep them within the budget
+        self.bytes_held += 8 * m.ranges.size + SCAN_OVERHEAD_BYTES
+        if self.bytes_held > budget.current().memory_bytes:
+            budget.require(
+                f"{path}:{m.line}: scans kept",
+                len(self.times) + 1,
+                self.bytes_held / (len(self.times) + 1),
+                "scans",
+            )
         self.times.append(m.timestamp)
+        self.lines.append(m.line)
         self.ranges.append(m.ranges)
         self.start.append(m.start_angle)
         self.inc.append(m.angle_increment)
@@ -412,7 +460,7 @@ def read_carmen(
         if isinstance(msg, CarmenLaser):
             counts[msg.kind] += 1
             if msg.laser_id == laser:
-                (with_pose if msg.laser_pose is not None else raw).add(msg)
+                (with_pose if msg.laser_pose is not None else raw).add(msg, p)
         elif isinstance(msg, CarmenOdometry):
             counts["ODOM"] += 1
             odom.append((msg.timestamp, msg.x, msg.y, msg.theta))
@@ -467,6 +515,7 @@ def read_carmen(
         "skipped_messages": dict(sorted(skipped.items())),
         "poses_from": "laser messages" if stream is with_pose else "ODOM (interpolated)",
         "params": params,
+        "scan_lines": np.asarray(stream.lines, dtype=np.int64),  # for errors naming the line
     }
     return RecordedLog(
         path=str(p),

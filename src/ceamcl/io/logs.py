@@ -17,6 +17,7 @@ from typing import Literal
 import numpy as np
 
 from ceamcl.errors import ConfigError, LogFormatError
+from ceamcl.io import streams
 from ceamcl.io.carmen import read_carmen
 from ceamcl.io.recorded import RecordedLog, interpolate_poses
 from ceamcl.io.rosbag import read_bag
@@ -38,9 +39,27 @@ DEFAULT_SYNTHETIC_NOISE = OdometryNoise(0.02, 0.02, 0.02, 0.02)
 LogFormat = Literal["carmen", "ros1", "ros2"]
 
 
-def poses_look_corrected(path: str | os.PathLike[str]) -> bool:
-    """Whether a log's poses are taken as ground truth by default: its name says "corrected"."""
-    return "corrected" in Path(path).name.lower()
+def poses_look_corrected(log: RecordedLog) -> tuple[bool, str]:
+    """Whether a log's poses are SLAM-corrected ground truth, decided by its content, and why.
+
+    A Radish "corrected" CARMEN log is what a SLAM run wrote: an ``NEFF`` message (the
+    effective sample size of the run) for its scans, and every laser message's laser pose equal
+    to its robot pose (both are the corrected pose). Raw logs have no ``NEFF``; a raw log's laser
+    pose may equal its robot pose too (intel's does), so that alone is not evidence. Bags record
+    odometry, never corrected poses. The file's name plays no part.
+    """
+    if log.info.get("format") != "carmen":
+        return False, f"no: a {log.info.get('format', 'bag')} bag records odometry"
+    neff = int(log.info.get("skipped_messages", {}).get("NEFF", 0))
+    same = bool(len(log)) and not np.any(log.laser_mount)
+    if neff and same:
+        return True, (
+            f"yes: the log holds {neff} NEFF messages of a SLAM run and its laser and robot "
+            "poses are identical (a corrected log)"
+        )
+    if not neff:
+        return False, "no: the log has no NEFF messages of a SLAM run (a raw log)"
+    return False, "no: the laser pose differs from the robot pose (raw odometry)"
 
 
 def log_format(path: str | os.PathLike[str]) -> LogFormat:
@@ -58,8 +77,7 @@ def log_format(path: str | os.PathLike[str]) -> LogFormat:
     if p.suffix in (".db3", ".mcap") and (p.parent / "metadata.yaml").is_file():
         return "ros2"
     try:
-        with p.open("rb") as fh:
-            head = fh.read(13)
+        head = streams.sniff(p, 13, "log")  # a pipe keeps these bytes for the reader
     except OSError as exc:
         raise LogFormatError(f"{p}: cannot read the log: {exc.strerror or exc}") from None
     if head.startswith(b"#ROSBAG V2.0") or p.suffix == ".bag":
@@ -96,5 +114,11 @@ def open_log(
         base_frame=base_frame,
     )
     if max_range_m is not None:
+        lowest = float(np.max(log.range_min)) if len(log) else 0.0
+        if not max_range_m > lowest:
+            raise ConfigError(
+                f"max-range: {max_range_m:g} m is not above the sensor's minimum range "
+                f"{lowest:g} m in {path}; expected a larger maximum"
+            )
         log = replace(log, range_max=np.full(len(log), float(max_range_m)))
     return log

@@ -13,17 +13,21 @@ from typing import Any
 
 from ceamcl.errors import ConfigError
 from ceamcl.filters.base import StepDiagnostics
+from ceamcl.io.created import missing_ancestor, note_created
 
 
 def ensure_output_dir(path: str | os.PathLike[str]) -> Path:
     """Create the output folder (and parents); a clear error when it cannot be written."""
     out = Path(path)
+    new = missing_ancestor(out)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise ConfigError(
             f"out: cannot create output folder {str(out)!r}: {exc.strerror}"
         ) from None
+    if new is not None:
+        note_created(new)  # removed again if the command fails (ceamcl.io.created)
     if not os.access(out, os.W_OK):
         raise ConfigError(f"out: output folder {str(out)!r} is not writable")
     return out

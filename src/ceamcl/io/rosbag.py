@@ -25,11 +25,18 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ceamcl.errors import LogFormatError
+from ceamcl import budget
+from ceamcl.errors import CeamclError, LogFormatError
+from ceamcl.io import streams
 from ceamcl.io.quaternion import quaternion_yaw
 from ceamcl.io.recorded import RecordedLog, interpolate_poses
 
 __all__ = ["LASER_SCAN", "ODOMETRY", "TF", "read_bag"]
+
+#: Memory kept per bag record read (times, poses, lists) and per range reading (the ranges
+#: and the arrays built from them), for the budget checks (ceamcl.budget).
+RECORD_BYTES = 256
+RANGE_BYTES = 24
 
 LASER_SCAN = "sensor_msgs/msg/LaserScan"
 ODOMETRY = "nav_msgs/msg/Odometry"
@@ -67,20 +74,43 @@ def read_bag(
     base_frame: str = "base_link",
 ) -> RecordedLog:
     """Scans of one LaserScan topic with the robot's odometry pose at each (module doc)."""
-    from rosbags.highlevel import AnyReader, AnyReaderError
+    from rosbags.highlevel import AnyReader
     from rosbags.typesys import Stores, get_typestore
 
     p = Path(path)
+    if streams.is_stream(p):
+        raise LogFormatError(
+            f"{p}: a ROS bag cannot be read from a pipe or device (it is read by seeking); "
+            "save it to a file first"
+        )
     paths = _bag_paths(p)
     try:
         reader = AnyReader(paths, default_typestore=get_typestore(Stores.LATEST))
         reader.open()
-    except (AnyReaderError, FileNotFoundError, OSError) as exc:
-        raise LogFormatError(f"{p}: cannot open the bag: {exc}") from None
+    except CeamclError:
+        raise
+    except Exception as exc:  # rosbags raises many types on a damaged container
+        raise LogFormatError(f"{p}: cannot open the bag: {_one_line(exc)}") from None
     try:
         return _read(reader, p, scan_topic, odom_topic, _strip(odom_frame), _strip(base_frame))
+    except CeamclError:
+        raise
+    except MemoryError:
+        raise LogFormatError(
+            f"{p}: a record of the bag claims more memory than there is (a damaged bag?)"
+        ) from None
+    except Exception as exc:  # damaged records, bad message definitions
+        raise LogFormatError(f"{p}: cannot read the bag's records: {_one_line(exc)}") from None
     finally:
-        reader.close()
+        try:
+            reader.close()
+        except Exception:  # closing a damaged bag must not hide the error
+            pass
+
+
+def _one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return text if len(text) <= 300 else text[:297] + "..."
 
 
 def _pick(
@@ -131,11 +161,17 @@ def _read(
     links: dict[tuple[str, str], tuple[float, float, float]] = {}
     tf_pairs: set[tuple[str, str]] = set()
     wanted = scan_conns + odom_conns + tf_conns
+    records = sum(int(getattr(c, "msgcount", 0) or 0) for c in wanted)
+    budget.require(f"{p}: scan, odometry and /tf records", records, RECORD_BYTES, "records")
+    beams = 0
     for conn, t_ns, raw in reader.messages(connections=wanted):
         msg = reader.deserialize(raw, conn.msgtype)
         if conn.msgtype == LASER_SCAN:
             times.append(_stamp(msg.header, t_ns))
             ranges.append(np.asarray(msg.ranges, dtype=np.float64))
+            beams += ranges[-1].size
+            if beams * RANGE_BYTES > budget.current().memory_bytes:
+                budget.require(f"{p}: {conn.topic}", beams, RANGE_BYTES, "range readings")
             meta.append(
                 (
                     float(msg.angle_min),

@@ -13,9 +13,13 @@ prior's log-odds 0). Readings are classified as in gmapping:
 * a reading within ``max_range_m`` (the usable range) is a hit;
 * a reading beyond it, but short of the sensor's maximum, clears free space up to
   ``max_range_m`` and marks no hit (the far end is too uncertain to trust);
-* a no-return reading (at or beyond the sensor's maximum, NaN or +inf) clears free space up to
+* a no-return reading (at or beyond the sensor's maximum, or +inf) clears free space up to
   ``no_return_free_m`` (or the sensor's maximum, if shorter) and marks no hit;
-* a reading at or below the sensor's minimum is ignored.
+* a reading at or below the sensor's minimum (-inf included) is ignored, and so is NaN: REP 117
+  makes NaN an erroneous reading, not "no return", so it clears nothing.
+
+Before the grid is allocated its size (the extent of the poses and end points at
+``resolution_m``) is checked against the memory budget (:mod:`ceamcl.budget`).
 
 A cell becomes occupied (100) when its probability reaches ``occupied_prob`` and free (0) when
 it falls to ``free_prob``; cells in between, and cells no beam reached, are unknown (-1). The
@@ -35,6 +39,8 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from ceamcl import budget
+from ceamcl.errors import LogFormatError
 from ceamcl.io.recorded import RobotLog
 from ceamcl.maps.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
 from ceamcl.maps.ros_io import SAVE_FREE_THRESH, SAVE_OCCUPIED_THRESH
@@ -166,8 +172,8 @@ def _beams(
         idx = np.arange(0, scan.n_beams, cfg.beam_stride)
         r = scan.ranges[idx]
         bearing = laser_world[k, 2] + scan.angles[idx]
-        valid = ~(r <= scan.range_min)
-        nr = np.isnan(r) | (r >= scan.range_max)
+        valid = ~(r <= scan.range_min) & ~np.isnan(r)  # REP 117: NaN is an error, dropped
+        nr = r >= scan.range_max
         no_return += int(np.count_nonzero(nr & valid))
         is_hit = valid & ~nr & (r <= cfg.max_range_m)
         clear = min(cfg.no_return_free_m, scan.range_max)
@@ -210,13 +216,26 @@ def _map(
     if len(log) == 0:
         raise ValueError("log_odds_map: the log has no scans")
     start, end, hit, no_return = _beams(log, laser_world, cfg)
+    if hit.size == 0:
+        raise LogFormatError(
+            f"{getattr(log, 'path', 'log')}: no usable reading in {len(log)} scans (all NaN, "
+            "-inf or at or below the sensor's minimum); nothing to build a map from"
+        )
     pts = np.vstack([laser_world[:, :2], end]) if end.size else laser_world[:, :2]
     res = cfg.resolution_m
     x_min, y_min = pts.min(axis=0) - cfg.margin_m
     x_max, y_max = pts.max(axis=0) + cfg.margin_m
     x_min, y_min = math.floor(x_min / res) * res, math.floor(y_min / res) * res
-    width = max(1, math.ceil((x_max - x_min) / res))
-    height = max(1, math.ceil((y_max - y_min) / res))
+    width_m, height_m = float(x_max - x_min), float(y_max - y_min)
+    budget.require(
+        f"{getattr(log, 'path', 'log')}: map built at resolution {res:g} m over the log's "
+        f"{width_m:.0f} m x {height_m:.0f} m",
+        math.ceil(width_m / res) * math.ceil(height_m / res),
+        budget.MAP_CELL_BYTES,
+        "map cells",
+    )
+    width = max(1, math.ceil(width_m / res))
+    height = max(1, math.ceil(height_m / res))
     logodds = np.zeros((height, width), dtype=np.float32)
     _trace(
         (start[:, 0] - x_min) / res,

@@ -64,6 +64,7 @@ from __future__ import annotations
 import math
 import os
 import secrets
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -74,7 +75,9 @@ import yaml
 from numpy.typing import NDArray
 from PIL import Image
 
-from ceamcl.errors import MapFormatError
+from ceamcl import budget
+from ceamcl.errors import InputWarning, MapFormatError
+from ceamcl.io.safe_yaml import load_yaml_file
 from ceamcl.maps.grid import OccupancyGrid
 
 __all__ = ["load_map", "save_map"]
@@ -132,17 +135,7 @@ def load_map(yaml_path: str | os.PathLike[str]) -> OccupancyGrid:
 
 
 def _read_meta(path: Path) -> _MapMeta:
-    try:
-        with path.open("rb") as f:
-            doc = yaml.safe_load(f)
-    except FileNotFoundError:
-        raise MapFormatError(f"{path}: map YAML file not found") from None
-    except OSError as e:
-        raise MapFormatError(f"{path}: cannot read the map YAML file: {e.strerror or e}") from e
-    except yaml.YAMLError as e:
-        detail = " ".join(str(e).split())
-        raise MapFormatError(f"{path}: not valid YAML: {detail}") from e
-
+    doc = load_yaml_file(path, "map YAML file", MapFormatError)
     expected = ", ".join(REQUIRED_KEYS + OPTIONAL_KEYS)
     if not isinstance(doc, dict):
         got = "an empty file" if doc is None else f"a {type(doc).__name__}"
@@ -150,15 +143,17 @@ def _read_meta(path: Path) -> _MapMeta:
             f"{path}: expected a YAML mapping with keys {expected} at the top level, got {got}"
         )
     unknown = [k for k in doc if k not in REQUIRED_KEYS + OPTIONAL_KEYS]
-    if unknown:
+    if unknown:  # map_server ignores keys it does not know: so do we, saying so
         names = ", ".join(repr(k) for k in unknown)
-        raise MapFormatError(f"{path}: unknown key(s) {names}; expected keys: {expected}")
+        warnings.warn(
+            f"{path}: ignoring unknown key(s) {names}; known keys: {expected}",
+            InputWarning,
+            stacklevel=2,
+        )
     missing = [k for k in REQUIRED_KEYS if k not in doc]
     if missing:
         names = ", ".join(repr(k) for k in missing)
-        raise MapFormatError(
-            f"{path}: missing required key(s) {names}; expected keys: {expected}"
-        )
+        raise MapFormatError(f"{path}: missing required key(s) {names}; expected keys: {expected}")
 
     def fail(key: str, what: str) -> MapFormatError:
         return MapFormatError(f"{path}: key {key!r}: expected {what}, got {doc[key]!r}")
@@ -175,9 +170,7 @@ def _read_meta(path: Path) -> _MapMeta:
         raise fail("resolution", "a finite number > 0 (metres per cell)")
 
     origin_raw = doc["origin"]
-    origin_vals = (
-        [_number(v) for v in origin_raw] if isinstance(origin_raw, list | tuple) else []
-    )
+    origin_vals = [_number(v) for v in origin_raw] if isinstance(origin_raw, list | tuple) else []
     if len(origin_vals) != 3 or any(v is None or not math.isfinite(v) for v in origin_vals):
         raise fail("origin", "a list of three finite numbers [x, y, yaw]")
     ox, oy, oyaw = (float(v or 0.0) for v in origin_vals)
@@ -236,10 +229,21 @@ def _read_image(
     if not image_path.is_file():
         raise MapFormatError(f"{where} (key 'image'): expected an image file, not a folder")
     try:
-        with Image.open(image_path) as img:
+        with warnings.catch_warnings():
+            # The budget below decides what is too large, not Pillow's warning threshold.
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            img = Image.open(image_path)
+        with img:
+            w, h = img.size  # from the header: checked before the pixels are decoded
+            budget.require(
+                f"{where} (key 'image'): {w} x {h} pixels",
+                w * h,
+                budget.MAP_CELL_BYTES,
+                "map cells",
+            )
             img.load()
             return _image_channels(img, where)
-    except MapFormatError:
+    except (MapFormatError, budget.BudgetError):
         raise
     except Exception as e:  # Pillow raises many types on corrupt files: OSError, SyntaxError...
         raise MapFormatError(

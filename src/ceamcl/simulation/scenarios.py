@@ -168,9 +168,7 @@ def get_scenario(name: str, world: str | None = None, start_room: int = 0) -> Sc
         return office_scenario()
     if name == "kidnapped":
         if world not in (None, "small-office"):
-            raise ConfigError(
-                f"world: the kidnapped scenario runs on small-office, got {world!r}"
-            )
+            raise ConfigError(f"world: the kidnapped scenario runs on small-office, got {world!r}")
         return kidnapped_scenario()
     raise ConfigError(
         f"scenario: unknown scenario {name!r}; expected one of {', '.join(SCENARIO_NAMES)}"

@@ -21,6 +21,7 @@
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numba
@@ -28,9 +29,15 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
+from ceamcl import budget
+from ceamcl.errors import InputWarning
 from ceamcl.maps.grid import OccupancyGrid
 
 _FOUR = ndimage.generate_binary_structure(2, 1)
+
+#: Memory per cell of the initialisation grid: top-k weights, counts, smoothed weights, V,
+#: labels, the SKIZ partition and its distance-transform indices.
+CELL_BYTES = 256
 
 
 @dataclass(frozen=True, eq=False)
@@ -45,10 +52,29 @@ class CellGrid:
 
     @classmethod
     def over(cls, grid: OccupancyGrid, cell_m: float) -> CellGrid:
+        """Cells of ``cell_m`` over the map's bounding box, where they fit the memory budget
+        (:mod:`ceamcl.budget`, :data:`CELL_BYTES` each); over a larger map the side is the
+        smallest multiple of ``cell_m`` that fits, with a warning (docs/robustness.md)."""
         xmin, xmax, ymin, ymax = grid.bounds
-        nx = max(1, int(np.ceil((xmax - xmin) / cell_m)))
-        ny = max(1, int(np.ceil((ymax - ymin) / cell_m)))
-        return cls(xmin, ymin, cell_m, nx, ny)
+        max_cells = max(1, budget.current().memory_bytes // CELL_BYTES)
+        side = cell_m
+        factor = 1
+        while True:
+            nx = max(1, int(np.ceil((xmax - xmin) / side)))
+            ny = max(1, int(np.ceil((ymax - ymin) / side)))
+            if nx * ny <= max_cells:
+                break
+            factor = max(factor + 1, int(np.ceil(factor * np.sqrt(nx * ny / max_cells))))
+            side = cell_m * factor
+        if factor > 1:
+            warnings.warn(
+                f"CEAMCL initialisation grid: {cell_m:g} m cells over the map's "
+                f"{xmax - xmin:.0f} m x {ymax - ymin:.0f} m would exceed the memory budget of "
+                f"{budget.format_bytes(budget.current().memory_bytes)}; using {side:g} m cells",
+                InputWarning,
+                stacklevel=3,
+            )
+        return cls(xmin, ymin, side, nx, ny)
 
     def index(self, xy: NDArray[np.float64]) -> NDArray[np.intp]:
         """Flat cell index ``iy * nx + ix`` of points ``(N, 2)`` (clipped into the grid)."""

@@ -1,0 +1,93 @@
+"""YAML for small configuration files (ROS map YAML, route files), read as ROS reads them and
+without the ways a tiny file can exhaust memory.
+
+* **No aliases.** ``&anchor``/``*alias`` let 500 bytes expand to gigabytes (a "billion laughs");
+  map and route files never need them, so an alias is refused with its line.
+* **A size bound.** The file (or pipe) may hold at most :data:`MAX_BYTES` (1 MiB).
+* **Numbers as ROS reads them.** ROS parses map YAML with yaml-cpp (YAML 1.2), where
+  ``5e-2``, ``1e3`` and ``.5`` are numbers; PyYAML's YAML 1.1 resolver reads the first two as
+  text. The loader resolves YAML 1.2 core-schema floats as well.
+* **Encodings.** Text that is not UTF-8 is refused naming the file, not a traceback.
+
+Errors are :class:`~ceamcl.errors.CeamclError` subclasses chosen by the caller (``error``).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from typing import Any
+
+import yaml
+
+from ceamcl.errors import CeamclError, ConfigError
+from ceamcl.io import streams
+
+__all__ = ["MAX_BYTES", "load_yaml_file", "load_yaml_text"]
+
+#: Largest YAML configuration file read (maps and routes are a few hundred bytes).
+MAX_BYTES = 1 << 20
+
+_FLOAT_12 = re.compile(
+    r"^[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)(?:[eE][-+]?[0-9]+)?$"
+    r"|^[-+]?\.(?:inf|Inf|INF)$|^\.(?:nan|NaN|NAN)$"
+)
+
+
+class _Loader(yaml.SafeLoader):
+    """SafeLoader without aliases and with YAML 1.2 floats."""
+
+    def compose_node(self, parent: Any, index: Any) -> Any:
+        if self.check_event(yaml.AliasEvent):
+            event = self.peek_event()
+            raise yaml.composer.ComposerError(
+                None,
+                None,
+                f"aliases (*{event.anchor}) are not accepted here",
+                event.start_mark,
+            )
+        return super().compose_node(parent, index)
+
+
+_Loader.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT_12, list("-+0123456789."))
+
+
+def load_yaml_text(text: str, where: str, error: type[CeamclError] = ConfigError) -> Any:
+    """Parse ``text`` (from ``where``, a file name for messages)."""
+    try:
+        return yaml.load(text, Loader=_Loader)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        line = f":{mark.line + 1}" if mark is not None else ""
+        problem = getattr(exc, "problem", None) or " ".join(str(exc).split())
+        raise error(f"{where}{line}: not valid YAML: {problem}") from None
+    except RecursionError:
+        raise error(f"{where}: not valid YAML: nested too deeply") from None
+
+
+def load_yaml_file(
+    path: str | os.PathLike[str], what: str, error: type[CeamclError] = ConfigError
+) -> Any:
+    """Read and parse a YAML ``what`` ("map YAML file", "route file") at ``path``.
+
+    Raises ``error`` naming the file when it is missing, unreadable, larger than
+    :data:`MAX_BYTES`, not UTF-8, not YAML, or uses an alias.
+    """
+    try:
+        data = streams.read_all(path, MAX_BYTES, what)
+    except FileNotFoundError:
+        raise error(f"{path}: cannot read the {what}: {what} not found") from None
+    except IsADirectoryError:
+        raise error(f"{path}: expected a {what}, got a folder") from None
+    except OSError as exc:
+        raise error(f"{path}: cannot read the {what}: {exc.strerror or exc}") from None
+    except streams.StreamError as exc:
+        raise error(str(exc)) from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise error(
+            f"{path}: not UTF-8 text (byte {data[exc.start]:#04x} at offset {exc.start}); "
+            f"expected a YAML {what}"
+        ) from None
+    return load_yaml_text(text, str(path), error)
