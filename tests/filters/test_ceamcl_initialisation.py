@@ -107,8 +107,8 @@ def initialised() -> dict[int, tuple[CEAMCL, np.ndarray, int]]:
         log = Simulator(grid, sc.config).run(start, np.random.default_rng(sim_seed))
         f = make_filter("ceamcl", grid, np.random.default_rng(filter_seed))
         assert isinstance(f, CEAMCL)
-        diag = f.initialise_global(log.scan(0))
-        out[room] = (f, start[0], diag.n_particles)
+        f.initialise_global(log.scan(0))
+        out[room] = (f, start[0], f.particle_set.n)
     return out
 
 
@@ -132,7 +132,7 @@ def test_initial_species_cover_the_four_symmetric_images(
         assert np.any((dist < 0.5) & (dth < 0.3)), f"no species near image {image}"
     # The paper's Fig. 2: 537 and 961 initial samples for 4 and 8 species.
     assert 300 <= total <= 2500
-    assert total == f.poses.shape[0] == sum(s.n for s in f.stats.values())
+    assert total == f.particle_set.n == sum(s.n for s in f.stats.values())
 
 
 @pytest.mark.parametrize("room", START_ROOMS)

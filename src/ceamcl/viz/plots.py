@@ -12,6 +12,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.axes import Axes
 
+from ceamcl.filters.ceamcl.records import species_of
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.runner import RunResult
 
@@ -118,7 +119,7 @@ def plot_run(
 def _species_tracks(result: RunResult) -> dict[int, np.ndarray]:
     tracks: dict[int, list[tuple[float, float]]] = {}
     for d in result.diagnostics:
-        for s in d.species:
+        for s in species_of(d):
             tracks.setdefault(s.species_id, []).append((s.x, s.y))
     return {sid: np.asarray(pts) for sid, pts in tracks.items()}
 
@@ -138,7 +139,7 @@ def plot_species(result: RunResult, path: str | os.PathLike[str], title: str = "
     ax1.grid(alpha=0.3)
     sizes: dict[int, list[tuple[float, int]]] = {}
     for time_s, d in zip(t, result.diagnostics, strict=True):
-        for s in d.species:
+        for s in species_of(d):
             sizes.setdefault(s.species_id, []).append((float(time_s), s.n))
     for sid, pts in sorted(sizes.items()):
         arr = np.array(pts)
