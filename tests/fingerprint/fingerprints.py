@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from ceamcl.filters import CEAMCLRecord, make_filter, species_of
+from ceamcl.filters import make_filter, species_of
 from ceamcl.runner import RunResult, run_filter
 from ceamcl.simulation import paper_scenario
 from ceamcl.simulation.simulator import SimulatedLog
@@ -52,12 +52,10 @@ def _num(x: Any) -> str:
 
 def step_record(d: Any) -> list[str]:
     """What a step's record says, as text: common fields, then every species' figures."""
-    # CEAMCL's ESS was not measured when these were recorded (NaN); the runner measures it now.
-    ess = float("nan") if isinstance(d.record, CEAMCLRecord) else d.ess
     out = [
         str(int(d.step)),
         str(int(d.n_particles)),
-        _num(ess),
+        _num(d.ess),
         str(bool(d.resampled)),
         str(int(d.likelihood_evaluations)),
         str(bool(d.reinitialised)),
