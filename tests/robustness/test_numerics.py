@@ -108,8 +108,8 @@ def test_ceamcl_every_species_extinct_restarts_and_records_it() -> None:
     # Force every species to shrink below the viable size at the next step.
     f.competition.dn = {sid: -10.0 * s.n for sid, s in f.stats.items()}
     diag = f.step(MOVE, GOOD)
-    assert diag.reinitialised and diag.restarts == 1.0
-    assert diag.extinctions >= 1
+    assert diag.reinitialised and diag.events.restarts == 1.0
+    assert diag.events.extinctions >= 1
     assert f.particle_set.n > 0 and f.stats
     assert_all_finite(f)
 

@@ -30,6 +30,8 @@ globally (section 3.1 on that scan, or uniformly over free space without one) an
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -38,7 +40,6 @@ from ceamcl.filters.ceamcl.config import CEAMCLConfig
 from ceamcl.filters.ceamcl.initialisation import InitialSpecies, initial_species
 from ceamcl.filters.ceamcl.phases import (
     Competition,
-    Events,
     allocate_resources,
     compete,
     grow,
@@ -46,7 +47,7 @@ from ceamcl.filters.ceamcl.phases import (
     species_stats,
     split,
 )
-from ceamcl.filters.ceamcl.records import CEAMCLRecord, SpeciesRecord
+from ceamcl.filters.ceamcl.records import CEAMCLRecord, Events, SpeciesRecord
 from ceamcl.filters.ceamcl.species import SpeciesStats
 from ceamcl.filters.particles import (
     ParticleSet,
@@ -276,7 +277,6 @@ class CEAMCL:
             )
             for sid, s in self.stats.items()
         )
-        ev = self.events
         return CEAMCLRecord(
             resampled=self.t > 0,
             likelihood_evaluations=self._evaluations,
@@ -284,14 +284,7 @@ class CEAMCL:
             species=species,
             n_species=len(species),
             total_resources=float(sum(comp.resources.values())),
-            new_samples=ev.new_samples,
-            extinctions=ev.extinctions,
-            splits=ev.splits,
-            merges=ev.merges,
-            restarts=ev.restarts,
-            recoveries=ev.recoveries,
-            n0=ev.n0,
-            v_cells=ev.v_cells,
+            events=replace(self.events),
         )
 
     # ================================================================== queries

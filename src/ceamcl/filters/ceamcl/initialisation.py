@@ -38,22 +38,22 @@ _FOUR = ndimage.generate_binary_structure(2, 1)
 
 @dataclass(frozen=True)
 class InitialisationConfig:
-    """The settings of section 3.1 (see :class:`~ceamcl.filters.ceamcl.config.CEAMCLConfig`,
-    whose ``initialisation`` they are): ``n_test`` test poses scored ``test_batch`` at a time,
-    cells of ``cell_m``, threshold ``mu``, eq. 5 factor ``eta``, how a cell's weight is formed
+    """The settings of section 3.1 (``CEAMCLConfig().initialisation`` gives them with the
+    paper's defaults): ``n_test`` test poses scored ``test_batch`` at a time, cells of
+    ``cell_m``, threshold ``mu``, eq. 5 factor ``eta``, how a cell's weight is formed
     (``cell_top_k``, ``cell_fitness_exponent``, ``cell_smoothing``), the smallest viable
     species and the cap on the total sample size."""
 
-    n_test: int = 1_000_000
-    test_batch: int = 250_000
-    cell_m: float = 0.1
-    mu: float = 0.85
-    eta: float = 2.0
-    cell_top_k: int = 3
-    cell_fitness_exponent: float = 0.16
-    cell_smoothing: int = 3
-    min_species_size: int = 3
-    max_samples: int = 20_000
+    n_test: int
+    test_batch: int
+    cell_m: float
+    mu: float
+    eta: float
+    cell_top_k: int
+    cell_fitness_exponent: float
+    cell_smoothing: int
+    min_species_size: int
+    max_samples: int
 
 
 @dataclass(frozen=True, eq=False)

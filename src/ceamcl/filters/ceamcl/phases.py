@@ -1,15 +1,17 @@
 """CEAMCL's phases (paper section 3.5) as functions on the particle core's container.
 
 The particle set's labels are the species ids. Each phase takes only its own settings (a
-sub-config of :class:`~ceamcl.filters.ceamcl.config.CEAMCLConfig`), changes the set in place
-where it acts on particles, and counts what it did into an :class:`Events` record. The filter
+sub-config: ``CEAMCLConfig.growth``, ``.split_merge`` and ``.competition`` give them with the
+paper's defaults, which live in :class:`~ceamcl.filters.ceamcl.config.CEAMCLConfig` alone),
+changes the set in place where it acts on particles, and counts what it did into an
+:class:`~ceamcl.filters.ceamcl.records.Events` record. The filter
 (:class:`~ceamcl.filters.ceamcl.filter.CEAMCL`) calls them in the paper's order; initial
 species generation (section 3.1) lives in :mod:`~ceamcl.filters.ceamcl.initialisation`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -21,6 +23,7 @@ from ceamcl.filters.ceamcl.competition import (
     resources,
     step_increments,
 )
+from ceamcl.filters.ceamcl.records import Events
 from ceamcl.filters.ceamcl.species import (
     SpeciesStats,
     all_species_stats,
@@ -40,8 +43,8 @@ class GrowthConfig:
     """Sample-size determination: species below ``min_species_size`` die out; the total
     sample size never exceeds ``max_samples``."""
 
-    min_species_size: int = 3
-    max_samples: int = 20_000
+    min_species_size: int
+    max_samples: int
 
 
 @dataclass(frozen=True)
@@ -51,11 +54,11 @@ class SplitMergeConfig:
     unless the fitness at ``merge_probe_points`` points between their means falls below
     ``merge_valley_ratio`` of the smaller end."""
 
-    min_species_size: int = 3
-    split_cell_m: float = 0.5
-    split_cell_rad: float = float(np.deg2rad(30.0))
-    merge_valley_ratio: float = 0.75
-    merge_probe_points: int = 3
+    min_species_size: int
+    split_cell_m: float
+    split_cell_rad: float
+    merge_valley_ratio: float
+    merge_probe_points: int
 
 
 @dataclass(frozen=True)
@@ -63,9 +66,9 @@ class CompetitionConfig:
     """Eqs. 9-16: growth rate ``r`` per step, minimum living domain ``epsilon_m2`` and
     resources ``delta_per_m2`` per square metre of living domain."""
 
-    growth_rate: float = 0.2
-    epsilon_m2: float = 0.5
-    delta_per_m2: float = 80.0
+    growth_rate: float
+    epsilon_m2: float
+    delta_per_m2: float
 
 
 @dataclass
@@ -76,27 +79,6 @@ class Competition:
     dn: dict[int, float] = field(default_factory=dict)
     resources: dict[int, float] = field(default_factory=dict)
     capacity: dict[int, float] = field(default_factory=dict)
-
-
-@dataclass
-class Events:
-    """What the phases of one step did: samples added by growth, species that died out,
-    split or merged, restarts and kidnap recoveries; the initial sample size ``n0`` and
-    ``|V|`` (``v_cells``) when the step ran section 3.1."""
-
-    new_samples: int = 0
-    extinctions: int = 0
-    splits: int = 0
-    merges: int = 0
-    restarts: int = 0
-    recoveries: int = 0
-    n0: int = 0
-    v_cells: int = 0
-
-    def add(self, other: Events) -> None:
-        """Add ``other``'s counts to these."""
-        for f in fields(self):
-            setattr(self, f.name, getattr(self, f.name) + getattr(other, f.name))
 
 
 def species_stats(ps: ParticleSet) -> dict[int, SpeciesStats]:
@@ -269,7 +251,6 @@ def compete(stats: dict[int, SpeciesStats], config: CompetitionConfig) -> Compet
 __all__ = [
     "Competition",
     "CompetitionConfig",
-    "Events",
     "GrowthConfig",
     "SplitMergeConfig",
     "allocate_resources",
