@@ -5,7 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ceamcl.filters.resampling import effective_sample_size, normalise_log_weights, systematic
+from ceamcl.filters.resampling import (
+    RESAMPLERS,
+    effective_sample_size,
+    multinomial,
+    normalise_log_weights,
+    resampler,
+    systematic,
+)
 
 
 @pytest.mark.parametrize("n", [1, 7, 100, 1000])
@@ -104,8 +111,6 @@ def test_normalise_log_weights_treats_nan_as_impossible() -> None:
 
 def test_multinomial_counts_follow_the_weights() -> None:
     # n independent draws: copies of i ~ Binomial(n, w_i); 5 standard deviations.
-    from ceamcl.filters.resampling import multinomial
-
     rng = np.random.default_rng(42)
     w = np.array([0.5, 0.3, 0.15, 0.05, 0.0])
     n = 20_000
@@ -116,8 +121,6 @@ def test_multinomial_counts_follow_the_weights() -> None:
 
 
 def test_resamplers_are_found_by_name() -> None:
-    from ceamcl.filters.resampling import RESAMPLERS, multinomial, resampler
-
     assert resampler("systematic") is systematic and resampler("multinomial") is multinomial
     assert set(RESAMPLERS) == {"systematic", "multinomial"}
     with pytest.raises(ValueError, match="unknown 'stratified'"):

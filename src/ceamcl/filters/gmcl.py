@@ -13,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ceamcl.filters.base import Algorithm, StepRecord
 from ceamcl.filters.evolution import EvolutionConfig
@@ -42,7 +43,7 @@ class GMCL(MCL):
             evaluations += self.evolve(prepared, prior)
         return StepRecord(self.resample_if_due(), evaluations, reinitialised)
 
-    def evolve(self, prepared: PreparedScan, prior_log_weights: np.ndarray) -> int:
+    def evolve(self, prepared: PreparedScan, prior_log_weights: NDArray[np.float64]) -> int:
         """Crossover and mutation over the whole set (eqs. 17-18); each particle's weight
         becomes its prior weight times its (new) likelihood. Returns the evaluations."""
         ps = self.particle_set

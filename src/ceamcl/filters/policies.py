@@ -107,7 +107,8 @@ class EssBelow(Policy):
     fraction: float
 
     def __call__(self, ctx: Context) -> bool:
-        assert ctx.particles is not None, "ess_below needs the particle set"
+        if ctx.particles is None:
+            raise ValueError("ess_below: the context holds no particle set")
         w = ctx.particles.weights
         return effective_sample_size(w) < self.fraction * w.size
 
