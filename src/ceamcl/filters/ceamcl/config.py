@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -100,7 +101,7 @@ class CEAMCLConfig:
                 raise ValueError(f"{name}: value {getattr(self, name)!r} is out of range")
 
     # Each phase takes only its own settings (``filters.ceamcl.phases``, ``initialisation``).
-    @property
+    @cached_property
     def initialisation(self) -> InitialisationConfig:
         """Section 3.1's settings."""
         return InitialisationConfig(
@@ -116,12 +117,12 @@ class CEAMCLConfig:
             max_samples=self.max_samples,
         )
 
-    @property
+    @cached_property
     def growth(self) -> GrowthConfig:
         """The sample-size phase's settings."""
         return GrowthConfig(self.min_species_size, self.max_samples)
 
-    @property
+    @cached_property
     def split_merge(self) -> SplitMergeConfig:
         """The split and merge phase's settings."""
         return SplitMergeConfig(
@@ -132,7 +133,7 @@ class CEAMCLConfig:
             merge_probe_points=self.merge_probe_points,
         )
 
-    @property
+    @cached_property
     def competition(self) -> CompetitionConfig:
         """The competition phase's settings (eqs. 9-16)."""
         return CompetitionConfig(self.growth_rate, self.epsilon_m2, self.delta_per_m2)
