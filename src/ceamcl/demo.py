@@ -18,6 +18,7 @@ import numpy as np
 
 from ceamcl.experiments.metrics import covers
 from ceamcl.filters import make_filter
+from ceamcl.filters.ceamcl.records import species_of
 from ceamcl.io.results import ensure_output_dir
 from ceamcl.maps.worlds import symmetric_images
 from ceamcl.outputs import write_run_files
@@ -76,9 +77,10 @@ def summarise(result: RunResult, log: SimulatedLog, **context: Any) -> dict[str,
         # distance of the closest hypothesis tells whether the truth is still tracked.
         d_truth = position_error(final_h[:, :3], result.truth[-1])
         summary["closest_hypothesis_error_m"] = float(d_truth.min())
-    if result.diagnostics[-1].species or result.diagnostics[0].species:
-        summary["species_initial"] = len(result.diagnostics[0].species)
-        summary["species_final"] = len(result.diagnostics[-1].species)
+    first, last = species_of(result.diagnostics[0]), species_of(result.diagnostics[-1])
+    if first or last:
+        summary["species_initial"] = len(first)
+        summary["species_final"] = len(last)
     if result.truth is not None and log.world in HALL_WORLDS and final_h.shape[0]:
         # Position only: an image counts when some hypothesis is within the experiments' 0.5 m.
         near = covers(final_h[:, :3], symmetric_images(result.truth[-1]), heading_tol=np.inf)

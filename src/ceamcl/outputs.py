@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from ceamcl.errors import ConfigError
+from ceamcl.filters.ceamcl.records import species_of
 from ceamcl.io.mcap_export import ScanLog, write_mcap
 from ceamcl.io.results import write_diagnostics_csv, write_json
 from ceamcl.io.tum import write_tum
@@ -212,7 +213,7 @@ def write_run_files(
             write_tum(out / "groundtruth.tum", result.times, result.truth)
         write_diagnostics_csv(out / "diagnostics.csv", result.diagnostics, list(result.times))
         plot_run(result, grid, out / "run.png", title=title)
-        if any(d.species for d in result.diagnostics):
+        if any(species_of(d) for d in result.diagnostics):
             plot_species(
                 result, out / "species.png", title=f"{title}: sample size and resources (Fig. 6)"
             )

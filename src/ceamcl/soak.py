@@ -26,6 +26,7 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -39,6 +40,7 @@ from ceamcl.io.results import ensure_output_dir, write_json
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.maps.worlds import get_world
 from ceamcl.motion.odometry import OdometryMotionModel, increment_between
+from ceamcl.runner import measure, timed_step
 from ceamcl.sensors.scan import LaserScan
 from ceamcl.simulation.scenarios import office_scenario, paper_scenario
 from ceamcl.simulation.simulator import SimulationConfig, Simulator, drive_waypoints
@@ -264,11 +266,11 @@ def run_soak(
     prev_odom: NDArray[np.float64] | None = None
     for k, (truth, odom, scan) in enumerate(stream):
         if prev_odom is None:
-            diag = f.initialise_global(scan)
+            diag = measure(f, k, partial(f.initialise_global, scan))
             rss_start = rss_kb()
             t_loop = time.perf_counter()
         else:
-            diag = f.step(increment_between(prev_odom, odom), scan)
+            diag = timed_step(f, k, increment_between(prev_odom, odom), scan)
         prev_odom = odom
         n = diag.n_particles
         n_min, n_max = min(n_min, n), max(n_max, n)

@@ -7,9 +7,11 @@ import numpy as np
 import pytest
 
 from ceamcl.filters import make_filter
-from ceamcl.filters.ceamcl import CEAMCL
+from ceamcl.filters.ceamcl import CEAMCL, CEAMCLConfig
 from ceamcl.filters.ceamcl.initialisation import skiz_partition, top_k_mean_per_cell
 from ceamcl.maps.worlds import symmetric_images
+from ceamcl.motion.odometry import OdometryMotionModel
+from ceamcl.sensors import LikelihoodFieldModel
 from ceamcl.simulation import Simulator, paper_scenario
 
 
@@ -107,8 +109,8 @@ def initialised() -> dict[int, tuple[CEAMCL, np.ndarray, int]]:
         log = Simulator(grid, sc.config).run(start, np.random.default_rng(sim_seed))
         f = make_filter("ceamcl", grid, np.random.default_rng(filter_seed))
         assert isinstance(f, CEAMCL)
-        diag = f.initialise_global(log.scan(0))
-        out[room] = (f, start[0], diag.n_particles)
+        f.initialise_global(log.scan(0))
+        out[room] = (f, start[0], f.particle_set.n)
     return out
 
 
@@ -132,7 +134,7 @@ def test_initial_species_cover_the_four_symmetric_images(
         assert np.any((dist < 0.5) & (dth < 0.3)), f"no species near image {image}"
     # The paper's Fig. 2: 537 and 961 initial samples for 4 and 8 species.
     assert 300 <= total <= 2500
-    assert total == f.poses.shape[0] == sum(s.n for s in f.stats.values())
+    assert total == f.particle_set.n == sum(s.n for s in f.stats.values())
 
 
 @pytest.mark.parametrize("room", START_ROOMS)
@@ -158,3 +160,31 @@ def test_initial_sizes_follow_eq5_and_eq6(
     # Every sample was taken from the test poses of its own part of the SKIZ partition.
     part = init.partition.reshape(-1)[init.cells.index(init.poses[:, :2])]
     np.testing.assert_array_equal(part, init.labels + 1)
+
+
+def test_public_initialisation_phases_give_the_filters_species() -> None:
+    """``ceamcl bench`` times section 3.1 phase by phase with the public functions; with the
+    same generator they give exactly the species ``initialise_global`` starts from."""
+    from ceamcl.filters.ceamcl.initialisation import (
+        generate_initial_species,
+        sample_test_poses,
+        score_test_poses,
+    )
+
+    sc = paper_scenario(0)
+    grid = sc.grid()
+    log = sc.simulate(np.random.default_rng(3), grid)
+    cfg = CEAMCLConfig(n_test=20_000, test_batch=7_000)
+    f = CEAMCL(
+        grid, OdometryMotionModel(), LikelihoodFieldModel(grid), cfg, rng=np.random.default_rng(4)
+    )
+    f.initialise_global(log.scan(0))
+    assert f.initial is not None
+    sensor = LikelihoodFieldModel(grid)
+    init = cfg.initialisation
+    test = sample_test_poses(grid, init, np.random.default_rng(4))
+    ll, fit, evaluations = score_test_poses(test, sensor, sensor.prepare(log.scan(0)), init)
+    species = generate_initial_species(grid, test, ll, fit, init)
+    assert evaluations == cfg.n_test
+    np.testing.assert_array_equal(species.poses, f.initial.poses)
+    np.testing.assert_array_equal(species.labels, f.initial.labels)

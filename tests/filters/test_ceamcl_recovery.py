@@ -47,7 +47,7 @@ def test_ceamcl_relocalises_after_a_kidnap(seed: int) -> None:
     assert err[kidnap - 10 : kidnap].max() < 0.5  # localised before the kidnap
     restarts = [k for k, d in enumerate(result.diagnostics) if d.reinitialised]
     assert restarts and all(k >= kidnap for k in restarts)  # only once kidnapped
-    assert result.diagnostics[restarts[0]].extra.get("recoveries") == 1.0
+    assert result.diagnostics[restarts[0]].record.columns()["recoveries"] == 1.0
     back = kidnap + int(RECOVERY_TIME_S * 10)
     assert err[back:].max() < 0.5  # found again and kept to the end
 
@@ -69,4 +69,4 @@ def test_no_recovery_fires_on_an_ordinary_run(seed: int) -> None:
     log = sc.simulate(np.random.default_rng(sim))
     f = make_filter("ceamcl", sc.grid(), np.random.default_rng(filt))
     result = run_filter(f, log)
-    assert not any(d.extra.get("recoveries") for d in result.diagnostics)
+    assert not any(d.record.columns()["recoveries"] for d in result.diagnostics)

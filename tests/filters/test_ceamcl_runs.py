@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from ceamcl.filters import CEAMCLConfig, make_filter
+from ceamcl.filters import CEAMCLConfig, make_filter, species_of
 from ceamcl.maps.worlds import symmetric_images
 from ceamcl.runner import RunResult, run_filter
 from ceamcl.sensors.raycast import cast_rays
@@ -221,19 +221,19 @@ def test_ceamcl_step_diagnostics_are_consistent(run: Runner, seed: int, room: in
     assert len(r.diagnostics) == len(log)
     for k, d in enumerate(r.diagnostics):
         assert d.step == k and not d.reinitialised
-        assert d.species, f"step {k}: no species"
-        ids = [s.species_id for s in d.species]
+        assert species_of(d), f"step {k}: no species"
+        ids = [s.species_id for s in species_of(d)]
         assert len(set(ids)) == len(ids)
-        assert d.n_particles == sum(s.n for s in d.species)
-        for s in d.species:
+        assert d.n_particles == sum(s.n for s in species_of(d))
+        for s in species_of(d):
             assert s.n >= f_cfg.min_species_size or k == 0
             assert np.isfinite(s.dn)
             assert 0.0 < s.fitness <= 1.0
             assert s.area_m2 >= 0.0
             assert s.resources >= floor
             assert s.capacity > 0.0
-        total = sum(s.resources for s in d.species)
-        assert d.extra["total_resources"] == pytest.approx(total)
+        total = sum(s.resources for s in species_of(d))
+        assert d.record.columns()["total_resources"] == pytest.approx(total)
         h = r.hypotheses[k]
         assert np.all(np.isfinite(h))
         assert h[:, 3].sum() == pytest.approx(1.0)

@@ -9,13 +9,13 @@ from numpy.typing import NDArray
 
 from ceamcl.angles import circular_variance, wrap
 from ceamcl.filters.ceamcl.competition import living_domain
-from ceamcl.filters.ceamcl.species import (
-    all_species_stats,
-    compact_species,
-    group_members,
-    resample_species,
+from ceamcl.filters.ceamcl.species import all_species_stats, compact_species
+from ceamcl.filters.resampling import (
+    label_groups,
+    normalise_log_weights,
+    systematic,
+    systematic_within_labels,
 )
-from ceamcl.filters.resampling import normalise_log_weights, systematic
 from ceamcl.pose import pose_covariance, pose_mean
 
 
@@ -45,7 +45,7 @@ def population(
 @pytest.mark.parametrize("seed", range(5))
 def test_resample_species_draws_what_per_species_systematic_draws(seed: int) -> None:
     species, _, loglik = population(np.random.default_rng(seed))
-    members = group_members(species)
+    members = label_groups(species)
     sizes = np.random.default_rng(seed).integers(1, 60, len(members))
     targets = {sid: int(t) for sid, t in zip(members, sizes, strict=True)}
     del targets[next(iter(members))]  # a species without a target keeps its size
@@ -55,12 +55,12 @@ def test_resample_species_draws_what_per_species_systematic_draws(seed: int) -> 
         for sid, idx in members.items()
     ]
     rng = np.random.default_rng(100 + seed)
-    sel, new_members = resample_species(species, loglik, targets, rng)
+    sel, new_members = systematic_within_labels(species, loglik, targets, rng)
     np.testing.assert_array_equal(sel, np.concatenate(picks))
     assert list(new_members) == list(members)
     np.testing.assert_array_equal(np.isfinite(loglik[sel]) | (species[sel] == species.max()), True)
     # The returned members are those of the resampled particles.
-    regrouped = group_members(species[sel])
+    regrouped = label_groups(species[sel])
     assert list(regrouped) == list(new_members)
     for sid, idx in new_members.items():
         np.testing.assert_array_equal(idx, regrouped[sid])
@@ -73,7 +73,7 @@ def test_all_species_stats_agree_with_single_species_functions(seed: int) -> Non
     species, poses, loglik = population(rng)
     fit = rng.uniform(0.0, 1.0, species.size)
     stats = all_species_stats(species, poses, loglik, fit)
-    members = group_members(species)
+    members = label_groups(species)
     assert list(stats) == list(members)
     for sid, idx in members.items():
         s = stats[sid]
@@ -97,7 +97,7 @@ def test_all_species_stats_agree_with_single_species_functions(seed: int) -> Non
 def test_compact_species_are_those_spanning_less_than_one_cell() -> None:
     rng = np.random.default_rng(4)
     species, poses, _ = population(rng, n_species=12)
-    members = group_members(species)
+    members = label_groups(species)
     cell_m, cell_rad = 0.8, 0.5
     # Shrink every other species towards its first member; one of them straddles +-pi.
     for k, idx in enumerate(list(members.values())[::2]):

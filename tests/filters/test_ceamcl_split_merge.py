@@ -13,6 +13,7 @@ from ceamcl.filters import make_filter
 from ceamcl.filters.ceamcl import CEAMCL
 from ceamcl.filters.ceamcl.species import domains_overlap
 from ceamcl.filters.clustering import pose_cluster_labels
+from ceamcl.filters.particles import ParticleSet
 from ceamcl.maps.worlds import symmetric_hall, symmetric_images
 from ceamcl.sensors import LaserScan, fitness
 from ceamcl.simulation import Simulator
@@ -34,10 +35,9 @@ def arranged(scan: LaserScan, poses: NDArray[np.float64], species: NDArray[np.in
     assert isinstance(f, CEAMCL)
     prepared = f.sensor.prepare(scan)
     f._prepared = prepared
-    f.poses = poses.copy()
-    f.species = species.astype(np.int64)
-    f.loglik = f.sensor.log_likelihood(f.poses, prepared)
-    f.fitness = fitness(f.loglik, prepared, f.sensor)
+    f.particle_set = ParticleSet.from_poses(poses.copy(), species.astype(np.int64))
+    f.particle_set.loglik = f.sensor.log_likelihood(f.particle_set.poses, prepared)
+    f.particle_set.fitness = fitness(f.particle_set.loglik, prepared, f.sensor)
     f._next_id = int(species.max()) + 1
     f.competition.dn = {int(s): 0.0 for s in np.unique(species)}
     f._refresh_stats()
@@ -54,7 +54,10 @@ def members(f: CEAMCL) -> list[set[int]]:
     """The species as sets of indices into the arranged pose array (poses are not reordered
     by split or merge; they are only relabelled)."""
     return sorted(
-        (set(np.nonzero(f.species == s)[0].tolist()) for s in np.unique(f.species)),
+        (
+            set(np.nonzero(f.particle_set.labels == s)[0].tolist())
+            for s in np.unique(f.particle_set.labels)
+        ),
         key=min,
     )
 
@@ -68,7 +71,7 @@ def test_a_species_of_two_distant_blobs_splits(scan: LaserScan) -> None:
     assert len(f.stats) == 1
     f._split_and_merge()
     f._refresh_stats()
-    assert f._events.get("splits") == 1.0
+    assert f.events.splits == 1.0
     assert members(f) == [set(range(60)), set(range(60, 120))]
     assert len(f.stats) == 2 and set(f.competition.dn) >= set(f.stats)
     means = sorted((s.mean for s in f.stats.values()), key=lambda m: m[1])
@@ -88,7 +91,7 @@ def test_a_species_with_two_heading_modes_splits(scan: LaserScan) -> None:
     f = arranged(scan, poses, np.zeros(120, dtype=np.int64))
     f._split_and_merge()
     f._refresh_stats()
-    assert f._events.get("splits") == 1.0
+    assert f.events.splits == 1.0
     assert members(f) == [set(range(60)), set(range(60, 120))]
     # Two species at the same place: their living domains overlap, but the fitness along the
     # heading turn between them has a valley, so they are not merged back.
@@ -101,7 +104,7 @@ def test_one_blob_does_not_split(scan: LaserScan) -> None:
     f = arranged(scan, blob(rng, TRUTH, 120), np.zeros(120, dtype=np.int64))
     f._split_and_merge()
     f._refresh_stats()
-    assert len(f.stats) == 1 and not f._events.get("splits")
+    assert len(f.stats) == 1 and not f.events.splits
 
 
 # ---------------------------------------------------------------- merge
@@ -121,7 +124,7 @@ def test_overlapping_species_without_a_valley_merge(scan: LaserScan) -> None:
     fitter = 0 if s0.fitness >= s1.fitness else 1
     f._split_and_merge()
     f._refresh_stats()
-    assert f._events.get("merges") == 1.0
+    assert f.events.merges == 1.0
     assert list(f.stats) == [fitter]  # the less fit joins the fitter
     assert f.stats[fitter].n == 120
     np.testing.assert_allclose(f.stats[fitter].mean[:2], TRUTH[:2], atol=0.1)
@@ -135,7 +138,7 @@ def test_species_at_distant_symmetric_images_do_not_merge(scan: LaserScan) -> No
     f = arranged(scan, np.vstack([a, b]), np.r_[np.zeros(60), np.ones(60)].astype(np.int64))
     f._split_and_merge()
     f._refresh_stats()
-    assert not f._events.get("merges")
+    assert not f.events.merges
     assert members(f) == [set(range(60)), set(range(60, 120))]
 
 
@@ -159,7 +162,7 @@ def test_overlapping_domains_with_a_valley_do_not_merge(scan: LaserScan) -> None
     assert domains_overlap(s0, s1)
     f._merge()
     f._refresh_stats()
-    assert not f._events.get("merges")
+    assert not f.events.merges
     assert sorted(f.stats) == [0, 1]
 
 

@@ -14,7 +14,7 @@ from ceamcl.angles import diff, wrap
 from ceamcl.filters.evolution import (
     EvolutionConfig,
     crossover,
-    evolve,
+    evolve_groups,
     mutation,
     random_pairs,
 )
@@ -88,7 +88,7 @@ def check_operators_never_lower_the_best(
     np.testing.assert_allclose(lm, evaluate(p2), rtol=1e-12, atol=1e-9)
     # Both together, with the default configuration.
     p3, l3 = poses.copy(), ll.copy()
-    evolve(p3, l3, groups, EvolutionConfig(), evaluate, rng)
+    evolve_groups(p3, l3, groups, EvolutionConfig(), evaluate, rng)
     assert l3.max() >= ll.max()
     assert np.all(np.abs(p3[:, 2]) <= np.pi)
 
@@ -130,7 +130,7 @@ def test_evolution_improves_a_set_on_average() -> None:
     start = ll.mean()
     groups = [np.arange(200, dtype=np.intp)]
     for _ in range(20):
-        evolve(poses, ll, groups, EvolutionConfig(), smooth_ll, rng)
+        evolve_groups(poses, ll, groups, EvolutionConfig(), smooth_ll, rng)
     assert ll.mean() > start
     np.testing.assert_allclose(ll, smooth_ll(poses))
 
@@ -304,13 +304,13 @@ def test_evolve_returns_the_number_of_evaluations() -> None:
         groups = [np.arange(bounds[i], bounds[i + 1], dtype=np.intp) for i in range(sizes.size)]
         ev = Recorder(smooth_ll)
         cfg = EvolutionConfig(p_crossover=float(rng.random()), p_mutation=float(rng.random()))
-        assert evolve(poses, ll, groups, cfg, ev, rng) == ev.count
+        assert evolve_groups(poses, ll, groups, cfg, ev, rng) == ev.count
     # p_c = 1, p_m = 1: two children per pair plus one per individual.
     poses = random_set(rng, 41)
     ev = Recorder(smooth_ll)
     groups = [np.arange(0, 20), np.arange(20, 41)]
     cfg = EvolutionConfig(p_crossover=1.0, p_mutation=1.0)
-    assert evolve(poses, smooth_ll(poses), groups, cfg, ev, rng) == 2 * (10 + 10) + 41
+    assert evolve_groups(poses, smooth_ll(poses), groups, cfg, ev, rng) == 2 * (10 + 10) + 41
 
 
 def test_random_pairs_are_disjoint_and_inside_their_groups() -> None:

@@ -43,27 +43,34 @@ def test_gmcl_same_seed_is_reproducible() -> None:
 
 
 class EvolutionProbe:
-    """Wraps a filter's ``_evolve`` hook and records the particle set before and after."""
+    """Records the particle set after weighting and after the genetic operators: wraps GMCL's
+    ``evolve`` step, or for MCL (no operators: before and after are the same) the step that
+    follows its weighting, ``resample_if_due``."""
 
     def __init__(self, f: MCL) -> None:
         self.f = f
-        self.inner = f._evolve
+        self.phase = "evolve" if isinstance(f, GMCL) else "resample_if_due"
+        self.inner = getattr(f, self.phase)
         self.records: list[dict[str, Any]] = []
-        f._evolve = self  # type: ignore[method-assign]
+        setattr(f, self.phase, self)
 
-    def __call__(self) -> None:
-        f = self.f
-        before = (f.poses.copy(), f.loglik.copy())
-        self.inner()
-        assert f._prepared is not None
+    def __call__(self, *args: Any) -> Any:
+        ps = self.f.particle_set
+        before = (ps.poses.copy(), ps.loglik.copy())
+        out = self.inner(*args) if self.phase == "evolve" else None
+        ps = self.f.particle_set
+        prepared = args[0] if args else None
         self.records.append(
             {
                 "before": before,
-                "after": (f.poses.copy(), f.loglik.copy()),
-                "w": f.weights.copy(),
-                "recomputed": f.sensor.log_likelihood(f.poses, f._prepared),
+                "after": (ps.poses.copy(), ps.loglik.copy()),
+                "w": ps.weights.copy(),
+                "recomputed": None
+                if prepared is None
+                else self.f.sensor.log_likelihood(ps.poses, prepared),
             }
         )
+        return out if self.phase == "evolve" else self.inner()
 
 
 def test_evolution_never_lowers_the_best_likelihood_and_beats_plain_mcl() -> None:

@@ -128,23 +128,23 @@ def test_small_motion_does_not_trigger_a_sensor_update() -> None:
     scan = log.scan(0)
     still = OdometryIncrement(0.0, 0.0, 0.0)
     first = f.step(still, scan)  # the first scan after an initialisation always updates
-    assert first.extra["updated"] == 1.0 and first.likelihood_evaluations == 2000
-    poses = f.poses.copy()
+    assert first.updated == 1.0 and first.likelihood_evaluations == 2000
+    poses = f.particle_set.poses.copy()
     # 0.06 m per step along the odometry x axis: |dx| exceeds 0.25 m at the 5th step.
     forward = OdometryIncrement(0.0, 0.06, 0.0)
     flags = []
     for _ in range(5):
         d = f.step(forward, scan)
-        flags.append(d.extra["updated"])
-        if d.extra["updated"] == 0.0:
+        flags.append(d.updated)
+        if d.updated == 0.0:
             assert d.likelihood_evaluations == 0
-            np.testing.assert_array_equal(f.poses, poses)  # particles untouched...
+            np.testing.assert_array_equal(f.particle_set.poses, poses)  # particles untouched...
     assert flags == [0.0, 0.0, 0.0, 0.0, 1.0]
     # 0.06 rad per step: |dtheta| exceeds 0.2 rad at the 4th step.
     turn = OdometryIncrement(0.06, 0.0, 0.0)
-    assert [f.step(turn, scan).extra["updated"] for _ in range(4)] == [0.0, 0.0, 0.0, 1.0]
+    assert [f.step(turn, scan).updated for _ in range(4)] == [0.0, 0.0, 0.0, 1.0]
     # Without a scan there is never an update, however far the robot goes.
-    assert all(f.step(forward, None).extra["updated"] == 0.0 for _ in range(10))
+    assert all(f.step(forward, None).updated == 0.0 for _ in range(10))
 
 
 def test_estimate_is_carried_by_odometry_between_updates() -> None:
@@ -155,7 +155,7 @@ def test_estimate_is_carried_by_odometry_between_updates() -> None:
     f.step(OdometryIncrement(0.0, 0.0, 0.0), log.scan(0))
     before = f.estimate().pose
     d = f.step(OdometryIncrement(0.0, 0.1, 0.0), log.scan(0))
-    assert d.extra["updated"] == 0.0
+    assert d.updated == 0.0
     after = f.estimate().pose
     # ...but the estimate moves 0.1 m along its heading, as amcl's map -> odom transform does.
     np.testing.assert_allclose(
@@ -244,10 +244,10 @@ def _collapse_run(recovery: bool) -> tuple[KLDAMCL, ConstantSensor, list[dict[st
     extras = []
     for _ in range(20):  # fitness 1 every time: w_slow = w_fast = 1, nothing injected
         d = f.step(move, log.scan(0))
-        assert d.extra["updated"] == 1.0 and d.extra["injected"] == 0.0
+        assert d.updated == 1.0 and d.injected == 0.0
     sensor.value = -5.0  # every pose now explains the scan badly: average weight e^-5
     for _ in range(5):
-        extras.append(f.step(move, log.scan(0)).extra)
+        extras.append(f.step(move, log.scan(0)))
     return f, sensor, extras
 
 
@@ -258,27 +258,27 @@ def test_recovery_injects_random_particles_while_the_likelihood_stays_low() -> N
     for n, e in enumerate(extras, start=21):
         w_slow = running_average(w_slow, w_avg, 0.001, n)
         w_fast = running_average(w_fast, w_avg, 0.1, n)
-        assert (e["w_slow"], e["w_fast"]) == pytest.approx((w_slow, w_fast), rel=1e-9)
-        assert e["random_probability"] == pytest.approx(1.0 - w_fast / w_slow, rel=1e-9)
-        assert e["injected"] > 0
+        assert (e.w_slow, e.w_fast) == pytest.approx((w_slow, w_fast), rel=1e-9)
+        assert e.random_probability == pytest.approx(1.0 - w_fast / w_slow, rel=1e-9)
+        assert e.injected > 0
     # No reset after an injection (Probabilistic Robotics Table 8.3, unlike amcl): the chance
     # grows while the scans stay unexplained.
-    probs = [e["random_probability"] for e in extras]
+    probs = [e.random_probability for e in extras]
     assert all(b > a for a, b in itertools.pairwise(probs))
     # Injected particles are uniform over free space: many lie far from the cloud.
-    far = np.hypot(f.poses[:, 0] - 1.5, f.poses[:, 1] - 4.25) > 2.0
-    assert far.sum() >= extras[-1]["injected"] / 2
+    far = np.hypot(f.particle_set.poses[:, 0] - 1.5, f.particle_set.poses[:, 1] - 4.25) > 2.0
+    assert far.sum() >= extras[-1].injected / 2
     # Once the scans are explained again, w_fast climbs back above w_slow and injection stops.
     sensor.value = 0.0
     log, _ = office_log(2)
-    tail = [f.step(OdometryIncrement(0.0, 0.01, 0.0), log.scan(0)).extra for _ in range(15)]
-    assert tail[-1]["random_probability"] == 0.0 and tail[-1]["injected"] == 0.0
+    tail = [f.step(OdometryIncrement(0.0, 0.01, 0.0), log.scan(0)) for _ in range(15)]
+    assert tail[-1].random_probability == 0.0 and tail[-1].injected == 0.0
 
 
 def test_without_recovery_nothing_is_injected() -> None:
     f, _, extras = _collapse_run(recovery=False)
-    assert all(e["random_probability"] == 0.0 and e["injected"] == 0.0 for e in extras)
-    assert np.hypot(f.poses[:, 0] - 1.5, f.poses[:, 1] - 4.25).max() < 1.0
+    assert all(e.random_probability == 0.0 and e.injected == 0.0 for e in extras)
+    assert np.hypot(f.particle_set.poses[:, 0] - 1.5, f.particle_set.poses[:, 1] - 4.25).max() < 1.0
 
 
 def test_recovery_fires_after_a_kidnapping_only_when_on() -> None:
@@ -296,7 +296,7 @@ def test_recovery_fires_after_a_kidnapping_only_when_on() -> None:
             d = f.step(increment_between(log.odometry[k - 1], log.odometry[k]), scan)
             assert np.all(np.isfinite(f.estimate().pose))
             if k >= 150:
-                total += d.extra["injected"]
+                total += d.injected
         injected[algo] = total
     assert injected["kld-amcl"] == 0.0
     assert injected["kld-amcl-recovery"] > 0.0
@@ -316,18 +316,18 @@ def test_every_particle_impossible_reinitialises_globally(value: float) -> None:
     assert not f.step(MOVE, log.scan(0)).reinitialised
     sensor.value = value
     d = f.step(MOVE, log.scan(0))
-    assert d.extra["updated"] == 1.0 and d.reinitialised and not d.resampled
-    assert d.n_particles == cfg.max_particles
+    assert d.updated == 1.0 and d.reinitialised and not d.resampled
+    assert f.particle_set.n == cfg.max_particles
     assert np.all(np.isfinite(f.weights)) and f.weights.sum() == pytest.approx(1.0)
     # The particles cover the free space again, not the old cloud.
-    assert np.ptp(f.poses[:, 0]) > 5.0 and np.ptp(f.poses[:, 1]) > 3.0
-    assert np.all(grid.is_free(f.poses[:, 0], f.poses[:, 1]))
+    assert np.ptp(f.particle_set.poses[:, 0]) > 5.0 and np.ptp(f.particle_set.poses[:, 1]) > 3.0
+    assert np.all(grid.is_free(f.particle_set.poses[:, 0], f.particle_set.poses[:, 1]))
     assert np.all(np.isfinite(f.estimate().pose))
     assert all(0.0 <= h.fitness <= 1.0 for h in f.hypotheses())
     # The next scan updates at once (as after any initialisation), and nothing is re-initialised.
     sensor.value = 0.0
     d = f.step(MOVE, log.scan(0))
-    assert d.extra["updated"] == 1.0 and not d.reinitialised
+    assert d.updated == 1.0 and not d.reinitialised
 
 
 def test_non_finite_odometry_is_refused() -> None:
@@ -358,8 +358,8 @@ def kidnapped_run(algorithm: str, seed: int) -> tuple[int | None, float]:
         d = f.step(increment_between(log.odometry[k - 1], log.odometry[k]), log.scan(k))
         localised[k] = bool(covers(f.estimate().pose, log.true_poses[k])[0, 0])
         if d.resampled and k < k0:
-            injected += d.extra["injected"]
-            drawn += d.n_particles
+            injected += d.injected
+            drawn += f.particle_set.n
     assert localised[k0 - 1], "the filter must track up to the kidnap for the test to mean much"
     window = round(DEFAULT_WINDOW_S / float(np.median(np.diff(log.times))))
     return recovery_step(localised, k0, window), injected / drawn
@@ -394,8 +394,8 @@ def test_recovery_injects_almost_nothing_while_tracking(seed: int) -> None:
         d = f.step(increment_between(log.odometry[k - 1], log.odometry[k]), log.scan(k))
         errors[k] = np.hypot(*(f.estimate().pose[:2] - log.true_poses[k, :2]))
         if d.resampled:
-            injected += d.extra["injected"]
-            drawn += d.n_particles
+            injected += d.injected
+            drawn += f.particle_set.n
     assert drawn > 0 and injected / drawn < 0.01
     assert errors[log.times >= 5.0].max() < 0.15  # the bound of test_tracking_from_a_known_start
 
@@ -450,7 +450,7 @@ def test_sample_size_falls_from_max_towards_min(scenario: str) -> None:
     for k in range(1, len(log)):
         d = f.step(increment_between(log.odometry[k - 1], log.odometry[k]), log.scan(k))
         if d.resampled:
-            counts.append(d.n_particles)
+            counts.append(f.particle_set.n)
     counts_arr = np.array(counts)
     assert counts_arr.size > 20 and counts_arr.min() >= 500
     # Once converged, most resamplings keep (close to) min_particles. (A cloud that fits in a

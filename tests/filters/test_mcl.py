@@ -9,7 +9,7 @@ from numpy.typing import ArrayLike, NDArray
 from ceamcl.filters import MCL, MCLConfig, make_filter
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel, increment_between
-from ceamcl.runner import run_filter
+from ceamcl.runner import run_filter, timed_step
 from ceamcl.sensors import LaserScan, LikelihoodFieldModel, PreparedScan
 from ceamcl.simulation import SimulatedLog, office_scenario, paper_scenario
 
@@ -41,7 +41,7 @@ def test_tracking_from_a_known_start_on_marked_hall() -> None:
     heading_errors = np.zeros(len(log))
     for k in range(1, len(log)):
         inc = increment_between(log.odometry[k - 1], log.odometry[k])
-        diag = f.step(inc, log.scan(k))
+        diag = timed_step(f, k, inc, log.scan(k))
         assert diag.step == k and not diag.reinitialised
         e = f.estimate().pose
         errors[k] = np.hypot(*(e[:2] - log.true_poses[k, :2]))
@@ -163,7 +163,9 @@ def test_impossible_weights_reinitialise_without_nan() -> None:
     assert diag.reinitialised
     w = f.weights
     np.testing.assert_allclose(w, 1.0 / 500)
-    assert np.all(grid.is_free(f.poses[:, 0], f.poses[:, 1]))  # spread over free space again
+    assert np.all(
+        grid.is_free(f.particle_set.poses[:, 0], f.particle_set.poses[:, 1])
+    )  # spread over free space again
     assert np.all(np.isfinite(f.estimate().pose))
 
 

@@ -5,7 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ceamcl.filters.resampling import effective_sample_size, normalise_log_weights, systematic
+from ceamcl.filters.resampling import (
+    RESAMPLERS,
+    effective_sample_size,
+    multinomial,
+    normalise_log_weights,
+    resampler,
+    systematic,
+)
 
 
 @pytest.mark.parametrize("n", [1, 7, 100, 1000])
@@ -100,3 +107,21 @@ def test_normalise_log_weights_treats_nan_as_impossible() -> None:
     np.testing.assert_allclose(w, [0.0, 0.5, 0.0, 0.5])
     assert not np.any(np.isnan(lw))
     assert lw[0] == -np.inf and lw[2] == -np.inf
+
+
+def test_multinomial_counts_follow_the_weights() -> None:
+    # n independent draws: copies of i ~ Binomial(n, w_i); 5 standard deviations.
+    rng = np.random.default_rng(42)
+    w = np.array([0.5, 0.3, 0.15, 0.05, 0.0])
+    n = 20_000
+    counts = np.bincount(multinomial(w, n, rng), minlength=w.size)
+    sd = np.sqrt(n * w * (1 - w))
+    assert np.all(np.abs(counts - n * w) <= 5 * sd + 1e-9)
+    assert counts[-1] == 0
+
+
+def test_resamplers_are_found_by_name() -> None:
+    assert resampler("systematic") is systematic and resampler("multinomial") is multinomial
+    assert set(RESAMPLERS) == {"systematic", "multinomial"}
+    with pytest.raises(ValueError, match="unknown 'stratified'"):
+        resampler("stratified")

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from ceamcl.filters import make_filter
+from ceamcl.filters import make_filter, species_of
 from ceamcl.runner import RunResult, run_filter
 from ceamcl.simulation import paper_scenario
 from ceamcl.simulation.simulator import SimulatedLog
@@ -60,7 +60,7 @@ def step_record(d: Any) -> list[str]:
         str(int(d.likelihood_evaluations)),
         str(bool(d.reinitialised)),
     ]
-    for s in getattr(d, "species", ()):
+    for s in species_of(d):
         out.append(
             ",".join(
                 [str(s.species_id), str(s.n)]

@@ -137,13 +137,13 @@ def test_every_update_moves_weights_and_resamples() -> None:
     spread = []
     for _ in range(4):
         d = f.step(still, log.scan(0))
-        assert d.resampled and d.extra["updated"] == 1.0
+        assert d.resampled and d.updated == 1.0
         spread.append(np.trace(f.estimate().covariance[:2, :2]))
     # Had the wheel skipped updates for no motion, the cloud (and its spread) would not change.
     assert len(set(spread)) == len(spread)
     assert spread[-1] < spread[0] < 2 * 0.3**2
     # No scan: no update, odometry only accumulates.
-    assert f.step(OdometryIncrement(0.0, 0.5, 0.0), None).extra["updated"] == 0.0
+    assert f.step(OdometryIncrement(0.0, 0.5, 0.0), None).updated == 0.0
 
 
 @needs_wheel
@@ -196,7 +196,7 @@ def test_scans_with_fewer_beams_than_max_beams_do_not_hang() -> None:
         OdometryIncrement(0.0, 0.0, 0.0),
         LaserScan(r, s.angle_min, s.angle_increment, s.range_min, s.range_max, s.pose),
     )
-    assert d.extra["updated"] == 1.0
+    assert d.updated == 1.0
     assert np.all(np.isfinite(f.estimate().pose))
 
 
@@ -210,7 +210,7 @@ def test_global_initialisation_runs_and_reports() -> None:
     assert res.algorithm == "nav2-amcl"
     assert np.all(np.isfinite(res.estimates))
     assert all(
-        d.n_particles == 2000 and d.extra["n_particles_is_upper_bound"] == 1.0
+        d.n_particles == 2000 and d.record.columns()["n_particles_is_upper_bound"] == 1.0
         for d in res.diagnostics
     )
     # Before the first scan the estimate is the centre of free space, spread over the map.

@@ -11,6 +11,7 @@ from ceamcl.filters import ALGORITHMS
 from ceamcl.filters.ceamcl import CEAMCLConfig
 from ceamcl.maps.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
 from ceamcl.motion.odometry import OdometryIncrement
+from ceamcl.runner import timed_step
 from ceamcl.sensors.scan import LaserScan
 from tests.robustness._filters import assert_all_finite, small_filter, small_sensor
 
@@ -91,7 +92,7 @@ def test_fuzz_filters_never_produce_nan(
     else:
         f.initialise_global(first)
     assert_all_finite(f)
-    for increment, scan in steps:
-        diag = f.step(increment, scan)
+    for k, (increment, scan) in enumerate(steps, start=1):
+        diag = timed_step(f, k, increment, scan)
         assert diag.n_particles == f.particles().poses.shape[0]
         assert_all_finite(f)

@@ -9,7 +9,7 @@ from numpy.typing import ArrayLike, NDArray
 from ceamcl.errors import CeamclError
 from ceamcl.filters import ALGORITHMS
 from ceamcl.filters.ceamcl import CEAMCL, CEAMCLConfig
-from ceamcl.filters.mcl import gaussian_poses
+from ceamcl.filters.particles import gaussian_poses
 from ceamcl.filters.resampling import normalise_log_weights, sanitise_log_likelihood, systematic
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel
@@ -108,9 +108,9 @@ def test_ceamcl_every_species_extinct_restarts_and_records_it() -> None:
     # Force every species to shrink below the viable size at the next step.
     f.competition.dn = {sid: -10.0 * s.n for sid, s in f.stats.items()}
     diag = f.step(MOVE, GOOD)
-    assert diag.reinitialised and diag.extra["restarts"] == 1.0
-    assert diag.extra["extinctions"] >= 1
-    assert diag.n_particles > 0 and f.stats
+    assert diag.reinitialised and diag.events.restarts == 1.0
+    assert diag.events.extinctions >= 1
+    assert f.particle_set.n > 0 and f.stats
     assert_all_finite(f)
 
 
@@ -131,9 +131,9 @@ def test_ceamcl_one_particle_species_stays_finite() -> None:
     grid = box_grid()
     f = tiny_ceamcl(grid, np.random.default_rng(15), min_species_size=1)
     f.initialise_pose([2.0, 2.0, 0.3], np.diag([0.01, 0.01, 0.01]))
-    keep = np.zeros(f.poses.shape[0], dtype=bool)
+    keep = np.zeros(f.particle_set.n, dtype=bool)
     keep[0] = True
-    f._take(keep)
+    f.particle_set.take(keep)
     f._refresh_stats()
     f.competition.dn = {0: 0.0}
     (only,) = f.stats.values()

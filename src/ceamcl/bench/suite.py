@@ -29,11 +29,17 @@ from numpy.typing import NDArray
 from ceamcl import peers
 from ceamcl.filters import registry
 from ceamcl.filters.ceamcl import CEAMCL, CEAMCLConfig
-from ceamcl.filters.ceamcl.initialisation import generate_initial_species
+from ceamcl.filters.ceamcl.initialisation import (
+    generate_initial_species,
+    sample_test_poses,
+    score_test_poses,
+)
+from ceamcl.filters.ceamcl.records import species_of
 from ceamcl.maps.grid import FREE, OCCUPIED, OccupancyGrid
 from ceamcl.maps.worlds import get_world
 from ceamcl.motion.odometry import OdometryNoise, increment_between
-from ceamcl.sensors.base import SensorModel, fitness
+from ceamcl.runner import timed_step
+from ceamcl.sensors.base import SensorModel
 from ceamcl.sensors.beam_model import BeamModel, BeamModelConfig
 from ceamcl.sensors.likelihood_field import LikelihoodFieldConfig, LikelihoodFieldModel
 from ceamcl.sensors.raycast import RangeTable
@@ -316,34 +322,16 @@ def measure_init(grid: OccupancyGrid, log: SimulatedLog, s: BenchSettings) -> di
     sensor = LikelihoodFieldModel(grid)
     rng = np.random.default_rng(s.seed)
     phases: dict[str, float] = {}
+    init = cfg.initialisation
     with _Clock() as c:
         prepared = sensor.prepare(scan)
-        test = grid.sample_free_poses(cfg.n_test, rng)
+        test = sample_test_poses(grid, init, rng)
     phases["sample test poses"] = c.wall
     with _Clock() as c:
-        ll = np.concatenate(
-            [
-                sensor.log_likelihood(test[i : i + cfg.test_batch], prepared)
-                for i in range(0, cfg.n_test, cfg.test_batch)
-            ]
-        )
-        fit = fitness(ll, prepared, sensor)
+        ll, fit, _ = score_test_poses(test, sensor, prepared, init)
     phases["likelihood and fitness"] = c.wall
     with _Clock() as c:
-        generate_initial_species(
-            grid,
-            test,
-            ll,
-            fit,
-            cell_m=cfg.cell_m,
-            mu=cfg.mu,
-            eta=cfg.eta,
-            cell_top_k=cfg.cell_top_k,
-            fitness_exponent=cfg.cell_fitness_exponent,
-            smoothing_cells=cfg.cell_smoothing,
-            min_species_size=cfg.min_species_size,
-            max_samples=cfg.max_samples,
-        )
+        generate_initial_species(grid, test, ll, fit, init)
     phases["cells, SKIZ, selection"] = c.wall
     assert last is not None
     return {
@@ -356,7 +344,7 @@ def measure_init(grid: OccupancyGrid, log: SimulatedLog, s: BenchSettings) -> di
         "phases_s": phases,
         "ns_per_pb_likelihood": phases["likelihood and fitness"] * 1e9 / (cfg.n_test * BEAMS),
         "species": len(last.stats),
-        "particles": int(last.poses.shape[0]),
+        "particles": last.particle_set.n,
     }
 
 
@@ -368,10 +356,10 @@ def measure_ceamcl_step(grid: OccupancyGrid, log: SimulatedLog, s: BenchSettings
     last = len(log) if s.ceamcl_steps is None else min(len(log), s.ceamcl_steps + 1)
     n, ms, species = [], [], []
     for k in range(1, last):
-        d = f.step(increment_between(log.odometry[k - 1], log.odometry[k]), log.scan(k))
+        d = timed_step(f, k, increment_between(log.odometry[k - 1], log.odometry[k]), log.scan(k))
         n.append(d.n_particles)
         ms.append(d.step_ms)
-        species.append(len(d.species))
+        species.append(len(species_of(d)))
     n_a, ms_a, sp_a = np.array(n), np.array(ms), np.array(species)
     near = (n_a >= 700) & (n_a <= 1300)
     out: dict[str, Any] = {

@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 from ceamcl.experiments.metrics import TrialMetrics, step_coverage, trial_metrics
 from ceamcl.experiments.routes import Course
 from ceamcl.filters import registry
+from ceamcl.filters.ceamcl.records import species_of
 from ceamcl.pose import position_error
 from ceamcl.runner import RunResult, run_filter
 from ceamcl.simulation.simulator import SimulatedLog
@@ -156,7 +157,7 @@ def record_trial(trial: Trial, log: SimulatedLog, result: RunResult) -> TrialRec
     n_particles = np.array([d.n_particles for d in diags], dtype=np.int64)
     step_ms = np.array([d.step_ms for d in diags], dtype=np.float64)
     resources = np.array(
-        [sum(s.resources for s in d.species) if d.species else np.nan for d in diags]
+        [sum(s.resources for s in species_of(d)) if species_of(d) else np.nan for d in diags]
     )
     n_hyp = np.array([h.shape[0] for h in result.hypotheses], dtype=np.int64)
     metrics = trial_metrics(

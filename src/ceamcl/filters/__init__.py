@@ -9,12 +9,13 @@ from ceamcl.filters.base import (
     LocalisationFilter,
     ParticleSnapshot,
     PoseEstimate,
-    SpeciesDiagnostics,
     StepDiagnostics,
+    StepRecord,
 )
 from ceamcl.filters.ceamcl import CEAMCL, CEAMCLConfig
+from ceamcl.filters.ceamcl.records import CEAMCLRecord, SpeciesRecord, species_of
 from ceamcl.filters.gmcl import GMCL, GMCLConfig
-from ceamcl.filters.kld_amcl import KLDAMCL, KLDAMCLConfig
+from ceamcl.filters.kld_amcl import KLDAMCL, KLDAMCLConfig, KLDAMCLRecord
 from ceamcl.filters.mcl import MCL, MCLConfig
 from ceamcl.filters.registry import ALGORITHMS, SENSOR_MODELS, make_filter, make_sensor
 
@@ -27,15 +28,19 @@ __all__ = [
     "SENSOR_MODELS",
     "Algorithm",
     "CEAMCLConfig",
+    "CEAMCLRecord",
     "GMCLConfig",
     "Hypothesis",
     "KLDAMCLConfig",
+    "KLDAMCLRecord",
     "LocalisationFilter",
     "MCLConfig",
     "ParticleSnapshot",
     "PoseEstimate",
-    "SpeciesDiagnostics",
+    "SpeciesRecord",
     "StepDiagnostics",
+    "StepRecord",
     "make_filter",
     "make_sensor",
+    "species_of",
 ]

@@ -9,13 +9,14 @@ A filter is built with a map, a motion model, a sensor model, a frozen config an
 
 It can be asked, at any time, for ``estimate()`` (the pose it believes), ``hypotheses()`` (every
 distinct pose it still entertains, best first) and ``particles()`` (for plotting). Each call
-to ``initialise_global`` and ``step`` returns a :class:`StepDiagnostics` record.
+to ``initialise_global`` and ``step`` returns the filter's :class:`StepRecord`; the runner
+(:func:`ceamcl.runner.run_filter`) adds what it measures into a :class:`StepDiagnostics`.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, fields
 from typing import TYPE_CHECKING, Any, Literal, Protocol
 
 import numpy as np
@@ -65,48 +66,66 @@ class ParticleSnapshot:
 
 
 @dataclass(frozen=True)
-class SpeciesDiagnostics:
-    """One species at the end of a CEAMCL step (section 3.5)."""
+class StepRecord:
+    """What a filter says about one of its steps; each filter returns its own subclass with
+    typed fields of its own (``KLDAMCLRecord``, ``CEAMCLRecord``). Time, particle count and
+    ESS are measured by the runner (:class:`StepDiagnostics`).
 
-    species_id: int
-    n: int
-    dn: float
-    fitness: float
-    area_m2: float
-    resources: float
-    capacity: float
-    x: float
-    y: float
-    theta: float
+    resampled: the step resampled. likelihood_evaluations: poses scored against a scan.
+    reinitialised: the filter started again (every particle impossible, every species
+    extinct, a kidnap detected).
+    """
+
+    resampled: bool = False
+    likelihood_evaluations: int = 0
+    reinitialised: bool = False
+
+    def columns(self) -> dict[str, float | int | bool]:
+        """The record's scalar fields by name (CSV columns)."""
+        out: dict[str, float | int | bool] = {}
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, bool | int | float):
+                out[f.name] = value
+        return out
 
 
-@dataclass
+@dataclass(frozen=True)
 class StepDiagnostics:
-    """What one step did and cost. Filters fill the common fields; CEAMCL adds species."""
+    """One step of a run, as the runner records it: what it measured (time, particle count,
+    ESS of the normalised weights) and the filter's own :class:`StepRecord`."""
 
     step: int
     n_particles: int
-    ess: float = float("nan")
-    resampled: bool = False
-    likelihood_evaluations: int = 0
-    step_ms: float = 0.0
-    reinitialised: bool = False
-    species: tuple[SpeciesDiagnostics, ...] = ()
-    extra: dict[str, float] = field(default_factory=dict)
+    ess: float
+    step_ms: float
+    record: StepRecord
+
+    @property
+    def resampled(self) -> bool:
+        return self.record.resampled
+
+    @property
+    def likelihood_evaluations(self) -> int:
+        return self.record.likelihood_evaluations
+
+    @property
+    def reinitialised(self) -> bool:
+        return self.record.reinitialised
 
     def row(self) -> dict[str, float | int | bool]:
-        """A flat record for CSV: common fields, extra scalars and species totals."""
+        """A flat record for CSV: step, particle count, ESS, the filter's fields, step time."""
         out: dict[str, float | int | bool] = {
             "step": self.step,
             "n_particles": self.n_particles,
             "ess": self.ess,
-            "resampled": self.resampled,
-            "likelihood_evaluations": self.likelihood_evaluations,
-            "step_ms": self.step_ms,
-            "reinitialised": self.reinitialised,
-            "n_species": len(self.species),
         }
-        out.update(self.extra)
+        record = self.record.columns()
+        out.update(
+            (k, record.pop(k)) for k in ("resampled", "likelihood_evaluations") if k in record
+        )
+        out["step_ms"] = self.step_ms
+        out.update(record)
         return out
 
 
@@ -115,11 +134,16 @@ class LocalisationFilter(Protocol):
 
     name: str
 
-    def initialise_global(self, scan: LaserScan) -> StepDiagnostics: ...
+    def initialise_global(self, scan: LaserScan) -> StepRecord: ...
 
     def initialise_pose(self, pose: ArrayLike, covariance: ArrayLike) -> None: ...
 
-    def step(self, increment: OdometryIncrement, scan: LaserScan | None) -> StepDiagnostics: ...
+    def step(self, increment: OdometryIncrement, scan: LaserScan | None) -> StepRecord: ...
+
+    def particle_weights(self) -> NDArray[np.float64]:
+        """Normalised weights of the particles the filter holds now (the runner's particle
+        count and ESS); NaN weights when the filter cannot show them (the Nav2 peer)."""
+        ...
 
     def estimate(self) -> PoseEstimate: ...
 

@@ -11,6 +11,9 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import ndimage, sparse
 from scipy.sparse import csgraph
 
+from ceamcl.filters.base import Hypothesis
+from ceamcl.pose import pose_covariance, pose_mean
+
 _EIGHT = np.ones((3, 3), dtype=bool)
 
 
@@ -80,3 +83,35 @@ def pose_cluster_labels(
         lab = np.argsort(np.argsort(lowest))[component][lab]
         count = int(lowest.size - 1)
     return (lab[xy[:, 0], xy[:, 1], th] - 1).astype(np.int64), int(count)
+
+
+def cluster_hypotheses(
+    poses: NDArray[np.float64],
+    weights: NDArray[np.float64],
+    fitness: NDArray[np.float64],
+    labels: NDArray[np.int64],
+    count: int,
+    limit: int | None = None,
+) -> list[Hypothesis]:
+    """The particle clusters ``labels`` (in ``0..count-1``) as hypotheses, heaviest first
+    (equal masses: lower label first); only the ``limit`` heaviest when given. Each has its
+    members' weighted mean pose and covariance, its share of the weight and mean fitness."""
+    mass = np.bincount(labels, weights=weights, minlength=count)
+    order = np.argsort(labels, kind="stable")
+    bounds = np.searchsorted(labels[order], np.arange(count + 1))
+    out = []
+    for k in np.argsort(-mass, kind="stable")[:limit]:
+        members = order[bounds[k] : bounds[k + 1]]
+        wk = weights[members]
+        mean = pose_mean(poses[members], wk)
+        out.append(
+            Hypothesis(
+                pose=mean,
+                covariance=pose_covariance(poses[members], wk, mean),
+                n_particles=int(members.size),
+                weight=float(mass[k]),
+                fitness=float(np.mean(fitness[members])),
+                label=int(k),
+            )
+        )
+    return out

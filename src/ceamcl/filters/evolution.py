@@ -122,7 +122,7 @@ def random_pairs(
     return np.concatenate(firsts).astype(np.intp), np.concatenate(seconds).astype(np.intp)
 
 
-def evolve(
+def evolve_groups(
     poses: NDArray[np.float64],
     loglik: NDArray[np.float64],
     groups: list[NDArray[np.intp]],

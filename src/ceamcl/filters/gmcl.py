@@ -15,11 +15,11 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from ceamcl.filters.base import Algorithm
-from ceamcl.filters.evolution import EvolutionConfig, evolve
+from ceamcl.filters.base import Algorithm, StepRecord
+from ceamcl.filters.evolution import EvolutionConfig
 from ceamcl.filters.mcl import MCL, MCLConfig
-from ceamcl.filters.resampling import normalise_log_weights, sanitise_log_likelihood
-from ceamcl.sensors.base import fitness
+from ceamcl.filters.particles import evolve, importance_weights
+from ceamcl.sensors.scan import PreparedScan
 
 
 @dataclass(frozen=True)
@@ -35,22 +35,22 @@ class GMCL(MCL):
     name = "gmcl"
     config: GMCLConfig
 
-    def _evolve(self) -> None:
-        prepared = self._prepared
-        assert prepared is not None
+    def correct(self, prepared: PreparedScan | None) -> StepRecord:
+        """MCL's correction with the genetic operators between weighting and resampling."""
+        prior = self.particle_set.log_weights
+        evaluations, reinitialised = self.reweight(prepared)
+        if prepared is not None and not reinitialised:
+            evaluations += self.evolve(prepared, prior)
+        return StepRecord(self.resample_if_due(), evaluations, reinitialised)
 
-        def evaluate(poses: NDArray[np.float64]) -> NDArray[np.float64]:
-            return self.sensor.log_likelihood(poses, prepared)
-
-        everyone = [np.arange(self.poses.shape[0], dtype=np.intp)]
-        self._evaluations += evolve(
-            self.poses, self.loglik, everyone, self.config.evolution, evaluate, self.rng
-        )
-        self.loglik = sanitise_log_likelihood(self.loglik)
-        self.fitness = fitness(self.loglik, prepared, self.sensor)
-        log_w, _, ok = normalise_log_weights(self._prior_log_weights + self.loglik)
-        if ok:
-            self.log_weights = log_w
+    def evolve(self, prepared: PreparedScan, prior_log_weights: NDArray[np.float64]) -> int:
+        """Crossover and mutation over the whole set (eqs. 17-18); each particle's weight
+        becomes its prior weight times its (new) likelihood. Returns the evaluations."""
+        ps = self.particle_set
+        everyone = [np.arange(ps.n, dtype=np.intp)]
+        evaluations = evolve(ps, everyone, self.config.evolution, self.sensor, prepared, self.rng)
+        importance_weights(ps, prior_log_weights)
+        return evaluations
 
 
 ALGORITHM = Algorithm(

@@ -11,7 +11,7 @@ sensor models:
 * **Sensor update** in log space. NaN and +inf likelihoods count as impossible; a scan with no
   usable beam changes nothing. If every particle is impossible the filter re-initialises
   globally (``max_particles`` poses uniform over free space, the next scan updates at once)
-  and the step's :class:`StepDiagnostics` says ``reinitialised=True``, as MCL's does. (amcl
+  and the step's record says ``reinitialised=True``, as MCL's does. (amcl
   only makes the weights uniform, which keeps a cloud no pose of which explains the scan.)
 * **Augmented MCL** (Probabilistic Robotics Table 8.3): running averages ``w_slow`` and
   ``w_fast`` of the average weight, and at resampling each new particle is drawn uniformly
@@ -35,7 +35,6 @@ sensor models:
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -47,15 +46,22 @@ from ceamcl.filters.base import (
     Hypothesis,
     ParticleSnapshot,
     PoseEstimate,
-    StepDiagnostics,
+    StepRecord,
 )
-from ceamcl.filters.clustering import pose_cluster_labels
-from ceamcl.filters.mcl import check_increment, cluster_hypotheses, gaussian_poses
-from ceamcl.filters.resampling import (
-    effective_sample_size,
-    normalise_log_weights,
-    sanitise_log_likelihood,
+from ceamcl.filters.clustering import cluster_hypotheses, pose_cluster_labels
+from ceamcl.filters.particles import (
+    ParticleSet,
+    check_increment,
+    gaussian,
+    propagate,
+    reweight,
+    uniform,
+    uniform_log_weights,
+    usable,
+    weigh,
 )
+from ceamcl.filters.policies import Context, every_n, on_motion
+from ceamcl.filters.resampling import multinomial, normalise_log_weights
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import (
     OdometryIncrement,
@@ -208,6 +214,107 @@ def running_average(average: float, value: float, alpha: float, count: int) -> f
     return average + max(alpha, 1.0 / count) * (value - average)
 
 
+@dataclass
+class RecoveryAverages:
+    """Augmented MCL's running averages of the average weight (Probabilistic Robotics Table
+    8.3): ``w_slow`` and ``w_fast``, bias-corrected at the start (:func:`running_average`);
+    ``count`` values folded in since the last reset."""
+
+    alpha_slow: float
+    alpha_fast: float
+    w_slow: float = 0.0
+    w_fast: float = 0.0
+    count: int = 0
+
+    @property
+    def enabled(self) -> bool:
+        """Whether recovery can inject random particles (both rates positive)."""
+        return self.alpha_slow > 0.0 and self.alpha_fast > 0.0
+
+    def reset(self) -> None:
+        self.w_slow = self.w_fast = 0.0
+        self.count = 0
+
+    def update(self, w_avg: float) -> None:
+        """Table 8.3, lines 8-10: fold the step's average weight into both averages."""
+        self.count += 1
+        self.w_slow = running_average(self.w_slow, w_avg, self.alpha_slow, self.count)
+        self.w_fast = running_average(self.w_fast, w_avg, self.alpha_fast, self.count)
+
+    def random_probability(self) -> float:
+        """``max(0, 1 - w_fast / w_slow)`` (Table 8.3, line 13): the chance that a resampled
+        particle is drawn at random."""
+        if not self.enabled or self.w_slow <= 0.0:
+            return 0.0
+        return max(0.0, 1.0 - self.w_fast / self.w_slow)
+
+
+@dataclass(frozen=True, eq=False)
+class KLDResampled:
+    """What :func:`kld_resample` drew: the new particles, which of them are random (injected)
+    and the KLD bound at which drawing stopped."""
+
+    particles: ParticleSet
+    injected: NDArray[np.bool_]
+    target: int
+
+
+def kld_resample(
+    ps: ParticleSet,
+    grid: OccupancyGrid,
+    config: KLDAMCLConfig,
+    random_probability: float,
+    rng: np.random.Generator,
+) -> KLDResampled:
+    """KLD-sampling with random injection (amcl's ``pf_update_resample``; Fox 2003, Table 1).
+
+    Candidates are drawn in order, each at random over free space with probability
+    ``random_probability``, otherwise from the weights (multinomial); drawing stops once the
+    count exceeds :func:`kld_sample_size` of the bins occupied so far, or at
+    ``max_particles``. amcl draws them one by one and stops early; drawing ``max_particles``
+    at once and keeping the prefix takes the same prefix of the same independent draws. The
+    new particles have equal weights; an injected one has no evidence yet (log-likelihood 0,
+    fitness 1) until the caller scores it.
+    """
+    cfg = config
+    n_max = cfg.max_particles
+    is_random = rng.random(n_max) < random_probability
+    idx = multinomial(ps.weights, n_max, rng)
+    n_random = int(is_random.sum())
+    candidates = ps.poses[idx]
+    if n_random:
+        candidates[is_random] = grid.sample_free_poses(n_random, rng)
+    keys = histogram_bins(candidates, cfg.bin_xy_m, cfg.bin_theta_rad)
+    k = occupied_bins_prefix(keys)
+    limits = kld_sample_sizes(k, cfg.kld_err, cfg.kld_z, cfg.min_particles, n_max)
+    counts = np.arange(1, n_max + 1)
+    stop = np.flatnonzero(counts > limits)
+    m = int(stop[0]) + 1 if stop.size else n_max
+    injected = is_random[:m]
+    new = ParticleSet(
+        poses=candidates[:m],
+        log_weights=uniform_log_weights(m),
+        loglik=np.where(injected, 0.0, ps.loglik[idx[:m]]),
+        fitness=np.where(injected, 1.0, ps.fitness[idx[:m]]),
+        labels=ps.labels[idx[:m]],
+    )
+    return KLDResampled(new, injected, int(limits[m - 1]))
+
+
+@dataclass(frozen=True)
+class KLDAMCLRecord(StepRecord):
+    """A KLD-AMCL step: whether the filter updated (odometry thresholds), augmented MCL's
+    averages, the random probability and particles injected at a resampling, and the KLD
+    bound of the last resampling (``kld_target``)."""
+
+    updated: bool = False
+    w_slow: float = 0.0
+    w_fast: float = 0.0
+    random_probability: float = 0.0
+    injected: int = 0
+    kld_target: int = 0
+
+
 class KLDAMCL:
     """ROS/Nav2 amcl's adaptive particle filter (see the module docstring)."""
 
@@ -227,182 +334,127 @@ class KLDAMCL:
         self.sensor = sensor
         self.config = config or KLDAMCLConfig()
         self.rng = rng
-        if self.config.recovery:
+        cfg = self.config
+        if cfg.recovery:
             self.name = "kld-amcl-recovery"
-        n = self.config.max_particles
-        self.poses: NDArray[np.float64] = np.zeros((n, 3))
-        self.log_weights: NDArray[np.float64] = np.full(n, -math.log(n))
-        self.fitness: NDArray[np.float64] = np.ones(n)
-        self.w_slow = 0.0
-        self.w_fast = 0.0
-        self._n_averaged = 0  # values folded into w_slow and w_fast since the initialisation
+        self.update_when = on_motion(cfg.update_min_d, cfg.update_min_a)
+        self.resample_when = every_n(cfg.resample_interval)
+        self.recovery = RecoveryAverages(cfg.alpha_slow, cfg.alpha_fast)
+        self.particle_set = ParticleSet.from_poses(np.zeros((cfg.max_particles, 3)))
         self.t = 0
         self.odom = np.zeros(3)  # odometry pose accumulated from the increments
         self.odom_at_update = np.zeros(3)  # odometry pose of the last filter update
         self._force_update = True
-        self._resample_count = 0
-        self._kld_target = n
-        self._injected = 0
-        self._w_diff = 0.0
-        self._evaluations = 0
+        self._updates = 0  # weighted updates since the initialisation (resample_interval)
+        self._kld_target = cfg.max_particles
 
     # ------------------------------------------------------------------ initialisation
-    def _reset(self, poses: NDArray[np.float64]) -> None:
-        n = poses.shape[0]
-        self.poses = poses
-        self.log_weights = np.full(n, -math.log(n))
-        self.fitness = np.ones(n)
-        self.w_slow = self.w_fast = 0.0
-        self._n_averaged = 0
+    def _reset(self, ps: ParticleSet) -> None:
+        self.particle_set = ps
+        self.recovery.reset()
         self.t = 0
         self.odom = np.zeros(3)
         self.odom_at_update = np.zeros(3)
         self._force_update = True
-        self._resample_count = 0
-        self._kld_target = n
+        self._updates = 0
+        self._kld_target = ps.n
 
-    def initialise_global(self, scan: LaserScan) -> StepDiagnostics:
+    def initialise_global(self, scan: LaserScan) -> KLDAMCLRecord:
         """``max_particles`` poses uniform over free space, then a (forced) update with ``scan``."""
-        start = time.perf_counter()
-        self._reset(self.grid.sample_free_poses(self.config.max_particles, self.rng))
-        self._evaluations = 0
-        resampled, reinit = self._update(scan)
-        return self._diagnostics(start, updated=True, resampled=resampled, reinitialised=reinit)
+        self._reset(uniform(self.grid, self.config.max_particles, self.rng))
+        return self._update(scan)
 
     def initialise_pose(self, pose: ArrayLike, covariance: ArrayLike) -> None:
         """``max_particles`` poses from ``N(pose, covariance)`` (amcl's ``pf_init``)."""
-        self._reset(gaussian_poses(pose, covariance, self.config.max_particles, self.rng))
+        self._reset(gaussian(pose, covariance, self.config.max_particles, self.rng))
 
     # ------------------------------------------------------------------ one step
     def _motion_since_update(self) -> OdometryIncrement:
         return increment_between(self.odom_at_update, self.odom)
 
-    def _threshold_reached(self) -> bool:
-        d = self.odom - self.odom_at_update
-        da = math.remainder(float(d[2]), 2.0 * math.pi)
-        cfg = self.config
-        return (
-            abs(d[0]) > cfg.update_min_d
-            or abs(d[1]) > cfg.update_min_d
-            or (abs(da) > cfg.update_min_a)
-        )
-
-    def step(self, increment: OdometryIncrement, scan: LaserScan | None) -> StepDiagnostics:
-        start = time.perf_counter()
+    def step(self, increment: OdometryIncrement, scan: LaserScan | None) -> KLDAMCLRecord:
+        """Accumulate the odometry; update with ``scan`` when the update policy (odometry
+        thresholds) says so, or the first time after an initialisation."""
         check_increment(increment)
         self.t += 1
-        self._evaluations = 0
         self.odom = apply_increment(self.odom, increment.rot1, increment.trans, increment.rot2)[0]
-        if scan is None or not (self._force_update or self._threshold_reached()):
-            return self._diagnostics(start, updated=False, resampled=False)
-        self.poses = self.motion.sample(self.poses, self._motion_since_update(), self.rng)
+        due = self._force_update or self.update_when(Context(self.odom - self.odom_at_update))
+        if scan is None or not due:
+            return self._record(updated=False)
+        propagate(self.particle_set, self.motion, self._motion_since_update(), self.rng)
         self.odom_at_update = self.odom.copy()
-        resampled, reinit = self._update(scan)
-        return self._diagnostics(start, updated=True, resampled=resampled, reinitialised=reinit)
+        return self._update(scan)
 
-    def _update(self, scan: LaserScan) -> tuple[bool, bool]:
-        """Sensor update with ``scan``, then resampling when its interval comes; returns whether
-        it resampled and whether it had to re-initialise globally."""
+    def _update(self, scan: LaserScan) -> KLDAMCLRecord:
+        """Sensor update with ``scan``, then resampling when its interval comes."""
         self._force_update = False
-        self._injected = 0
-        prepared = self.sensor.prepare(scan)
-        if prepared.n_beams == 0:
-            return False, False  # the scan says nothing: weights and averages stay as they are
-        ll = sanitise_log_likelihood(self.sensor.log_likelihood(self.poses, prepared))
-        self._evaluations += self.poses.shape[0]
-        prior_log_w = normalise_log_weights(self.log_weights)[0]
-        log_w, _, ok = normalise_log_weights(prior_log_w + ll)
-        if not ok:
+        prepared = usable(self.sensor, scan)
+        if prepared is None:
+            return self._record()  # the scan says nothing: weights and averages stay as they are
+        ps = self.particle_set
+        evaluations = ps.n
+        ps.log_weights = normalise_log_weights(ps.log_weights)[0]
+        prior_log_w = ps.log_weights
+        if not reweight(ps, self.sensor, prepared):
             # Every particle impossible (or the model returned NaN): start again globally. The
             # averages skip this scan (it measured a cloud that is gone).
-            n = self.config.max_particles
-            self.poses = self.grid.sample_free_poses(n, self.rng)
-            self.log_weights = np.full(n, -math.log(n))
-            self.fitness = np.ones(n)
-            self._kld_target = n
+            self.particle_set = uniform(self.grid, self.config.max_particles, self.rng)
+            self._kld_target = self.config.max_particles
             self._force_update = True
-            return False, True
-        self.log_weights = log_w
-        self.fitness = fitness(ll, prepared, self.sensor)
-        cfg = self.config
-        if cfg.recovery:
-            w_avg = average_weight(prior_log_w, ll, prepared, self.sensor)
-            self._n_averaged += 1
-            self.w_slow = running_average(self.w_slow, w_avg, cfg.alpha_slow, self._n_averaged)
-            self.w_fast = running_average(self.w_fast, w_avg, cfg.alpha_fast, self._n_averaged)
-        self._resample_count += 1
-        if self._resample_count % cfg.resample_interval != 0:
-            return False, False
-        self._resample(prepared)
-        return True, False
+            return self._record(evaluations=evaluations, reinitialised=True)
+        if self.recovery.enabled:
+            self.recovery.update(average_weight(prior_log_w, ps.loglik, prepared, self.sensor))
+        self._updates += 1
+        if not self.resample_when(Context(count=self._updates)):
+            return self._record(evaluations=evaluations)
+        w_diff = self.recovery.random_probability()
+        drawn = kld_resample(ps, self.grid, self.config, w_diff, self.rng)
+        self.particle_set, self._kld_target = drawn.particles, drawn.target
+        injected = int(drawn.injected.sum())
+        if injected:
+            new = self.particle_set
+            sub = ParticleSet.from_poses(new.poses[drawn.injected])
+            weigh(sub, self.sensor, prepared)
+            new.loglik[drawn.injected] = sub.loglik
+            new.fitness[drawn.injected] = fitness(sub.loglik, prepared, self.sensor)
+            evaluations += injected
+        return self._record(
+            evaluations=evaluations, resampled=True, random_probability=w_diff, injected=injected
+        )
 
     def random_probability(self) -> float:
         """``max(0, 1 - w_fast / w_slow)``: the chance that a resampled particle is random."""
-        if not self.config.recovery or self.w_slow <= 0.0:
-            return 0.0
-        return max(0.0, 1.0 - self.w_fast / self.w_slow)
+        return self.recovery.random_probability()
 
-    def _resample(self, prepared: PreparedScan) -> None:
-        """KLD-sampling with random injection (amcl's ``pf_update_resample``)."""
-        cfg = self.config
-        n_max = cfg.max_particles
-        w_diff = self.random_probability()
-        self._w_diff = w_diff
-        weights = normalise_log_weights(self.log_weights)[1]
-        # Draw n_max candidates in order; amcl draws them one by one and stops early, which
-        # takes the same prefix of the same sequence of independent draws.
-        is_random = self.rng.random(n_max) < w_diff
-        cdf = np.cumsum(weights)
-        cdf /= cdf[-1]
-        idx = np.minimum(np.searchsorted(cdf, self.rng.random(n_max), side="right"), cdf.size - 1)
-        n_random = int(is_random.sum())
-        candidates = self.poses[idx]
-        cand_fitness = self.fitness[idx]
-        if n_random:
-            candidates[is_random] = self.grid.sample_free_poses(n_random, self.rng)
-        keys = histogram_bins(candidates, cfg.bin_xy_m, cfg.bin_theta_rad)
-        k = occupied_bins_prefix(keys)
-        limits = kld_sample_sizes(k, cfg.kld_err, cfg.kld_z, cfg.min_particles, n_max)
-        counts = np.arange(1, n_max + 1)
-        stop = np.flatnonzero(counts > limits)
-        m = int(stop[0]) + 1 if stop.size else n_max
-        self.poses = candidates[:m]
-        self.fitness = cand_fitness[:m]
-        self._kld_target = int(limits[m - 1])
-        injected = is_random[:m]
-        self._injected = int(injected.sum())
-        if self._injected:
-            ll = sanitise_log_likelihood(self.sensor.log_likelihood(self.poses[injected], prepared))
-            self._evaluations += self._injected
-            self.fitness[injected] = fitness(ll, prepared, self.sensor)
-        self.log_weights = np.full(m, -math.log(m))
-
-    def _diagnostics(
-        self, start: float, *, updated: bool, resampled: bool, reinitialised: bool = False
-    ) -> StepDiagnostics:
-        w = self.weights
-        return StepDiagnostics(
-            step=self.t,
-            n_particles=int(self.poses.shape[0]),
-            ess=effective_sample_size(w),
+    def _record(
+        self,
+        *,
+        updated: bool = True,
+        evaluations: int = 0,
+        resampled: bool = False,
+        reinitialised: bool = False,
+        random_probability: float = 0.0,
+        injected: int = 0,
+    ) -> KLDAMCLRecord:
+        return KLDAMCLRecord(
             resampled=resampled,
-            likelihood_evaluations=self._evaluations,
-            step_ms=(time.perf_counter() - start) * 1e3,
+            likelihood_evaluations=evaluations,
             reinitialised=reinitialised,
-            extra={
-                "updated": float(updated),
-                "w_slow": self.w_slow,
-                "w_fast": self.w_fast,
-                "random_probability": self._w_diff if resampled else 0.0,
-                "injected": float(self._injected if resampled else 0),
-                "kld_target": float(self._kld_target),
-            },
+            updated=updated,
+            w_slow=self.recovery.w_slow,
+            w_fast=self.recovery.w_fast,
+            random_probability=random_probability,
+            injected=injected,
+            kld_target=self._kld_target,
         )
 
     # ------------------------------------------------------------------ queries
     @property
     def weights(self) -> NDArray[np.float64]:
-        return normalise_log_weights(self.log_weights)[1]
+        return self.particle_set.weights
+
+    def particle_weights(self) -> NDArray[np.float64]:
+        return self.particle_set.weights
 
     def _carried(self, poses: NDArray[np.float64]) -> NDArray[np.float64]:
         """Poses moved (noise-free) by the odometry since the last filter update."""
@@ -412,12 +464,14 @@ class KLDAMCL:
         return apply_increment(poses, inc.rot1, inc.trans, inc.rot2)
 
     def _labels(self) -> tuple[NDArray[np.int64], int]:
-        return pose_cluster_labels(self.poses, self.config.bin_xy_m, self.config.bin_theta_rad)
+        cfg = self.config
+        return pose_cluster_labels(self.particle_set.poses, cfg.bin_xy_m, cfg.bin_theta_rad)
 
     def hypotheses(self, limit: int | None = None) -> list[Hypothesis]:
         """Clusters of connected occupied bins, heaviest first (amcl's hypotheses), their poses
         carried by the odometry since the last update; only the ``limit`` heaviest when given."""
-        hyps = cluster_hypotheses(self.poses, self.weights, self.fitness, *self._labels(), limit)
+        ps = self.particle_set
+        hyps = cluster_hypotheses(ps.poses, ps.weights, ps.fitness, *self._labels(), limit)
         return [replace(h, pose=self._carried(h.pose[None, :])[0]) for h in hyps]
 
     def estimate(self) -> PoseEstimate:
@@ -428,7 +482,8 @@ class KLDAMCL:
     def particles(self) -> ParticleSnapshot:
         """The particles, carried by the odometry since the last update; labels are clusters."""
         labels, _ = self._labels()
-        return ParticleSnapshot(self._carried(self.poses.copy()), self.weights, labels)
+        ps = self.particle_set
+        return ParticleSnapshot(self._carried(ps.poses.copy()), self.weights, labels)
 
 
 def kld_sample_sizes(
@@ -472,8 +527,12 @@ __all__ = [
     "RECOVERY_ALGORITHM",
     "Z_099",
     "KLDAMCLConfig",
+    "KLDAMCLRecord",
+    "KLDResampled",
+    "RecoveryAverages",
     "average_weight",
     "histogram_bins",
+    "kld_resample",
     "kld_sample_size",
     "kld_sample_sizes",
     "occupied_bins_prefix",

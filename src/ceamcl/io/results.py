@@ -13,6 +13,7 @@ from typing import Any
 
 from ceamcl.errors import ConfigError
 from ceamcl.filters.base import StepDiagnostics
+from ceamcl.filters.ceamcl.records import species_of
 from ceamcl.io.created import missing_ancestor, note_created
 
 
@@ -71,10 +72,10 @@ def write_json(path: str | os.PathLike[str], data: Mapping[str, Any]) -> Path:
 def write_diagnostics_csv(
     path: str | os.PathLike[str], records: list[StepDiagnostics], times: list[float] | None = None
 ) -> Path:
-    """One row per step: the common fields, the filter's extra scalars, and per-species
+    """One row per step: the runner's fields, the filter's record's scalars, and per-species
     columns ``species_<id>_<field>`` for CEAMCL (blank while a species does not exist)."""
     rows = [r.row() for r in records]
-    species_ids = sorted({s.species_id for r in records for s in r.species})
+    species_ids = sorted({s.species_id for r in records for s in species_of(r)})
     fields: list[str] = ["time_s"] if times is not None else []
     for row in rows:
         for key in row:
@@ -90,7 +91,7 @@ def write_diagnostics_csv(
             full: dict[str, Any] = dict(row)
             if times is not None:
                 full["time_s"] = times[k]
-            for s in rec.species:
+            for s in species_of(rec):
                 for f in species_fields:
                     full[f"species_{s.species_id}_{f}"] = getattr(s, f)
             writer.writerow(full)

@@ -44,7 +44,6 @@ import ctypes
 import ctypes.util
 import importlib
 import math
-import time
 from dataclasses import dataclass, field, replace
 from types import ModuleType, TracebackType
 from typing import Any
@@ -60,7 +59,7 @@ from ceamcl.filters.base import (
     Hypothesis,
     ParticleSnapshot,
     PoseEstimate,
-    StepDiagnostics,
+    StepRecord,
 )
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryIncrement, OdometryNoise, apply_increment
@@ -213,6 +212,15 @@ class _Drand48:
 
 # ---------------------------------------------------------------------------------- the filter
 @dataclass(frozen=True)
+class Nav2AMCLRecord(StepRecord):
+    """A step of the wheel: whether it updated with a scan; the particle count the runner
+    records is the upper bound ``max_particles`` (the wheel hides its particles)."""
+
+    updated: bool = False
+    n_particles_is_upper_bound: bool = True
+
+
+@dataclass(frozen=True)
 class Nav2AMCLConfig:
     """Settings of the peer (defaults: Nav2's, beam model parameters as our BeamModel's)."""
 
@@ -326,7 +334,7 @@ class Nav2AMCL:
         # set_initial_pose reseeded drand48 from the library's own counter: take ours back.
         self._drand48.reseed(self.rng)
 
-    def initialise_global(self, scan: LaserScan) -> StepDiagnostics:
+    def initialise_global(self, scan: LaserScan) -> Nav2AMCLRecord:
         """Not global localisation proper (the wheel has none): a Gaussian spread over the map.
 
         The wheel's particles are drawn from ``N(centroid of free space, covariance of free
@@ -334,13 +342,12 @@ class Nav2AMCL:
         Particles can land in walls or off the map; the beam model then gives them little
         weight.
         """
-        start = time.perf_counter()
         self.t = 0
         self._pending = None
         mean, cov = self._free_space_gaussian()
         self._set_initial(mean, cov)
         updated = self._update(scan)
-        return self._diagnostics(start, updated)
+        return self._record(updated)
 
     def initialise_pose(self, pose: ArrayLike, covariance: ArrayLike) -> None:
         """Pose tracking from ``pose`` (world frame) with ``covariance``.
@@ -354,8 +361,7 @@ class Nav2AMCL:
         self._pending = (p, cov)
 
     # ------------------------------------------------------------------ one step
-    def step(self, increment: OdometryIncrement, scan: LaserScan | None) -> StepDiagnostics:
-        start = time.perf_counter()
+    def step(self, increment: OdometryIncrement, scan: LaserScan | None) -> Nav2AMCLRecord:
         self.t += 1
         self._odom = apply_increment(self._odom, increment.rot1, increment.trans, increment.rot2)[0]
         if self._pending is not None:
@@ -363,7 +369,7 @@ class Nav2AMCL:
             moved = apply_increment(p, increment.rot1, increment.trans, increment.rot2)[0]
             self._pending = (moved, cov)
         updated = self._update(scan) if scan is not None else False
-        return self._diagnostics(start, updated)
+        return self._record(updated)
 
     def _update(self, scan: LaserScan) -> bool:
         """One wheel update with ``scan``; False (odometry kept for later) when no beam is usable.
@@ -396,16 +402,14 @@ class Nav2AMCL:
         )
         return True
 
-    def _diagnostics(self, start: float, updated: bool) -> StepDiagnostics:
-        return StepDiagnostics(
-            step=self.t,
-            n_particles=self.config.max_particles,
-            ess=float("nan"),
-            resampled=updated,  # the wheel resamples on every update
-            likelihood_evaluations=0,
-            step_ms=(time.perf_counter() - start) * 1e3,
-            extra={"updated": float(updated), "n_particles_is_upper_bound": 1.0},
-        )
+    def _record(self, updated: bool) -> Nav2AMCLRecord:
+        # The wheel resamples on every update.
+        return Nav2AMCLRecord(resampled=updated, updated=updated)
+
+    def particle_weights(self) -> NDArray[np.float64]:
+        """The wheel hides its particles: ``max_particles`` NaN weights (the runner records
+        that upper bound as the particle count and ESS as unknown)."""
+        return np.full(self.config.max_particles, np.nan)
 
     # ------------------------------------------------------------------ queries
     def estimate(self) -> PoseEstimate:

@@ -33,6 +33,7 @@ from PIL import Image
 
 from ceamcl.filters.base import ParticleSnapshot
 from ceamcl.filters.ceamcl.competition import living_domain
+from ceamcl.filters.ceamcl.records import CEAMCLRecord, species_of
 from ceamcl.io.results import atomic_write
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.runner import RunResult
@@ -142,7 +143,11 @@ def series(result: RunResult) -> tuple[NDArray[np.float64], NDArray[np.float64]]
     """Per step: the total sample size and the total resources (NaN where a filter has none)."""
     n = np.array([d.n_particles for d in result.diagnostics], dtype=np.float64)
     r = np.array(
-        [d.extra.get("total_resources", np.nan) for d in result.diagnostics], dtype=np.float64
+        [
+            d.record.total_resources if isinstance(d.record, CEAMCLRecord) else np.nan
+            for d in result.diagnostics
+        ],
+        dtype=np.float64,
     )
     return n, r
 
@@ -211,7 +216,7 @@ class _Renderer:
         (self.estimate,) = ax.plot(
             [], [], "x", color="red", ms=10, mew=2.5, zorder=6, animated=True, label="estimate"
         )
-        group = "species" if any(d.species for d in result.diagnostics) else "cluster"
+        group = "species" if any(species_of(d) for d in result.diagnostics) else "cluster"
         ax.plot([], [], "o", color="0.5", ms=4, label=f"particles (colour: {group})")
         ax.plot([], [], "-", color="0.5", lw=1.4, label="living domain (2σ)")
         ax.legend(

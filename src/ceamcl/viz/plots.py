@@ -11,6 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
+from ceamcl.filters.ceamcl.records import species_of
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.runner import RunResult
 from ceamcl.viz.animation import series
@@ -94,7 +95,7 @@ def plot_run(
 def _species_tracks(result: RunResult) -> dict[int, np.ndarray]:
     tracks: dict[int, list[tuple[float, float]]] = {}
     for d in result.diagnostics:
-        for s in d.species:
+        for s in species_of(d):
             tracks.setdefault(s.species_id, []).append((s.x, s.y))
     return {sid: np.asarray(pts) for sid, pts in tracks.items()}
 
@@ -112,7 +113,7 @@ def plot_species(result: RunResult, path: str | os.PathLike[str], title: str = "
     ax1.grid(alpha=0.3)
     sizes: dict[int, list[tuple[float, int]]] = {}
     for time_s, d in zip(t, result.diagnostics, strict=True):
-        for s in d.species:
+        for s in species_of(d):
             sizes.setdefault(s.species_id, []).append((float(time_s), s.n))
     for sid, pts in sorted(sizes.items()):
         arr = np.array(pts)

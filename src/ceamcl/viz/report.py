@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 from PIL import Image
 
+from ceamcl.filters.ceamcl.records import species_of
 from ceamcl.io.results import atomic_write
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.runner import RunResult
@@ -82,7 +83,7 @@ def replay_data(
                 "e": [[int(e[0]), *_round(e[1:], 4)] for e in fr.ellipses],
             }
         )
-    has_species = any(d.species for d in result.diagnostics)
+    has_species = any(species_of(d) for d in result.diagnostics)
     return {
         "fps": float(fps),
         "colours": list(SPECIES_COLOURS),
@@ -165,7 +166,7 @@ def figures_html(result: RunResult, grid: OccupancyGrid, title: str) -> str:
         parts.append(
             ("run", run_png, "Map, true path, species tracks, final particles and hypotheses.")
         )
-        if any(d.species for d in result.diagnostics):
+        if any(species_of(d) for d in result.diagnostics):
             sp = plot_species(result, Path(tmp) / "species.png", title=f"{title}: species")
             parts.append(
                 (

@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
+from ceamcl.filters.ceamcl.initialisation import InitialisationConfig
+from ceamcl.filters.ceamcl.phases import CompetitionConfig, GrowthConfig, SplitMergeConfig
 from ceamcl.filters.evolution import EvolutionConfig
 
 
@@ -96,3 +99,41 @@ class CEAMCLConfig:
         for name, ok in checks.items():
             if not ok:
                 raise ValueError(f"{name}: value {getattr(self, name)!r} is out of range")
+
+    # Each phase takes only its own settings (``filters.ceamcl.phases``, ``initialisation``).
+    @cached_property
+    def initialisation(self) -> InitialisationConfig:
+        """Section 3.1's settings."""
+        return InitialisationConfig(
+            n_test=self.n_test,
+            test_batch=self.test_batch,
+            cell_m=self.cell_m,
+            mu=self.mu,
+            eta=self.eta,
+            cell_top_k=self.cell_top_k,
+            cell_fitness_exponent=self.cell_fitness_exponent,
+            cell_smoothing=self.cell_smoothing,
+            min_species_size=self.min_species_size,
+            max_samples=self.max_samples,
+        )
+
+    @cached_property
+    def growth(self) -> GrowthConfig:
+        """The sample-size phase's settings."""
+        return GrowthConfig(self.min_species_size, self.max_samples)
+
+    @cached_property
+    def split_merge(self) -> SplitMergeConfig:
+        """The split and merge phase's settings."""
+        return SplitMergeConfig(
+            min_species_size=self.min_species_size,
+            split_cell_m=self.split_cell_m,
+            split_cell_rad=self.split_cell_rad,
+            merge_valley_ratio=self.merge_valley_ratio,
+            merge_probe_points=self.merge_probe_points,
+        )
+
+    @cached_property
+    def competition(self) -> CompetitionConfig:
+        """The competition phase's settings (eqs. 9-16)."""
+        return CompetitionConfig(self.growth_rate, self.epsilon_m2, self.delta_per_m2)

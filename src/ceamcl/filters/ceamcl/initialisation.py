@@ -31,13 +31,36 @@ from scipy import ndimage
 
 from ceamcl import budget
 from ceamcl.errors import InputWarning
+from ceamcl.filters.resampling import sanitise_log_likelihood
 from ceamcl.maps.grid import OccupancyGrid
+from ceamcl.sensors.base import SensorModel, fitness
+from ceamcl.sensors.scan import PreparedScan
 
 _FOUR = ndimage.generate_binary_structure(2, 1)
 
 #: Memory per cell of the initialisation grid: top-k weights, counts, smoothed weights, V,
 #: labels, the SKIZ partition and its distance-transform indices.
 CELL_BYTES = 256
+
+
+@dataclass(frozen=True)
+class InitialisationConfig:
+    """The settings of section 3.1 (``CEAMCLConfig().initialisation`` gives them with the
+    paper's defaults): ``n_test`` test poses scored ``test_batch`` at a time, cells of
+    ``cell_m``, threshold ``mu``, eq. 5 factor ``eta``, how a cell's weight is formed
+    (``cell_top_k``, ``cell_fitness_exponent``, ``cell_smoothing``), the smallest viable
+    species and the cap on the total sample size."""
+
+    n_test: int
+    test_batch: int
+    cell_m: float
+    mu: float
+    eta: float
+    cell_top_k: int
+    cell_fitness_exponent: float
+    cell_smoothing: int
+    min_species_size: int
+    max_samples: int
 
 
 @dataclass(frozen=True, eq=False)
@@ -221,17 +244,14 @@ def generate_initial_species(
     test_poses: NDArray[np.float64],
     test_loglik: NDArray[np.float64],
     test_fitness: NDArray[np.float64],
-    *,
-    cell_m: float,
-    mu: float,
-    eta: float,
-    cell_top_k: int,
-    fitness_exponent: float,
-    smoothing_cells: int,
-    min_species_size: int,
-    max_samples: int,
+    config: InitialisationConfig,
 ) -> InitialSpecies:
-    """Steps 2-5 of section 3.1 on weighted test poses (step 1 is the caller's)."""
+    """Steps 2-5 of section 3.1 on weighted test poses (step 1: :func:`sample_test_poses`
+    and :func:`score_test_poses`)."""
+    cell_m, mu, eta = config.cell_m, config.mu, config.eta
+    cell_top_k, fitness_exponent = config.cell_top_k, config.cell_fitness_exponent
+    smoothing_cells, min_species_size = config.cell_smoothing, config.min_species_size
+    max_samples = config.max_samples
     cells = CellGrid.over(grid, cell_m)
     n_cells = cells.nx * cells.ny
     idx = cells.index(test_poses[:, :2])
@@ -280,3 +300,50 @@ def generate_initial_species(
         seeds=seeds.astype(np.int32),
         partition=partition,
     )
+
+
+def sample_test_poses(
+    grid: OccupancyGrid, config: InitialisationConfig, rng: np.random.Generator
+) -> NDArray[np.float64]:
+    """Step 1 of section 3.1: ``n_test`` poses uniform over free space."""
+    return grid.sample_free_poses(config.n_test, rng)
+
+
+def score_test_poses(
+    test_poses: NDArray[np.float64],
+    sensor: SensorModel,
+    prepared: PreparedScan | None,
+    config: InitialisationConfig,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], int]:
+    """Step 1 of section 3.1: the test poses' log-likelihoods (``test_batch`` per call, which
+    bounds memory) and fitness, and the evaluations spent. Without a usable beam (``prepared``
+    None or empty) every pose is equally fit."""
+    n = test_poses.shape[0]
+    if prepared is None or prepared.n_beams == 0:
+        ll = np.zeros(n)
+        evaluations = 0
+    else:
+        ll = sanitise_log_likelihood(
+            np.concatenate(
+                [
+                    sensor.log_likelihood(test_poses[i : i + config.test_batch], prepared)
+                    for i in range(0, n, config.test_batch)
+                ]
+            )
+        )
+        evaluations = n
+    fit = np.ones(n) if prepared is None else fitness(ll, prepared, sensor)
+    return ll, fit, evaluations
+
+
+def initial_species(
+    grid: OccupancyGrid,
+    sensor: SensorModel,
+    prepared: PreparedScan | None,
+    config: InitialisationConfig,
+    rng: np.random.Generator,
+) -> tuple[InitialSpecies, int]:
+    """Section 3.1 whole: test poses, their scores, the species; and the evaluations spent."""
+    test = sample_test_poses(grid, config, rng)
+    ll, fit, evaluations = score_test_poses(test, sensor, prepared, config)
+    return generate_initial_species(grid, test, ll, fit, config), evaluations

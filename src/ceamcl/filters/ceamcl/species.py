@@ -14,6 +14,7 @@ from numpy.typing import NDArray
 
 from ceamcl.angles import wrap
 from ceamcl.filters.clustering import pose_cluster_labels
+from ceamcl.filters.resampling import label_segments, segment_weights
 
 
 @dataclass(frozen=True, eq=False)
@@ -37,83 +38,6 @@ class SpeciesStats:
         return int(self.members.size)
 
 
-def species_segments(
-    species: NDArray[np.int64],
-) -> tuple[NDArray[np.intp], NDArray[np.int64], NDArray[np.intp], NDArray[np.intp]]:
-    """The particles sorted by species: ``(order, ids, starts, counts)``, so that species
-    ``ids[k]`` (ascending) owns ``order[starts[k] : starts[k] + counts[k]]``."""
-    order = np.argsort(species, kind="stable")
-    ids, starts = np.unique(species[order], return_index=True)
-    counts = np.diff(np.append(starts, order.size))
-    return order, ids, starts, counts
-
-
-def segment_weights(
-    loglik: NDArray[np.float64], starts: NDArray[np.intp], seg: NDArray[np.intp]
-) -> NDArray[np.float64]:
-    """In-species importance weights of log-likelihoods sorted by species (segment ``seg[i]``
-    of particle ``i`` begins at ``starts[seg[i]]``): each segment's weights sum to 1, never
-    NaN; a segment with no finite log-likelihood gets uniform weights."""
-    ll = np.where(np.isnan(loglik), -np.inf, loglik)
-    top = np.maximum.reduceat(ll, starts)
-    finite_top = np.isfinite(top)
-    w = np.exp(ll - np.where(finite_top, top, 0.0)[seg])
-    w = np.where(finite_top[seg], w, 1.0)
-    return np.asarray(w / np.add.reduceat(w, starts)[seg], dtype=np.float64)
-
-
-def group_members(species: NDArray[np.int64]) -> dict[int, NDArray[np.intp]]:
-    """Indices of the particles of each species id, in ascending id order."""
-    if species.size == 0:
-        return {}
-    order, ids, starts, counts = species_segments(species)
-    return {int(i): order[s : s + c] for i, s, c in zip(ids, starts, counts, strict=True)}
-
-
-def resample_species(
-    species: NDArray[np.int64],
-    loglik: NDArray[np.float64],
-    targets: dict[int, int],
-    rng: np.random.Generator,
-) -> tuple[NDArray[np.intp], dict[int, NDArray[np.intp]]]:
-    """Low-variance resampling inside every species at once: ``targets.get(id, size)``
-    ancestors of each species, drawn from its in-species weights with one uniform offset per
-    species (ascending ids), as :func:`~ceamcl.filters.resampling.systematic` would draw them
-    species by species.
-
-    Returns ``(ancestors, members)``: the ancestors' indices, grouped by species in ascending
-    id order, and the members of each surviving species among the resampled particles
-    (contiguous ranges, what :func:`group_members` would return for them).
-    """
-    if species.size == 0:
-        return np.zeros(0, dtype=np.intp), {}
-    order, ids, starts, counts = species_segments(species)
-    seg = np.repeat(np.arange(ids.size), counts)
-    w = segment_weights(loglik[order], starts, seg)
-    # Cumulative weights inside each species, normalised by the species' total.
-    cum = np.cumsum(w)
-    local = cum - np.append(0.0, cum)[starts][seg]
-    ends = starts + counts - 1
-    cdf = local / local[ends][seg]
-    n = np.array([targets.get(int(sid), int(c)) for sid, c in zip(ids, counts, strict=True)])
-    n = np.maximum(n, 0)
-    u = np.zeros(ids.size)
-    u[n > 0] = rng.random(int(np.count_nonzero(n > 0)))
-    ptr_seg = np.repeat(np.arange(ids.size), n)
-    first = np.cumsum(n) - n
-    k = np.arange(ptr_seg.size) - first[ptr_seg]
-    pointers = (u[ptr_seg] + k) / n[ptr_seg]
-    # One search for all species: species k's cumulative weights lie in [2k, 2k + 1].
-    pos = np.searchsorted(2.0 * seg + cdf, 2.0 * ptr_seg + pointers, side="right")
-    pos = np.minimum(pos, ends[ptr_seg])
-    members = {
-        int(sid): np.arange(a, a + c, dtype=np.intp)
-        for sid, a, c in zip(ids, first, n, strict=True)
-        if c > 0
-    }
-    return order[pos].astype(np.intp), members
-
-
 def all_species_stats(
     species: NDArray[np.int64],
     poses: NDArray[np.float64],
@@ -130,7 +54,7 @@ def all_species_stats(
     """
     if species.size == 0:
         return {}
-    order, ids, starts, counts = species_segments(species)
+    order, ids, starts, counts = label_segments(species)
     seg = np.repeat(np.arange(ids.size), counts)
     p = poses[order]
     x, y, th = p[:, 0], p[:, 1], p[:, 2]

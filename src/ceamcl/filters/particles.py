@@ -1,0 +1,279 @@
+"""The particle core every filter composes: one container and the steps that act on it.
+
+A filter step reads as a short list of these calls, as in Beluga's pipeline
+``particles |= propagate(motion(u)) | reweight(sensor(z))``, then resampling::
+
+    propagate(ps, motion, increment, rng)         # predict (Probabilistic Robotics Table 8.2, l. 4)
+    if not reweight(ps, sensor, prepared):        # weight (l. 5); False: every particle impossible
+        ps = uniform(grid, n, rng)                #   start again over free space
+    evolve(ps, groups, config, sensor, prepared, rng)   # GMCL and CEAMCL only (section 3.4)
+    if policy(Context(particles=ps)):
+        resample(ps, n, rng)                      # (Table 4.4)
+
+The container, :class:`ParticleSet`, holds the arrays of the particle set (poses ``(N, 3)``,
+normalised log-weights, the last scan's log-likelihoods and fitness, an integer label per
+particle such as CEAMCL's species). Steps change it in place; :func:`uniform` and
+:func:`gaussian` build new ones. Every random step takes the filter's ``numpy.random.Generator``.
+When to update or resample is a policy (:mod:`ceamcl.filters.policies`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ceamcl.angles import wrap
+from ceamcl.errors import ConfigError, LogFormatError
+from ceamcl.filters.evolution import EvolutionConfig, evolve_groups
+from ceamcl.filters.resampling import (
+    normalise_log_weights,
+    resampler,
+    sanitise_log_likelihood,
+    systematic_within_labels,
+)
+from ceamcl.maps.grid import OccupancyGrid
+from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel
+from ceamcl.sensors.base import SensorModel, fitness
+from ceamcl.sensors.scan import LaserScan, PreparedScan
+
+
+def uniform_log_weights(n: int) -> NDArray[np.float64]:
+    """``n`` equal normalised log-weights, ``-log n`` each."""
+    return np.full(n, -np.log(n)) if n > 0 else np.zeros(0)
+
+
+@dataclass(eq=False)
+class ParticleSet:
+    """The particle set: ``N`` particles as parallel arrays.
+
+    poses: ``(N, 3)`` poses ``(x, y, theta)``, headings in ``[-pi, pi)``.
+    log_weights: ``(N,)`` normalised log importance weights (CEAMCL weighs inside species
+        from ``loglik`` and leaves them uniform).
+    loglik: ``(N,)`` log-likelihood ``log p(z | x)`` of the last scan (-inf: impossible).
+    fitness: ``(N,)`` fitness in (0, 1] for the last scan (:func:`ceamcl.sensors.base.fitness`).
+    labels: ``(N,)`` integer label (CEAMCL's species id; 0 for filters without groups).
+    """
+
+    poses: NDArray[np.float64]
+    log_weights: NDArray[np.float64]
+    loglik: NDArray[np.float64]
+    fitness: NDArray[np.float64]
+    labels: NDArray[np.int64]
+
+    @classmethod
+    def from_poses(
+        cls, poses: NDArray[np.float64], labels: NDArray[np.int64] | None = None
+    ) -> ParticleSet:
+        """Particles at ``poses`` with equal weights, no evidence yet (log-likelihood 0,
+        fitness 1) and ``labels`` (default 0)."""
+        n = poses.shape[0]
+        return cls(
+            poses=poses,
+            log_weights=uniform_log_weights(n),
+            loglik=np.zeros(n),
+            fitness=np.ones(n),
+            labels=np.zeros(n, dtype=np.int64) if labels is None else labels,
+        )
+
+    @property
+    def n(self) -> int:
+        """The number of particles."""
+        return int(self.poses.shape[0])
+
+    @property
+    def weights(self) -> NDArray[np.float64]:
+        """Normalised importance weights, summing to 1 (uniform when none is finite)."""
+        return normalise_log_weights(self.log_weights)[1]
+
+    def take(self, index: NDArray[np.bool_] | NDArray[np.intp]) -> None:
+        """Keep the particles a boolean mask or an index array (ancestors) selects."""
+        self.poses = self.poses[index]
+        self.log_weights = self.log_weights[index]
+        self.loglik = self.loglik[index]
+        self.fitness = self.fitness[index]
+        self.labels = self.labels[index]
+
+    def extend(self, other: ParticleSet) -> None:
+        """Append the particles of ``other`` (their log-weights as they are)."""
+        self.poses = np.vstack([self.poses, other.poses])
+        self.log_weights = np.concatenate([self.log_weights, other.log_weights])
+        self.loglik = np.concatenate([self.loglik, other.loglik])
+        self.fitness = np.concatenate([self.fitness, other.fitness])
+        self.labels = np.concatenate([self.labels, other.labels])
+
+
+# ---------------------------------------------------------------------- initialisation
+def gaussian_poses(
+    pose: ArrayLike, covariance: ArrayLike, n: int, rng: np.random.Generator
+) -> NDArray[np.float64]:
+    """``n`` poses from ``N(pose, covariance)``, headings wrapped.
+
+    Draws exactly what ``rng.multivariate_normal(..., method="cholesky")`` draws for a positive
+    definite covariance; a positive semi-definite one (e.g. all zeros: every particle on the
+    pose) is factored by its eigen-decomposition instead of failing.
+
+    Raises:
+        ConfigError: ``pose`` is not three finite numbers, or ``covariance`` not a finite,
+            symmetric, positive semi-definite ``3 x 3`` matrix.
+    """
+    mean = np.asarray(pose, dtype=np.float64).reshape(-1)
+    if mean.shape != (3,) or not np.all(np.isfinite(mean)):
+        raise ConfigError(f"pose: expected three finite numbers (x, y, theta), got {pose!r}")
+    cov = np.asarray(covariance, dtype=np.float64)
+    if cov.shape != (3, 3) or not np.all(np.isfinite(cov)):
+        raise ConfigError(f"covariance: expected a finite 3 x 3 matrix, got shape {cov.shape}")
+    scale = max(float(np.abs(cov).max()), 1e-300)
+    if not np.allclose(cov, cov.T, rtol=1e-9, atol=1e-12 * scale):
+        raise ConfigError("covariance: expected a symmetric matrix")
+    try:
+        factor = np.linalg.cholesky(cov)
+    except np.linalg.LinAlgError:
+        d, u = np.linalg.eigh(0.5 * (cov + cov.T))
+        if d.min() < -1e-9 * scale:
+            raise ConfigError(
+                f"covariance: expected a positive semi-definite matrix, eigenvalues {d.tolist()}"
+            ) from None
+        factor = u * np.sqrt(np.clip(d, 0.0, None))
+    out = mean + np.dot(rng.standard_normal((n, 3)), factor.T)
+    out[:, 2] = wrap(out[:, 2])
+    return np.asarray(out, dtype=np.float64)
+
+
+def uniform(grid: OccupancyGrid, n: int, rng: np.random.Generator) -> ParticleSet:
+    """``n`` particles uniform over the free space of ``grid`` (global localisation, and the
+    fresh start when every particle is impossible), equal weights."""
+    return ParticleSet.from_poses(grid.sample_free_poses(n, rng))
+
+
+def gaussian(
+    pose: ArrayLike, covariance: ArrayLike, n: int, rng: np.random.Generator
+) -> ParticleSet:
+    """``n`` particles from ``N(pose, covariance)`` (pose tracking), equal weights."""
+    return ParticleSet.from_poses(gaussian_poses(pose, covariance, n, rng))
+
+
+# ---------------------------------------------------------------------- prediction
+def check_increment(increment: OdometryIncrement) -> None:
+    """Refuse an odometry increment with a NaN or infinite component (it would turn every
+    particle into NaN)."""
+    values = (increment.rot1, increment.trans, increment.rot2)
+    if not all(math.isfinite(v) for v in values):
+        raise LogFormatError(
+            f"odometry increment: expected finite rot1, trans, rot2, got {values} "
+            f"(is an odometry pose NaN or infinite?)"
+        )
+
+
+def propagate(
+    ps: ParticleSet,
+    motion: OdometryMotionModel,
+    increment: OdometryIncrement,
+    rng: np.random.Generator,
+) -> None:
+    """Prediction: move every particle by a sample of the motion model for ``increment``
+    (Probabilistic Robotics Table 8.2, line 4; ``sample_motion_model_odometry``, Table 5.6)."""
+    check_increment(increment)
+    ps.poses = motion.sample(ps.poses, increment, rng)
+
+
+# ---------------------------------------------------------------------- weighting
+def usable(sensor: SensorModel, scan: LaserScan | None) -> PreparedScan | None:
+    """The scan prepared for ``sensor``, or None when there is none or it has no usable beam
+    (it then says nothing, and a filter leaves its weights as they are)."""
+    if scan is None:
+        return None
+    prepared = sensor.prepare(scan)
+    return prepared if prepared.n_beams > 0 else None
+
+
+def weigh(ps: ParticleSet, sensor: SensorModel, prepared: PreparedScan) -> bool:
+    """Store every particle's log-likelihood ``log p(z | x)`` of the scan (NaN and +inf count
+    as impossible, -inf). Returns False when every particle is impossible. Costs ``ps.n``
+    likelihood evaluations."""
+    ps.loglik = sanitise_log_likelihood(sensor.log_likelihood(ps.poses, prepared))
+    return bool(np.any(np.isfinite(ps.loglik)))
+
+
+def importance_weights(ps: ParticleSet, prior_log_weights: NDArray[np.float64]) -> bool:
+    """``log w_i = log w_i^prior + log p(z | x_i)``, normalised (Probabilistic Robotics Table
+    4.3, line 4). Returns False, leaving the weights as they were, when every particle is
+    impossible."""
+    log_w, _, ok = normalise_log_weights(prior_log_weights + ps.loglik)
+    if ok:
+        ps.log_weights = log_w
+    return ok
+
+
+def reweight(ps: ParticleSet, sensor: SensorModel, prepared: PreparedScan) -> bool:
+    """Importance weighting with a scan (Probabilistic Robotics Table 8.2, line 5): store the
+    log-likelihoods and fitness, multiply the weights by the likelihoods. Returns False
+    ("impossible") when every particle is impossible; the caller then starts again (e.g. with
+    :func:`uniform`). Costs ``ps.n`` likelihood evaluations."""
+    weigh(ps, sensor, prepared)
+    ps.fitness = fitness(ps.loglik, prepared, sensor)
+    return importance_weights(ps, ps.log_weights)
+
+
+# ---------------------------------------------------------------------- evolution
+def evolve(
+    ps: ParticleSet,
+    groups: list[NDArray[np.intp]],
+    config: EvolutionConfig,
+    sensor: SensorModel,
+    prepared: PreparedScan,
+    rng: np.random.Generator,
+) -> int:
+    """The genetic operators (paper section 3.4: crossover, eq. 17, then mutation, eq. 18)
+    inside each group of particle indices (a species, or everyone for GMCL), in place; the
+    log-likelihoods and fitness are those of the evolved poses afterwards. Weights are left
+    to the caller. Returns the likelihood evaluations spent."""
+
+    def evaluate(poses: NDArray[np.float64]) -> NDArray[np.float64]:
+        return sensor.log_likelihood(poses, prepared)
+
+    evaluations = evolve_groups(ps.poses, ps.loglik, groups, config, evaluate, rng)
+    ps.loglik = sanitise_log_likelihood(ps.loglik)
+    ps.fitness = fitness(ps.loglik, prepared, sensor)
+    return evaluations
+
+
+# ---------------------------------------------------------------------- resampling
+def resample(ps: ParticleSet, n: int, rng: np.random.Generator, scheme: str = "systematic") -> None:
+    """Draw ``n`` particles from the weighted set with the resampling ``scheme`` (by name,
+    :data:`~ceamcl.filters.resampling.RESAMPLERS`); the new set has equal weights."""
+    ancestors = resampler(scheme)(ps.weights, n, rng)
+    ps.take(ancestors)
+    ps.log_weights = uniform_log_weights(ancestors.size)
+
+
+def resample_within_labels(
+    ps: ParticleSet, targets: dict[int, int], rng: np.random.Generator
+) -> dict[int, NDArray[np.intp]]:
+    """Systematic resampling inside each label (CEAMCL's species): ``targets.get(label,
+    size)`` particles of each label, drawn with the in-label weights of the log-likelihoods
+    (:func:`~ceamcl.filters.resampling.systematic_within_labels`). Returns each surviving
+    label's members in the new set."""
+    ancestors, members = systematic_within_labels(ps.labels, ps.loglik, targets, rng)
+    ps.take(ancestors)
+    return members
+
+
+__all__ = [
+    "ParticleSet",
+    "check_increment",
+    "evolve",
+    "gaussian",
+    "gaussian_poses",
+    "importance_weights",
+    "propagate",
+    "resample",
+    "resample_within_labels",
+    "reweight",
+    "uniform",
+    "uniform_log_weights",
+    "usable",
+    "weigh",
+]

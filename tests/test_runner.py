@@ -1,0 +1,47 @@
+"""Tests of the runner's step records (``ceamcl.runner``): it measures each step's time,
+particle count and ESS; the filter's own record rides along."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ceamcl.filters import KLDAMCLRecord, StepRecord, make_filter
+from ceamcl.filters.resampling import effective_sample_size
+from ceamcl.runner import measure, run_filter
+from ceamcl.simulation import office_scenario
+
+
+def test_runner_measures_time_count_and_ess_of_every_step() -> None:
+    sc = office_scenario()
+    grid = sc.grid()
+    log = sc.simulate(np.random.default_rng(1), grid)
+    f = make_filter("kld-amcl", grid, np.random.default_rng(2))
+    res = run_filter(f, log)
+    assert [d.step for d in res.diagnostics] == list(range(len(log)))
+    assert all(d.step_ms > 0 for d in res.diagnostics)
+    assert all(isinstance(d.record, KLDAMCLRecord) for d in res.diagnostics)
+    last = res.diagnostics[-1]
+    w = f.particle_weights()
+    assert last.n_particles == w.size and last.ess == effective_sample_size(w)
+    row = last.row()
+    assert list(row)[:6] == [
+        "step",
+        "n_particles",
+        "ess",
+        "resampled",
+        "likelihood_evaluations",
+        "step_ms",
+    ]
+    assert {"updated", "w_slow", "w_fast", "injected", "kld_target"} <= set(row)
+
+
+class Hidden:
+    """A filter that cannot show its particles (as the Nav2 peer)."""
+
+    def particle_weights(self) -> np.ndarray:
+        return np.full(7, np.nan)
+
+
+def test_hidden_weights_give_the_reported_count_and_an_unknown_ess() -> None:
+    d = measure(Hidden(), 3, lambda: StepRecord(resampled=True))  # type: ignore[arg-type]
+    assert d.step == 3 and d.n_particles == 7 and np.isnan(d.ess) and d.resampled
