@@ -55,12 +55,25 @@ def positive_float(text: str) -> float:
     return value
 
 
+def non_negative_float(text: str) -> float:
+    """argparse type: a finite number >= 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (value >= 0.0 and value < float("inf")):
+        raise argparse.ArgumentTypeError(f"expected a non-negative finite number, got {text}")
+    return value
+
+
 def require_available(algorithm: str) -> None:
     """Refuse, with the reason, an algorithm that is registered but cannot run here (the Nav2
     peer without its optional extra)."""
     reason = registry.unavailable_reason(algorithm)
     if reason is not None:
         raise ConfigError(f"algorithm: {algorithm} cannot run here: {reason}")
+
+
 def check_particles(count: int | None) -> None:
     """Refuse a ``--particles`` count beyond the memory budget, before any filter is built."""
     if count is not None:

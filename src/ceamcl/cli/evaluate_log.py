@@ -14,9 +14,11 @@ from ceamcl.cli.common import TrialsProgress, positive_float, positive_int
 from ceamcl.cli.experiment import RUN_BYTES
 from ceamcl.cli.run import (
     add_log_arguments,
+    add_pace_arguments,
     add_truth_arguments,
     log_path,
     open_kwargs,
+    pace_of,
     print_truth,
 )
 from ceamcl.errors import ConfigError
@@ -78,6 +80,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         help="steps a run must stay within tolerance at the end to count as a success",
     )
     add_truth_arguments(p)
+    add_pace_arguments(p)
     p.add_argument(
         "--executor",
         default="local",
@@ -105,13 +108,20 @@ def run(args: argparse.Namespace, console: Console) -> int:
         seed=args.seed,
         truth=args.truth,
         repair_times=args.repair_times,
+        truth_from=args.truth_from,
         **open_kwargs(args),
     )
-    grid, map_source = obtain_map(prepared.log, args.map, args.resolution)
-    physical_warnings(prepared.log, grid, args.map or f"the map built from {prepared.log.path}")
+    grid, map_source = obtain_map(
+        prepared.map_log, args.map, args.resolution, own=prepared.truth_log is None
+    )
+    physical_warnings(prepared.log, grid, args.map or f"the map built from {prepared.map_log.path}")
+    pace = pace_of(args, prepared)
     if not args.quiet:
         console.print(f"map: {map_source}")
         print_truth(console, prepared)
+        console.print(
+            f"filter updates (every algorithm): {'every scan' if pace is None else pace.describe()}"
+        )
         for name, why in skipped.items():
             console.print(f"[yellow]{name} skipped[/]: {why}")
     with TrialsProgress(console, quiet=args.quiet) as progress:
@@ -130,6 +140,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
             out=args.out,
             progress=progress,
             skipped=skipped,
+            pace=pace,
         )
     if not args.quiet:
         table = Table(

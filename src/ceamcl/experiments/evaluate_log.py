@@ -23,12 +23,11 @@ from ceamcl.errors import ConfigError
 from ceamcl.experiments.executors import ProgressCallback, map_trials, open_executor
 from ceamcl.experiments.log_report import write_evaluation
 from ceamcl.experiments.log_windows import start_windows
-from ceamcl.experiments.metrics import HOLD_STEPS, score_errors
-from ceamcl.filters.registry import make_filter
+from ceamcl.experiments.metrics import HOLD_STEPS, final_error, score_errors
 from ceamcl.io.recorded import RecordedLog
 from ceamcl.io.results import ensure_output_dir
 from ceamcl.maps.grid import OccupancyGrid
-from ceamcl.replay import PreparedLog, filter_rng
+from ceamcl.replay import PreparedLog, UpdatePace, filter_rng, make_paced_filter
 from ceamcl.runner import run_filter
 
 
@@ -43,6 +42,7 @@ class LogTrial:
     log: RecordedLog
     seed: int
     hold: int = HOLD_STEPS
+    pace: UpdatePace | None = None
 
 
 @dataclass(frozen=True)
@@ -64,6 +64,8 @@ class LogTrialResult:
     mean_particles: float
     mean_step_ms: float
     initialisation_ms: float
+    updates: int
+    mean_update_ms: float
     elapsed_s: NDArray[np.float64] = field(repr=False)
     position_errors: NDArray[np.float64] = field(repr=False)
     heading_errors: NDArray[np.float64] = field(repr=False)
@@ -71,14 +73,16 @@ class LogTrialResult:
 
 def run_log_trial(trial: LogTrial) -> LogTrialResult:
     """Run one trial (a top-level function, so any executor can run it)."""
-    f = make_filter(
-        trial.algorithm, trial.grid, filter_rng(trial.seed, trial.start_index, trial.algorithm)
+    rng = filter_rng(trial.seed, trial.start_index, trial.algorithm)
+    f = make_paced_filter(trial.algorithm, trial.grid, rng, trial.pace)
+    result = run_filter(
+        f, trial.log, update_when=None if trial.pace is None else trial.pace.policy()
     )
-    result = run_filter(f, trial.log)
     pos, head = result.position_errors, result.heading_errors
     if pos is None or head is None:
         raise ConfigError(f"trial {trial.name}: the log window has no ground truth")
     score = score_errors(result.times, pos, head, hold=trial.hold)
+    known = result.truth_known
     log = trial.log
     return LogTrialResult(
         name=trial.name,
@@ -93,14 +97,17 @@ def run_log_trial(trial: LogTrial) -> LogTrialResult:
         time_to_converge_s=score.time_to_converge_s,
         position_rmse_m=score.position_rmse_m,
         heading_rmse_rad=score.heading_rmse_rad,
-        final_position_error_m=float(pos[-1]),
-        final_heading_error_rad=float(head[-1]),
+        final_position_error_m=final_error(pos),
+        final_heading_error_rad=final_error(head),
         mean_particles=float(np.mean([d.n_particles for d in result.diagnostics])),
         mean_step_ms=float(result.step_ms.mean()),
         initialisation_ms=float(result.diagnostics[0].step_ms),
-        elapsed_s=result.times - result.times[0],
-        position_errors=pos,
-        heading_errors=head,
+        updates=result.updates,
+        mean_update_ms=float(result.update_ms.mean()),
+        # the scans with truth only (all of a corrected log's; a raw log's matched scans)
+        elapsed_s=(result.times - result.times[0])[known],
+        position_errors=pos[known],
+        heading_errors=head[known],
     )
 
 
@@ -113,6 +120,7 @@ class Evaluation:
     windows: list[tuple[int, int]]
     window: str
     out_dir: Path | None
+    update_policy: str = "every scan"
 
 
 def aggregate(results: Sequence[LogTrialResult], algorithms: Sequence[str]) -> list[dict[str, Any]]:
@@ -138,6 +146,8 @@ def aggregate(results: Sequence[LogTrialResult], algorithms: Sequence[str]) -> l
                 "heading_rmse_rad": mean([r.heading_rmse_rad for r in ok]),
                 "mean_particles": mean([r.mean_particles for r in rs]),
                 "mean_step_ms": mean([r.mean_step_ms for r in rs]),
+                "mean_update_ms": mean([r.mean_update_ms for r in rs]),
+                "updates_per_run": mean([float(r.updates) for r in rs]),
                 "initialisation_ms": mean([r.initialisation_ms for r in rs]),
             }
         )
@@ -161,6 +171,7 @@ def evaluate_log(
     progress: ProgressCallback | None = None,
     quiet: bool = False,
     skipped: dict[str, str] | None = None,
+    pace: UpdatePace | None = None,
 ) -> Evaluation:
     """Global localisation from ``starts`` points of the log with each algorithm.
 
@@ -187,6 +198,7 @@ def evaluate_log(
             log=log.window(s, e),
             seed=prepared.seed,
             hold=hold,
+            pace=pace,
         )
         for s, e in windows
         for algo in algorithms
@@ -197,7 +209,14 @@ def evaluate_log(
         )
     table = aggregate(results, algorithms)
     evaluation = Evaluation(
-        results, table, dict(skipped or {}), map_source, windows, window_what, out_dir
+        results,
+        table,
+        dict(skipped or {}),
+        map_source,
+        windows,
+        window_what,
+        out_dir,
+        "every scan" if pace is None else pace.describe(),
     )
     if out_dir is not None:
         write_evaluation(evaluation, prepared, out_dir, hold=hold)

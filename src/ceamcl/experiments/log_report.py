@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 
 from ceamcl.experiments.common import fmt, write_csv, write_text
 from ceamcl.experiments.metrics import HEADING_TOL_RAD, HOLD_STEPS, POSITION_TOL_M
+from ceamcl.replay import truth_source
 
 if TYPE_CHECKING:
     from ceamcl.experiments.evaluate_log import Evaluation
@@ -30,6 +31,8 @@ _CSV_FIELDS = (
     "mean_particles",
     "mean_step_ms",
     "initialisation_ms",
+    "updates",
+    "mean_update_ms",
 )
 
 
@@ -63,6 +66,8 @@ def evaluation_markdown(ev: Evaluation, prepared: PreparedLog, *, hold: int = HO
             if prepared.noise is not None
             else ""
         ),
+        f"- ground truth: {truth_source(prepared)}",
+        f"- filter updates (every algorithm): {ev.update_policy}",
         f"- {len(ev.windows)} start points, windows of {ev.window} "
         f"({min(lengths)}-{max(lengths)} scans)",
         f"- success: within {POSITION_TOL_M} m and {HEADING_TOL_RAD} rad from a step on to the "
@@ -70,8 +75,8 @@ def evaluation_markdown(ev: Evaluation, prepared: PreparedLog, *, hold: int = HO
         "",
         "| algorithm | runs | success | time to converge [s] | scans to converge | "
         "position RMSE [m] | heading RMSE [rad] | mean particles | mean step [ms] | "
-        "initialisation [ms] |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "initialisation [ms] | updates per run | mean update [ms] |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     digits = {
         "time_to_converge_s": 1,
@@ -81,6 +86,8 @@ def evaluation_markdown(ev: Evaluation, prepared: PreparedLog, *, hold: int = HO
         "mean_particles": 0,
         "mean_step_ms": 1,
         "initialisation_ms": 0,
+        "updates_per_run": 0,
+        "mean_update_ms": 1,
     }
     for row in ev.table:
         cells = [fmt(row[key], d, "-") for key, d in digits.items()]

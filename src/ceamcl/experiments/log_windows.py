@@ -32,9 +32,7 @@ def _progress(
     dist_m = DEFAULT_WINDOW_M if window_m is None else window_m
     if not dist_m > 0:
         raise ConfigError(f"window-m: expected a positive distance, got {dist_m}")
-    truth = log.true_poses if log.true_poses is not None else log.poses
-    step = np.hypot(*np.diff(truth[:, :2], axis=0).T)
-    return np.concatenate([[0.0], np.cumsum(step)]), float(dist_m), f"{dist_m:g} m of travel"
+    return log.travelled_m, float(dist_m), f"{dist_m:g} m of travel"
 
 
 def start_windows(

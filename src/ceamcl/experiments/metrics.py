@@ -181,6 +181,12 @@ def trial_metrics(
     )
 
 
+def final_error(err: NDArray[np.float64]) -> float:
+    """The error at the last step with a true pose (NaN elsewhere); NaN when there is none."""
+    known = err[np.isfinite(err)]
+    return float(known[-1]) if known.size else math.nan
+
+
 @dataclass(frozen=True)
 class Score:
     """Convergence of one run (module docstring). NaN/None where it did not converge."""
@@ -201,17 +207,24 @@ def score_errors(
     head_tol_rad: float = HEADING_TOL_RAD,
     hold: int = HOLD_STEPS,
 ) -> Score:
-    """Convergence step, success and RMSE after convergence of an error series."""
-    inside = (pos_err <= pos_tol_m) & (head_err <= head_tol_rad)
+    """Convergence step, success and RMSE after convergence of an error series.
+
+    Steps whose errors are NaN have no truth (a raw log scored at the scans it shares with its
+    corrected log): scoring uses the steps with truth only, ``hold`` counts those, and the
+    scans to converge count every step from the start."""
+    known = np.flatnonzero(np.isfinite(pos_err) & np.isfinite(head_err))
+    pos, head = pos_err[known], head_err[known]
+    inside = (pos <= pos_tol_m) & (head <= head_tol_rad)
     n = inside.size
     outside = np.flatnonzero(~inside)
     c = 0 if outside.size == 0 else int(outside[-1]) + 1
     if c >= n or n - c < min(hold, n):
         return Score(False, None, math.nan, math.nan, math.nan)
+    step = int(known[c])
     return Score(
         True,
-        c,
-        float(times[c] - times[0]),
-        float(np.sqrt(np.mean(pos_err[c:] ** 2))),
-        float(np.sqrt(np.mean(head_err[c:] ** 2))),
+        step,
+        float(times[step] - times[0]),
+        float(np.sqrt(np.mean(pos[c:] ** 2))),
+        float(np.sqrt(np.mean(head[c:] ** 2))),
     )
