@@ -95,9 +95,10 @@ class StepDiagnostics:
     """One step of a run, as the runner records it: what it measured (time, particle count,
     ESS of the normalised weights) and the filter's own :class:`StepRecord`.
 
-    stepped: the filter was stepped (updated) with this scan. False when the runner's update policy held
-    the scan back (:func:`ceamcl.runner.run_filter` with ``update_when``): the odometry then
-    accumulates into the next update, and ``record`` is an empty :class:`StepRecord`."""
+    stepped: the filter was stepped (updated) with this scan. False when the runner's update
+    policy held the scan back (:func:`ceamcl.runner.run_filter` with ``update_when``): the
+    odometry then accumulates into the next update, and ``record`` is an empty
+    :class:`StepRecord`."""
 
     step: int
     n_particles: int
