@@ -118,6 +118,15 @@ def _carried(
     return out
 
 
+def _start_tracking(
+    f: LocalisationFilter,
+    initial: tuple[NDArray[np.float64], NDArray[np.float64]],
+    scan: LaserScan,
+) -> StepRecord:
+    f.initialise_pose(*initial)
+    return f.step(OdometryIncrement(0.0, 0.0, 0.0), scan)
+
+
 def run_filter(
     f: LocalisationFilter,
     log: RobotLog,
@@ -125,6 +134,7 @@ def run_filter(
     on_step: Callable[[int], None] | None = None,
     snapshot_every: int = 0,
     update_when: Policy | None = None,
+    initial_pose: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
 ) -> RunResult:
     """Global localisation from the first scan, then one filter step per log entry; each
     step's record holds its time, particle count and ESS (measured here) and what the filter
@@ -138,6 +148,9 @@ def run_filter(
     since (:func:`_carried`), and the step's record says ``stepped=False``. Without it (the
     default) every entry is a step.
 
+    ``initial_pose=(pose, covariance)`` tracks instead: step 0 is ``f.initialise_pose`` and a
+    step with the first scan and no motion, in place of the global initialisation.
+
     ``on_step(k)`` is called after each step (progress bars hook in here);
     ``snapshot_every > 0`` keeps the particles every that many steps (for animations).
     """
@@ -146,7 +159,10 @@ def run_filter(
         raise ValueError("run_filter: the log has no entries")
     estimates = np.zeros((n, 3))
     first = log.scan(0)
-    diagnostics = [measure(f, 0, lambda: f.initialise_global(first))]
+    if initial_pose is None:
+        diagnostics = [measure(f, 0, lambda: f.initialise_global(first))]
+    else:
+        diagnostics = [measure(f, 0, lambda: _start_tracking(f, initial_pose, first))]
     initial = f.particles()
     estimates[0] = f.estimate().pose
     hypotheses = [_hypothesis_array(f)]
