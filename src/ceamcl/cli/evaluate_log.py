@@ -25,7 +25,7 @@ from ceamcl.errors import ConfigError
 from ceamcl.experiments.common import fmt, pct
 from ceamcl.experiments.evaluate_log import evaluate_log
 from ceamcl.experiments.log_windows import DEFAULT_WINDOW_M
-from ceamcl.experiments.metrics import HOLD_STEPS
+from ceamcl.experiments.metrics import DEFAULT_HOLD_M, HOLD_STEPS
 from ceamcl.experiments.tracking_log import DEFAULT_TRACKING_PARTICLES, track_log
 from ceamcl.filters import registry
 from ceamcl.maps.grid import OccupancyGrid
@@ -75,11 +75,21 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     window.add_argument(
         "--scans", type=positive_int, default=None, metavar="N", help="each run covers N scans"
     )
-    p.add_argument(
+    hold = p.add_mutually_exclusive_group()
+    hold.add_argument(
+        "--hold-m",
+        type=positive_float,
+        default=None,
+        metavar="M",
+        help=f"metres of travel a run must stay within tolerance at the end to count as a "
+        f"success (default {DEFAULT_HOLD_M:g}; the whole window when shorter)",
+    )
+    hold.add_argument(
         "--hold",
         type=positive_int,
-        default=HOLD_STEPS,
-        help="steps a run must stay within tolerance at the end to count as a success",
+        default=None,
+        metavar="N",
+        help="... or N scans instead of metres",
     )
     add_truth_arguments(p)
     add_pace_arguments(p)
@@ -154,7 +164,8 @@ def run(args: argparse.Namespace, console: Console) -> int:
             scans=args.scans,
             window_s=args.window_s,
             window_m=args.window_m,
-            hold=args.hold,
+            hold=HOLD_STEPS if args.hold is None else args.hold,
+            hold_m=None if args.hold is not None else (args.hold_m or DEFAULT_HOLD_M),
             map_source=map_source,
             executor=args.executor,
             workers=args.workers,
@@ -171,9 +182,11 @@ def run(args: argparse.Namespace, console: Console) -> int:
         for col in (
             "algorithm",
             "success",
+            "conf. wrong",
             "t conv [s]",
-            "scans conv",
+            "m conv",
             "pos RMSE [m]",
+            "RMSE 1st [m]",
             "head RMSE [rad]",
             "particles",
             "step [ms]",
@@ -184,9 +197,11 @@ def run(args: argparse.Namespace, console: Console) -> int:
             table.add_row(
                 row["algorithm"],
                 pct(row["success_rate"]),
+                str(row["confidently_wrong"]),
                 fmt(row["time_to_converge_s"], 1, "-"),
-                fmt(row["scans_to_converge"], 1, "-"),
+                fmt(row["distance_to_converge_m"], 1, "-"),
                 fmt(row["position_rmse_m"], 3, "-"),
+                fmt(row["position_rmse_from_first_m"], 3, "-"),
                 fmt(row["heading_rmse_rad"], 3, "-"),
                 fmt(row["mean_particles"], 0, "-"),
                 fmt(row["mean_step_ms"], 1, "-"),
