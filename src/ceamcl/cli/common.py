@@ -4,7 +4,7 @@ bar, a run's summary table."""
 from __future__ import annotations
 
 import argparse
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -147,6 +147,16 @@ def summary_table(title: str, summary: Mapping[str, Any], keys: Iterable[str]) -
         v = summary.get(key)
         if v is not None:
             table.add_row(key, f"{v:.3f}" if isinstance(v, float) else str(v))
+    return table
+
+
+def rows_table(title: str, columns: Sequence[str], rows: Iterable[Sequence[str]]) -> Table:
+    """A table with ``columns`` (the first left-aligned, the others right) and ``rows``."""
+    table = Table(title=title)
+    for i, col in enumerate(columns):
+        table.add_column(col, justify="left" if i == 0 else "right")
+    for row in rows:
+        table.add_row(*row)
     return table
 
 

@@ -6,11 +6,10 @@ from __future__ import annotations
 import argparse
 
 from rich.console import Console
-from rich.table import Table
 
 from ceamcl import budget
 from ceamcl.checks import physical_warnings
-from ceamcl.cli.common import TrialsProgress, positive_float, positive_int
+from ceamcl.cli.common import TrialsProgress, positive_float, positive_int, rows_table
 from ceamcl.cli.experiment import RUN_BYTES
 from ceamcl.cli.run import (
     add_log_arguments,
@@ -24,6 +23,7 @@ from ceamcl.cli.run import (
 from ceamcl.errors import ConfigError
 from ceamcl.experiments.common import fmt, pct
 from ceamcl.experiments.evaluate_log import evaluate_log
+from ceamcl.experiments.executors import Batch
 from ceamcl.experiments.log_windows import DEFAULT_WINDOW_M
 from ceamcl.experiments.metrics import DEFAULT_HOLD_M, HOLD_STEPS
 from ceamcl.experiments.tracking_log import DEFAULT_TRACKING_PARTICLES, track_log
@@ -175,26 +175,10 @@ def run(args: argparse.Namespace, console: Console) -> int:
             pace=pace,
         )
     if not args.quiet:
-        table = Table(
-            title=f"evaluate-log {prepared.log.name}: {len(ev.windows)} starts, "
-            f"windows of {ev.window}"
-        )
-        for col in (
-            "algorithm",
-            "success",
-            "conf. wrong",
-            "t conv [s]",
-            "m conv",
-            "pos RMSE [m]",
-            "RMSE 1st [m]",
-            "head RMSE [rad]",
-            "particles",
-            "step [ms]",
-        ):
-            table.add_column(col, justify="left" if col == "algorithm" else "right")
-
-        for row in ev.table:
-            table.add_row(
+        columns = ["algorithm", "success", "conf. wrong", "t conv [s]", "m conv", "pos RMSE [m]"]
+        columns += ["RMSE 1st [m]", "head RMSE [rad]", "particles", "step [ms]"]
+        rows = [
+            [
                 row["algorithm"],
                 pct(row["success_rate"]),
                 str(row["confidently_wrong"]),
@@ -205,8 +189,13 @@ def run(args: argparse.Namespace, console: Console) -> int:
                 fmt(row["heading_rmse_rad"], 3, "-"),
                 fmt(row["mean_particles"], 0, "-"),
                 fmt(row["mean_step_ms"], 1, "-"),
-            )
-        console.print(table)
+            ]
+            for row in ev.table
+        ]
+        title = (
+            f"evaluate-log {prepared.log.name}: {len(ev.windows)} starts, windows of {ev.window}"
+        )
+        console.print(rows_table(title, columns, rows))
         console.print(f"results written to [bold]{ev.out_dir}[/]")
     return 0
 
@@ -231,23 +220,15 @@ def run_tracking(
             particles=particles,
             pace=pace,
             map_source=map_source,
-            executor=args.executor,
-            workers=args.workers,
+            batch=Batch(args.executor, args.workers, progress),
             out=args.out,
-            progress=progress,
             skipped=skipped,
         )
     if not args.quiet:
-        table = Table(
-            title=f"tracking on {prepared.log.name}: {particles} particles, start moved "
-            f"0.5 m / 0.3 rad (seed {prepared.seed})"
-        )
-        for col in ("algorithm", "scored", "updates", "APE RMSE [m]", "median [m]", "max [m]"):
-            table.add_column(col, justify="left" if col == "algorithm" else "right")
-        for col in ("head RMSE [rad]", "particles", "update [ms]"):
-            table.add_column(col, justify="right")
-        for r in tr.results:
-            table.add_row(
+        columns = ["algorithm", "scored", "updates", "APE RMSE [m]", "median [m]", "max [m]"]
+        columns += ["head RMSE [rad]", "particles", "update [ms]"]
+        rows = [
+            [
                 r.algorithm,
                 str(r.scored_scans),
                 str(r.updates),
@@ -257,7 +238,13 @@ def run_tracking(
                 fmt(r.heading_rmse_rad, 3),
                 fmt(r.mean_particles, 0),
                 fmt(r.median_update_ms, 1),
-            )
-        console.print(table)
+            ]
+            for r in tr.results
+        ]
+        title = (
+            f"tracking on {prepared.log.name}: {particles} particles, start moved "
+            f"0.5 m / 0.3 rad (seed {prepared.seed})"
+        )
+        console.print(rows_table(title, columns, rows))
         console.print(f"results written to [bold]{tr.out_dir}[/]")
     return 0

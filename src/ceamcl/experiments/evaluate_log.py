@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ceamcl.errors import ConfigError
-from ceamcl.experiments.executors import ProgressCallback, map_trials, open_executor
+from ceamcl.experiments.executors import Batch, ProgressCallback
 from ceamcl.experiments.log_report import write_evaluation
 from ceamcl.experiments.log_windows import start_windows
 from ceamcl.experiments.metrics import (
@@ -245,10 +245,8 @@ def evaluate_log(
         for s, e in windows
         for algo in algorithms
     ]
-    with open_executor(executor, workers) as ex:
-        results = map_trials(
-            ex, run_log_trial, trials, label=f"evaluate {log.name}", progress=progress, quiet=quiet
-        )
+    batch = Batch(executor, workers, progress, quiet)
+    results = batch.run(run_log_trial, trials, f"evaluate {log.name}")
     table = aggregate(results, algorithms)
     evaluation = Evaluation(
         results,

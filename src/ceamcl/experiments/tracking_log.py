@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 
 from ceamcl.errors import ConfigError
 from ceamcl.experiments.common import fmt, write_csv, write_text
-from ceamcl.experiments.executors import ProgressCallback, map_trials, open_executor
+from ceamcl.experiments.executors import Batch
 from ceamcl.filters.base import LocalisationFilter
 from ceamcl.filters.registry import get, with_config
 from ceamcl.io.recorded import RecordedLog
@@ -165,14 +165,12 @@ def track_log(
     particles: int = DEFAULT_TRACKING_PARTICLES,
     pace: UpdatePace | None = None,
     map_source: str = "",
-    executor: str = "local",
-    workers: int | None = None,
+    batch: Batch | None = None,
     out: str | os.PathLike[str] | None = None,
-    progress: ProgressCallback | None = None,
-    quiet: bool = False,
     skipped: dict[str, str] | None = None,
 ) -> Tracking:
-    """Pose tracking over the whole log with each algorithm (module docstring)."""
+    """Pose tracking over the whole log with each algorithm (module docstring); the trials run
+    as ``batch`` says (default: local processes, no progress)."""
     log = prepared.log
     known = log.has_truth_at
     if not prepared.has_truth or not known.any():
@@ -190,15 +188,7 @@ def track_log(
     trials = [
         TrackingTrial(a, grid, window, start, particles, prepared.seed, pace) for a in algorithms
     ]
-    with open_executor(executor, workers) as ex:
-        results = map_trials(
-            ex,
-            run_tracking_trial,
-            trials,
-            label=f"track {log.name}",
-            progress=progress,
-            quiet=quiet,
-        )
+    results = (batch or Batch()).run(run_tracking_trial, trials, f"track {log.name}")
     tracking = Tracking(
         results,
         start,
