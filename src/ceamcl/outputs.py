@@ -209,8 +209,9 @@ def write_run_files(
         from ceamcl.viz.plots import plot_run, plot_species
 
         write_tum(out / "trajectory.tum", result.times, result.estimates)
-        if result.truth is not None:
-            write_tum(out / "groundtruth.tum", result.times, result.truth)
+        if result.truth is not None:  # at the steps with a true pose (all, or matched scans)
+            known = result.truth_known
+            write_tum(out / "groundtruth.tum", result.times[known], result.truth[known])
         write_diagnostics_csv(out / "diagnostics.csv", result.diagnostics, list(result.times))
         plot_run(result, grid, out / "run.png", title=title)
         if any(species_of(d) for d in result.diagnostics):

@@ -23,21 +23,26 @@ Convergence in the summary is :func:`ceamcl.experiments.metrics.score_errors`, t
 
 from __future__ import annotations
 
+import math
 import os
 import zlib
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
 
-from ceamcl.experiments.metrics import score_errors
-from ceamcl.filters.registry import make_filter
+from ceamcl.errors import ConfigError
+from ceamcl.experiments.metrics import final_error, score_errors
+from ceamcl.filters.base import LocalisationFilter
+from ceamcl.filters.policies import Policy, on_motion
+from ceamcl.filters.registry import make_filter, with_config
 from ceamcl.io.logs import DEFAULT_SYNTHETIC_NOISE, open_log, poses_look_corrected
 from ceamcl.io.recorded import RecordedLog
 from ceamcl.io.results import ensure_output_dir
 from ceamcl.io.timestamps import check_times
+from ceamcl.io.truth import TruthPairing, pair_truth
 from ceamcl.mapping import MappingConfig, map_from_log
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.maps.ros_io import load_map
@@ -58,6 +63,14 @@ class PreparedLog:
     noise: OdometryNoise | None
     seed: int
     truth_reason: str = ""
+    truth_log: RecordedLog | None = None
+    pairing: TruthPairing | None = None
+
+    @property
+    def map_log(self) -> RecordedLog:
+        """The log a map is built from: the corrected log that gives the truth, when there is
+        one (a raw log's odometry drifts by tens of metres), else the log itself."""
+        return self.truth_log if self.truth_log is not None else self.log
 
 
 def prepare_log(
@@ -67,6 +80,7 @@ def prepare_log(
     truth: TruthMode = "auto",
     noise: OdometryNoise = DEFAULT_SYNTHETIC_NOISE,
     repair_times: bool = False,
+    truth_from: str | os.PathLike[str] | None = None,
     **open_kwargs: Any,
 ) -> PreparedLog:
     """Open a log and decide ground truth and odometry (module docstring, steps 1-2).
@@ -77,6 +91,8 @@ def prepare_log(
     with ``repair_times``.
     """
     log = check_times(open_log(path, **open_kwargs), repair=repair_times)
+    if truth_from is not None:
+        return _truth_from(log, truth_from, seed, repair_times, open_kwargs)
     looks, why = poses_look_corrected(log)
     if truth == "auto":
         use_truth, reason = looks, f"{why} (--truth auto)"
@@ -90,17 +106,113 @@ def prepare_log(
     )
 
 
+def _truth_from(
+    log: RecordedLog,
+    truth_path: str | os.PathLike[str],
+    seed: int,
+    repair_times: bool,
+    open_kwargs: dict[str, Any],
+) -> PreparedLog:
+    """``log`` with its own odometry and every scan, its truth the poses of the corrected log
+    ``truth_path`` at the scans the two share (:func:`ceamcl.io.truth.pair_truth`)."""
+    truth_log = check_times(open_log(truth_path, **open_kwargs), repair=repair_times)
+    looks, why = poses_look_corrected(truth_log)
+    if not looks:
+        raise ConfigError(
+            f"truth-from: {truth_path} does not look SLAM-corrected ({why}); expected the "
+            "corrected log of the same run"
+        )
+    pairing = pair_truth(log, truth_log)
+    reason = f"from {truth_path} (--truth-from): {pairing.summary()}"
+    paired = replace(log, true_poses=pairing.truth_at_raw_scans())
+    return PreparedLog(paired, True, "recorded", None, seed, reason, truth_log, pairing)
+
+
 def obtain_map(
-    log: RecordedLog, map_path: str | os.PathLike[str] | None, resolution_m: float = 0.05
+    log: RecordedLog,
+    map_path: str | os.PathLike[str] | None,
+    resolution_m: float = 0.05,
+    *,
+    own: bool = True,
 ) -> tuple[OccupancyGrid, str]:
-    """The map file, or the log's own map built from its poses; and a sentence saying which."""
+    """The map file, or the map built from ``log``'s poses; and a sentence saying which
+    (``own=False``: ``log`` is not the replayed log but the corrected log giving its truth)."""
     if map_path is not None:
         return load_map(map_path), f"map file {map_path}"
     grid, stats = map_from_log(log, MappingConfig(resolution_m=resolution_m))
+    whose = "the log itself" if own else f"the corrected log {log.path}"
     return grid, (
-        f"built from the log itself ({stats.scans} scans, {resolution_m} m cells, "
+        f"built from {whose} ({stats.scans} scans, {resolution_m} m cells, "
         f"{stats.free_area_m2:.0f} m^2 free)"
     )
+
+
+#: Nav2 amcl's defaults: update once the robot has moved 0.25 m or turned 0.2 rad.
+DEFAULT_UPDATE_MIN_D = 0.25
+DEFAULT_UPDATE_MIN_A = 0.2
+#: Algorithms that hold their own update thresholds (amcl's): under a shared pace they are
+#: set to 0 so that the runner alone decides, for every algorithm alike.
+_OWN_THRESHOLDS = ("kld-amcl", "kld-amcl-recovery")
+
+
+@dataclass(frozen=True)
+class UpdatePace:
+    """Update at a real robot's pace (Nav2's ``update_min_d`` / ``update_min_a``): the filter
+    is stepped once the odometry has moved ``min_d`` metres along x or y or turned ``min_a``
+    radians since the last update, with the whole increment (:func:`ceamcl.runner.run_filter`).
+    Every algorithm of a run or comparison gets the same pace; KLD-AMCL's own thresholds are set
+    to 0 under it (:func:`make_paced_filter`), so it updates exactly when the others do."""
+
+    min_d: float = DEFAULT_UPDATE_MIN_D
+    min_a: float = DEFAULT_UPDATE_MIN_A
+
+    def __post_init__(self) -> None:
+        for name, v in (("update-min-d", self.min_d), ("update-min-a", self.min_a)):
+            if not (math.isfinite(v) and v >= 0.0):
+                raise ConfigError(f"{name}: expected a non-negative number, got {v}")
+
+    def policy(self) -> Policy:
+        return on_motion(self.min_d, self.min_a)
+
+    def describe(self) -> str:
+        return f"update when moved {self.min_d:g} m or turned {self.min_a:g} rad"
+
+
+def choose_pace(
+    prepared: PreparedLog,
+    min_d: float | None = None,
+    min_a: float | None = None,
+    *,
+    every_scan: bool = False,
+) -> UpdatePace | None:
+    """The update pace of a replay: none with ``every_scan``; else Nav2's thresholds (or those
+    given) on a log with the robot's own odometry (raw logs, bags), and on any log where a
+    threshold is given. A corrected log with synthetic odometry is a sparse subset of key scans
+    already (one every 0.1-1 m): it steps at every scan unless a threshold is given."""
+    if every_scan:
+        if min_d is not None or min_a is not None:
+            raise ConfigError("update-min-d/-a: not with --every-scan, which updates at every scan")
+        return None
+    if min_d is None and min_a is None and prepared.odometry != "recorded":
+        return None
+    return UpdatePace(
+        DEFAULT_UPDATE_MIN_D if min_d is None else min_d,
+        DEFAULT_UPDATE_MIN_A if min_a is None else min_a,
+    )
+
+
+def make_paced_filter(
+    algorithm: str,
+    grid: OccupancyGrid,
+    rng: np.random.Generator,
+    pace: UpdatePace | None,
+    **kwargs: Any,
+) -> LocalisationFilter:
+    """:func:`ceamcl.filters.registry.make_filter`; under a ``pace`` an algorithm with update
+    thresholds of its own (KLD-AMCL) gets them at 0, so the runner's policy alone decides."""
+    if pace is not None and algorithm in _OWN_THRESHOLDS and "config" not in kwargs:
+        kwargs["config"] = with_config(algorithm, update_min_d=0.0, update_min_a=0.0)
+    return make_filter(algorithm, grid, rng, **kwargs)
 
 
 def filter_rng(seed: int, start: int, algorithm: str) -> np.random.Generator:
@@ -129,6 +241,7 @@ def replay_log(
     on_step: Callable[[int], None] | None = None,
     outputs: OutputOptions | None = None,
     on_frame: Callable[[int, int], None] | None = None,
+    pace: UpdatePace | None = None,
 ) -> ReplayOutcome:
     """Global localisation over the whole log; with ``out``, the files of ``ceamcl run``.
 
@@ -141,10 +254,16 @@ def replay_log(
     log = prepared.log
     if on_start is not None:
         on_start(len(log))
-    f = make_filter(algorithm, grid, filter_rng(prepared.seed, 0, algorithm))
+    f = make_paced_filter(algorithm, grid, filter_rng(prepared.seed, 0, algorithm), pace)
     snapshot_every = outputs.snapshot_every if outputs is not None else 0
-    result = run_filter(f, log, on_step=on_step, snapshot_every=snapshot_every)
-    summary = run_summary(result, prepared, grid, map_source)
+    result = run_filter(
+        f,
+        log,
+        on_step=on_step,
+        snapshot_every=snapshot_every,
+        update_when=None if pace is None else pace.policy(),
+    )
+    summary = run_summary(result, prepared, grid, map_source, pace)
     files = write_run_files(
         result,
         grid,
@@ -158,8 +277,23 @@ def replay_log(
     return ReplayOutcome(result, summary, out_dir, files)
 
 
+def truth_source(prepared: PreparedLog) -> str | None:
+    """Where the run's ground truth comes from, in words (``None``: no truth)."""
+    if prepared.pairing is not None:
+        p = prepared.pairing
+        return (
+            f"the SLAM-corrected poses of {p.truth_path} at the {p.n_matched} of "
+            f"{p.n_raw} scans that match"
+        )
+    return "the log's poses (SLAM-corrected)" if prepared.has_truth else None
+
+
 def run_summary(
-    result: RunResult, prepared: PreparedLog, grid: OccupancyGrid, map_source: str
+    result: RunResult,
+    prepared: PreparedLog,
+    grid: OccupancyGrid,
+    map_source: str,
+    pace: UpdatePace | None = None,
 ) -> dict[str, Any]:
     """The fields of ``summary.json`` of ``ceamcl run``."""
     log = prepared.log
@@ -173,7 +307,7 @@ def run_summary(
         "beams_per_scan": sorted({int(b) for b in log.beam_counts}),
         "duration_s": log.duration_s,
         "path_length_m": log.path_length_m,
-        "ground_truth": "the log's poses (SLAM-corrected)" if prepared.has_truth else None,
+        "ground_truth": truth_source(prepared),
         "ground_truth_decision": prepared.truth_reason,
         "odometry": prepared.odometry,
         "repaired_times": int(log.info.get("repaired_times", 0)),
@@ -183,10 +317,23 @@ def run_summary(
         "initialisation_ms": float(result.diagnostics[0].step_ms),
         "mean_step_ms": float(step_ms.mean()),
         "median_step_ms": float(np.median(step_ms)),
+        "updates": result.updates,
+        "update_policy": "every scan" if pace is None else pace.describe(),
+        "median_update_ms": float(np.median(result.update_ms)),
         "particles_initial": int(result.diagnostics[0].n_particles),
         "particles_final": int(result.diagnostics[-1].n_particles),
         "mean_particles": float(np.mean([d.n_particles for d in result.diagnostics])),
     }
+    if prepared.pairing is not None:
+        p = prepared.pairing
+        summary["truth_pairing"] = {
+            "truth_log": p.truth_path,
+            "matched_scans": p.n_matched,
+            "truth_scans": p.n_truth,
+            "raw_scans": p.n_raw,
+            "clock_offset_s": p.clock_offset_s,
+            "max_time_residual_s": p.max_time_residual_s,
+        }
     if prepared.noise is not None:
         summary["odometry_noise"] = {
             "model": "odometry motion model (Probabilistic Robotics Table 5.6) applied to the "
@@ -203,8 +350,8 @@ def run_summary(
         score = score_errors(result.times, pos, head)
         summary.update(
             {
-                "final_position_error_m": float(pos[-1]),
-                "final_heading_error_rad": float(head[-1]),
+                "final_position_error_m": final_error(pos),
+                "final_heading_error_rad": final_error(head),
                 "converged": score.success,
                 "scans_to_converge": score.scans_to_converge,
                 "time_to_converge_s": score.time_to_converge_s,

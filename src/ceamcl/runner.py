@@ -13,10 +13,16 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from ceamcl.filters.base import LocalisationFilter, ParticleSnapshot, StepDiagnostics, StepRecord
+from ceamcl.filters.base import (
+    LocalisationFilter,
+    ParticleSnapshot,
+    StepDiagnostics,
+    StepRecord,
+)
+from ceamcl.filters.policies import Context, Policy
 from ceamcl.filters.resampling import effective_sample_size
 from ceamcl.io.recorded import RobotLog
-from ceamcl.motion.odometry import OdometryIncrement, increment_between
+from ceamcl.motion.odometry import OdometryIncrement, apply_increment, increment_between
 from ceamcl.pose import heading_error, position_error
 from ceamcl.sensors.scan import LaserScan
 
@@ -40,6 +46,14 @@ class RunResult:
         return int(self.times.size)
 
     @property
+    def truth_known(self) -> NDArray[np.bool_]:
+        """Which steps have a true pose: every one for a simulated or corrected log, the
+        matched scans for a raw log with truth from its corrected log (NaN rows elsewhere)."""
+        if self.truth is None:
+            return np.zeros(self.steps, dtype=bool)
+        return np.asarray(np.all(np.isfinite(self.truth), axis=1), dtype=bool)
+
+    @property
     def position_errors(self) -> NDArray[np.float64] | None:
         return None if self.truth is None else position_error(self.estimates, self.truth)
 
@@ -51,6 +65,18 @@ class RunResult:
     def step_ms(self) -> NDArray[np.float64]:
         """Time of each filter step after the global initialisation (``[0.0]`` when none)."""
         return np.array([d.step_ms for d in self.diagnostics[1:]] or [0.0])
+
+    @property
+    def updates(self) -> int:
+        """Steps after the initialisation at which the filter was stepped (every step unless an
+        update policy held some back)."""
+        return sum(d.stepped for d in self.diagnostics[1:])
+
+    @property
+    def update_ms(self) -> NDArray[np.float64]:
+        """Time of each step that updated the filter (``[0.0]`` when none): with an update
+        policy, a held-back scan costs nothing and :attr:`step_ms` counts it as 0."""
+        return np.array([d.step_ms for d in self.diagnostics[1:] if d.stepped] or [0.0])
 
 
 def _hypothesis_array(f: LocalisationFilter) -> NDArray[np.float64]:
@@ -79,16 +105,51 @@ def timed_step(
     return measure(f, k, lambda: f.step(increment, scan))
 
 
+def _carried(
+    hypotheses: NDArray[np.float64], odom_from: NDArray[np.float64], odom_to: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Hypothesis rows (x, y, theta, ...) moved, noise-free, by the odometry between two poses
+    (as amcl's map -> odom transform carries the robot between updates)."""
+    inc = increment_between(odom_from, odom_to)
+    if inc.is_zero or hypotheses.shape[0] == 0:
+        return hypotheses
+    out = hypotheses.copy()
+    out[:, :3] = apply_increment(hypotheses[:, :3], inc.rot1, inc.trans, inc.rot2)
+    return out
+
+
+def _start_tracking(
+    f: LocalisationFilter,
+    initial: tuple[NDArray[np.float64], NDArray[np.float64]],
+    scan: LaserScan,
+) -> StepRecord:
+    f.initialise_pose(*initial)
+    return f.step(OdometryIncrement(0.0, 0.0, 0.0), scan)
+
+
 def run_filter(
     f: LocalisationFilter,
     log: RobotLog,
     *,
     on_step: Callable[[int], None] | None = None,
     snapshot_every: int = 0,
+    update_when: Policy | None = None,
+    initial_pose: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
 ) -> RunResult:
     """Global localisation from the first scan, then one filter step per log entry; each
     step's record holds its time, particle count and ESS (measured here) and what the filter
     says about it.
+
+    ``update_when`` (e.g. :func:`ceamcl.filters.policies.on_motion` ``(0.25, 0.2)``, Nav2's
+    ``update_min_d``/``update_min_a``) updates at a real robot's pace: the filter is stepped
+    only at the scans where the policy, shown the odometry motion since the last update, says
+    so, with the *whole* increment since then (no scan's odometry is dropped). At the other
+    scans the estimate and hypotheses are the last update's, carried along by the odometry
+    since (:func:`_carried`), and the step's record says ``stepped=False``. Without it (the
+    default) every entry is a step.
+
+    ``initial_pose=(pose, covariance)`` tracks instead: step 0 is ``f.initialise_pose`` and a
+    step with the first scan and no motion, in place of the global initialisation.
 
     ``on_step(k)`` is called after each step (progress bars hook in here);
     ``snapshot_every > 0`` keeps the particles every that many steps (for animations).
@@ -98,15 +159,34 @@ def run_filter(
         raise ValueError("run_filter: the log has no entries")
     estimates = np.zeros((n, 3))
     first = log.scan(0)
-    diagnostics = [measure(f, 0, lambda: f.initialise_global(first))]
+    if initial_pose is None:
+        diagnostics = [measure(f, 0, lambda: f.initialise_global(first))]
+    else:
+        diagnostics = [measure(f, 0, lambda: _start_tracking(f, initial_pose, first))]
     initial = f.particles()
     estimates[0] = f.estimate().pose
     hypotheses = [_hypothesis_array(f)]
     snapshots: dict[int, ParticleSnapshot] = {0: initial} if snapshot_every > 0 else {}
     if on_step is not None:
         on_step(0)
+    odom_at_update = np.asarray(log.odometry[0], dtype=np.float64)
     for k in range(1, n):
-        inc = increment_between(log.odometry[k - 1], log.odometry[k])
+        odom = np.asarray(log.odometry[k], dtype=np.float64)
+        if update_when is None:
+            inc = increment_between(log.odometry[k - 1], odom)
+        elif update_when(Context(motion=odom - odom_at_update)):
+            inc = increment_between(odom_at_update, odom)
+        else:
+            last = diagnostics[-1]
+            diagnostics.append(
+                StepDiagnostics(k, last.n_particles, last.ess, 0.0, StepRecord(), False)
+            )
+            estimates[k] = _carried(estimates[k - 1][None, :], log.odometry[k - 1], odom)[0]
+            hypotheses.append(_carried(hypotheses[-1], log.odometry[k - 1], odom))
+            if on_step is not None:
+                on_step(k)
+            continue
+        odom_at_update = odom
         diagnostics.append(timed_step(f, k, inc, log.scan(k)))
         estimates[k] = f.estimate().pose
         hypotheses.append(_hypothesis_array(f))

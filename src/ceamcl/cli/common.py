@@ -4,7 +4,7 @@ bar, a run's summary table."""
 from __future__ import annotations
 
 import argparse
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -55,12 +55,25 @@ def positive_float(text: str) -> float:
     return value
 
 
+def non_negative_float(text: str) -> float:
+    """argparse type: a finite number >= 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (value >= 0.0 and value < float("inf")):
+        raise argparse.ArgumentTypeError(f"expected a non-negative finite number, got {text}")
+    return value
+
+
 def require_available(algorithm: str) -> None:
     """Refuse, with the reason, an algorithm that is registered but cannot run here (the Nav2
     peer without its optional extra)."""
     reason = registry.unavailable_reason(algorithm)
     if reason is not None:
         raise ConfigError(f"algorithm: {algorithm} cannot run here: {reason}")
+
+
 def check_particles(count: int | None) -> None:
     """Refuse a ``--particles`` count beyond the memory budget, before any filter is built."""
     if count is not None:
@@ -134,6 +147,16 @@ def summary_table(title: str, summary: Mapping[str, Any], keys: Iterable[str]) -
         v = summary.get(key)
         if v is not None:
             table.add_row(key, f"{v:.3f}" if isinstance(v, float) else str(v))
+    return table
+
+
+def rows_table(title: str, columns: Sequence[str], rows: Iterable[Sequence[str]]) -> Table:
+    """A table with ``columns`` (the first left-aligned, the others right) and ``rows``."""
+    table = Table(title=title)
+    for i, col in enumerate(columns):
+        table.add_column(col, justify="left" if i == 0 else "right")
+    for row in rows:
+        table.add_row(*row)
     return table
 
 

@@ -6,26 +6,30 @@ from __future__ import annotations
 import argparse
 
 from rich.console import Console
-from rich.table import Table
 
 from ceamcl import budget
 from ceamcl.checks import physical_warnings
-from ceamcl.cli.common import TrialsProgress, positive_float, positive_int
+from ceamcl.cli.common import TrialsProgress, positive_float, positive_int, rows_table
 from ceamcl.cli.experiment import RUN_BYTES
 from ceamcl.cli.run import (
     add_log_arguments,
+    add_pace_arguments,
     add_truth_arguments,
     log_path,
     open_kwargs,
+    pace_of,
     print_truth,
 )
 from ceamcl.errors import ConfigError
 from ceamcl.experiments.common import fmt, pct
 from ceamcl.experiments.evaluate_log import evaluate_log
+from ceamcl.experiments.executors import Batch
 from ceamcl.experiments.log_windows import DEFAULT_WINDOW_M
-from ceamcl.experiments.metrics import HOLD_STEPS
+from ceamcl.experiments.metrics import DEFAULT_HOLD_M, HOLD_STEPS
+from ceamcl.experiments.tracking_log import DEFAULT_TRACKING_PARTICLES, track_log
 from ceamcl.filters import registry
-from ceamcl.replay import obtain_map, prepare_log
+from ceamcl.maps.grid import OccupancyGrid
+from ceamcl.replay import PreparedLog, UpdatePace, obtain_map, prepare_log
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -71,13 +75,24 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     window.add_argument(
         "--scans", type=positive_int, default=None, metavar="N", help="each run covers N scans"
     )
-    p.add_argument(
+    hold = p.add_mutually_exclusive_group()
+    hold.add_argument(
+        "--hold-m",
+        type=positive_float,
+        default=None,
+        metavar="M",
+        help=f"metres of travel a run must stay within tolerance at the end to count as a "
+        f"success (default {DEFAULT_HOLD_M:g}; the whole window when shorter)",
+    )
+    hold.add_argument(
         "--hold",
         type=positive_int,
-        default=HOLD_STEPS,
-        help="steps a run must stay within tolerance at the end to count as a success",
+        default=None,
+        metavar="N",
+        help="... or N scans instead of metres",
     )
     add_truth_arguments(p)
+    add_pace_arguments(p)
     p.add_argument(
         "--executor",
         default="local",
@@ -89,6 +104,21 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         type=positive_int,
         default=None,
         help="worker processes for local/dask (default: CPU count)",
+    )
+    p.add_argument(
+        "--tracking",
+        action="store_true",
+        help="pose tracking instead of global localisation: every algorithm starts from the "
+        "true pose moved 0.5 m and turned 0.3 rad (seeded) and runs over the whole log; "
+        "reports the APE (RMSE, median, max) and writes TUM files for evo_ape",
+    )
+    p.add_argument(
+        "--particles",
+        type=positive_int,
+        default=None,
+        metavar="N",
+        help=f"--tracking: the particle budget of every algorithm (default "
+        f"{DEFAULT_TRACKING_PARTICLES}, Nav2's max_particles)",
     )
     p.add_argument("--out", default="evaluate-out", help="folder for the results")
     p.add_argument("--quiet", action="store_true", help="no progress bar or table")
@@ -105,15 +135,26 @@ def run(args: argparse.Namespace, console: Console) -> int:
         seed=args.seed,
         truth=args.truth,
         repair_times=args.repair_times,
+        truth_from=args.truth_from,
         **open_kwargs(args),
     )
-    grid, map_source = obtain_map(prepared.log, args.map, args.resolution)
-    physical_warnings(prepared.log, grid, args.map or f"the map built from {prepared.log.path}")
+    grid, map_source = obtain_map(
+        prepared.map_log, args.map, args.resolution, own=prepared.truth_log is None
+    )
+    physical_warnings(prepared.log, grid, args.map or f"the map built from {prepared.map_log.path}")
+    pace = pace_of(args, prepared)
     if not args.quiet:
         console.print(f"map: {map_source}")
         print_truth(console, prepared)
+        console.print(
+            f"filter updates (every algorithm): {'every scan' if pace is None else pace.describe()}"
+        )
         for name, why in skipped.items():
             console.print(f"[yellow]{name} skipped[/]: {why}")
+    if args.tracking:
+        return run_tracking(args, console, prepared, grid, map_source, algos, skipped, pace)
+    if args.particles is not None:
+        raise ConfigError("particles: only with --tracking (global localisation uses defaults)")
     with TrialsProgress(console, quiet=args.quiet) as progress:
         ev = evaluate_log(
             prepared,
@@ -123,42 +164,87 @@ def run(args: argparse.Namespace, console: Console) -> int:
             scans=args.scans,
             window_s=args.window_s,
             window_m=args.window_m,
-            hold=args.hold,
+            hold=HOLD_STEPS if args.hold is None else args.hold,
+            hold_m=None if args.hold is not None else (args.hold_m or DEFAULT_HOLD_M),
             map_source=map_source,
             executor=args.executor,
             workers=args.workers,
             out=args.out,
             progress=progress,
             skipped=skipped,
+            pace=pace,
         )
     if not args.quiet:
-        table = Table(
-            title=f"evaluate-log {prepared.log.name}: {len(ev.windows)} starts, "
-            f"windows of {ev.window}"
-        )
-        for col in (
-            "algorithm",
-            "success",
-            "t conv [s]",
-            "scans conv",
-            "pos RMSE [m]",
-            "head RMSE [rad]",
-            "particles",
-            "step [ms]",
-        ):
-            table.add_column(col, justify="left" if col == "algorithm" else "right")
-
-        for row in ev.table:
-            table.add_row(
+        columns = ["algorithm", "success", "conf. wrong", "t conv [s]", "m conv", "pos RMSE [m]"]
+        columns += ["RMSE 1st [m]", "head RMSE [rad]", "particles", "step [ms]"]
+        rows = [
+            [
                 row["algorithm"],
                 pct(row["success_rate"]),
+                str(row["confidently_wrong"]),
                 fmt(row["time_to_converge_s"], 1, "-"),
-                fmt(row["scans_to_converge"], 1, "-"),
+                fmt(row["distance_to_converge_m"], 1, "-"),
                 fmt(row["position_rmse_m"], 3, "-"),
+                fmt(row["position_rmse_from_first_m"], 3, "-"),
                 fmt(row["heading_rmse_rad"], 3, "-"),
                 fmt(row["mean_particles"], 0, "-"),
                 fmt(row["mean_step_ms"], 1, "-"),
-            )
-        console.print(table)
+            ]
+            for row in ev.table
+        ]
+        title = (
+            f"evaluate-log {prepared.log.name}: {len(ev.windows)} starts, windows of {ev.window}"
+        )
+        console.print(rows_table(title, columns, rows))
         console.print(f"results written to [bold]{ev.out_dir}[/]")
+    return 0
+
+
+def run_tracking(
+    args: argparse.Namespace,
+    console: Console,
+    prepared: PreparedLog,
+    grid: OccupancyGrid,
+    map_source: str,
+    algos: list[str],
+    skipped: dict[str, str],
+    pace: UpdatePace | None,
+) -> int:
+    """``evaluate-log --tracking``: APE of pose tracking over the whole log."""
+    particles = args.particles or DEFAULT_TRACKING_PARTICLES
+    with TrialsProgress(console, quiet=args.quiet) as progress:
+        tr = track_log(
+            prepared,
+            grid,
+            algos,
+            particles=particles,
+            pace=pace,
+            map_source=map_source,
+            batch=Batch(args.executor, args.workers, progress),
+            out=args.out,
+            skipped=skipped,
+        )
+    if not args.quiet:
+        columns = ["algorithm", "scored", "updates", "APE RMSE [m]", "median [m]", "max [m]"]
+        columns += ["head RMSE [rad]", "particles", "update [ms]"]
+        rows = [
+            [
+                r.algorithm,
+                str(r.scored_scans),
+                str(r.updates),
+                fmt(r.ape_rmse_m, 3),
+                fmt(r.ape_median_m, 3),
+                fmt(r.ape_max_m, 3),
+                fmt(r.heading_rmse_rad, 3),
+                fmt(r.mean_particles, 0),
+                fmt(r.median_update_ms, 1),
+            ]
+            for r in tr.results
+        ]
+        title = (
+            f"tracking on {prepared.log.name}: {particles} particles, start moved "
+            f"0.5 m / 0.3 rad (seed {prepared.seed})"
+        )
+        console.print(rows_table(title, columns, rows))
+        console.print(f"results written to [bold]{tr.out_dir}[/]")
     return 0

@@ -13,6 +13,7 @@ from ceamcl.cli.common import (
     RunProgress,
     add_output_arguments,
     make_progress,
+    non_negative_float,
     non_negative_int,
     positive_float,
     positive_int,
@@ -23,7 +24,16 @@ from ceamcl.cli.common import (
 from ceamcl.errors import ConfigError
 from ceamcl.filters import registry
 from ceamcl.outputs import OutputOptions
-from ceamcl.replay import obtain_map, prepare_log, replay_log
+from ceamcl.replay import (
+    DEFAULT_UPDATE_MIN_A,
+    DEFAULT_UPDATE_MIN_D,
+    PreparedLog,
+    UpdatePace,
+    choose_pace,
+    obtain_map,
+    prepare_log,
+    replay_log,
+)
 
 DEFAULT_ALGORITHM = "ceamcl"
 
@@ -83,6 +93,14 @@ def add_truth_arguments(p: argparse.ArgumentParser) -> None:
         "part). With truth the filter gets synthetic odometry drawn from it (default: auto)",
     )
     p.add_argument(
+        "--truth-from",
+        default=None,
+        metavar="CORRECTED",
+        help="ground truth from the SLAM-corrected log of the same run: LOG's scans are paired "
+        "with CORRECTED's by identical ranges, the filter reads LOG's own odometry and every "
+        "scan and is scored at the matched scans; without --map the map is built from CORRECTED",
+    )
+    p.add_argument(
         "--repair-times",
         action="store_true",
         help="raise scan times that go back by more than 1 s (or are not numbers) to the "
@@ -94,6 +112,34 @@ def add_truth_arguments(p: argparse.ArgumentParser) -> None:
         default=0,
         help="seed of the filter and of synthetic odometry",
     )
+
+
+def add_pace_arguments(p: argparse.ArgumentParser) -> None:
+    """Update at a real robot's pace (Nav2's update_min_d / update_min_a)."""
+    p.add_argument(
+        "--update-min-d",
+        type=non_negative_float,
+        default=None,
+        metavar="M",
+        help=f"update the filter once the robot has moved M metres since the last update "
+        f"(default {DEFAULT_UPDATE_MIN_D:g} on logs with the robot's own odometry; corrected "
+        "logs with synthetic odometry update at every scan unless given). The odometry of the "
+        "scans in between is accumulated, never dropped; every algorithm gets the same pace",
+    )
+    p.add_argument(
+        "--update-min-a",
+        type=non_negative_float,
+        default=None,
+        metavar="RAD",
+        help=f"... or turned RAD radians (default {DEFAULT_UPDATE_MIN_A:g}, as --update-min-d)",
+    )
+    p.add_argument(
+        "--every-scan", action="store_true", help="update the filter at every scan (no pace)"
+    )
+
+
+def pace_of(args: argparse.Namespace, prepared: PreparedLog) -> UpdatePace | None:
+    return choose_pace(prepared, args.update_min_d, args.update_min_a, every_scan=args.every_scan)
 
 
 def open_kwargs(args: argparse.Namespace) -> dict[str, Any]:
@@ -112,6 +158,11 @@ def print_truth(console: Console, prepared: Any) -> None:
     console.print(f"ground truth: {prepared.truth_reason}")
     if not prepared.has_truth:
         console.print("odometry: the log's recorded odometry (no ground truth: no errors scored)")
+    if prepared.pairing is not None:
+        console.print(
+            f"odometry: the log's recorded odometry; scored at the {prepared.pairing.n_matched} "
+            f"of {len(prepared.log)} scans with truth"
+        )
     repaired = int(prepared.log.info.get("repaired_times", 0))
     if repaired:
         console.print(f"scan times: {repaired} raised to the latest before them (--repair-times)")
@@ -136,6 +187,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "--algorithm", choices=registry.names(), default=DEFAULT_ALGORITHM, help="filter to run"
     )
     add_truth_arguments(p)
+    add_pace_arguments(p)
     p.add_argument("--out", default="run-out", help="folder for the results")
     p.add_argument("--quiet", action="store_true", help="no progress bar or table")
     # Real logs are long: no animation unless --gif asks for it (docs/outputs.md).
@@ -151,13 +203,18 @@ def run(args: argparse.Namespace, console: Console) -> int:
         seed=args.seed,
         truth=args.truth,
         repair_times=args.repair_times,
+        truth_from=args.truth_from,
         **open_kwargs(args),
     )
-    grid, map_source = obtain_map(prepared.log, args.map, args.resolution)
-    physical_warnings(prepared.log, grid, args.map or f"the map built from {prepared.log.path}")
+    grid, map_source = obtain_map(
+        prepared.map_log, args.map, args.resolution, own=prepared.truth_log is None
+    )
+    physical_warnings(prepared.log, grid, args.map or f"the map built from {prepared.map_log.path}")
+    pace = pace_of(args, prepared)
     if not args.quiet:
         console.print(f"map: {map_source}")
         print_truth(console, prepared)
+        console.print(f"filter updates: {'every scan' if pace is None else pace.describe()}")
         if prepared.noise is not None:
             n = prepared.noise
             console.print(
@@ -179,6 +236,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
             on_step=bar.step,
             outputs=outputs,
             on_frame=bar.frame,
+            pace=pace,
         )
     if not args.quiet:
         keys = (
@@ -194,6 +252,9 @@ def run(args: argparse.Namespace, console: Console) -> int:
             "final_heading_error_rad",
             "initialisation_ms",
             "mean_step_ms",
+            "median_step_ms",
+            "updates",
+            "median_update_ms",
             "mean_particles",
         )
         title = f"ceamcl run ({args.algorithm}, seed {args.seed})"

@@ -20,16 +20,21 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ceamcl.errors import ConfigError
-from ceamcl.experiments.executors import ProgressCallback, map_trials, open_executor
+from ceamcl.experiments.executors import Batch, ProgressCallback
 from ceamcl.experiments.log_report import write_evaluation
 from ceamcl.experiments.log_windows import start_windows
-from ceamcl.experiments.metrics import HOLD_STEPS, score_errors
-from ceamcl.filters.registry import make_filter
+from ceamcl.experiments.metrics import (
+    GATHERED_SHARE,
+    HOLD_STEPS,
+    final_error,
+    score_errors,
+    within,
+)
 from ceamcl.io.recorded import RecordedLog
 from ceamcl.io.results import ensure_output_dir
 from ceamcl.maps.grid import OccupancyGrid
-from ceamcl.replay import PreparedLog, filter_rng
-from ceamcl.runner import run_filter
+from ceamcl.replay import PreparedLog, UpdatePace, filter_rng, make_paced_filter
+from ceamcl.runner import RunResult, run_filter
 
 
 @dataclass(frozen=True, eq=False)
@@ -43,6 +48,8 @@ class LogTrial:
     log: RecordedLog
     seed: int
     hold: int = HOLD_STEPS
+    pace: UpdatePace | None = None
+    hold_m: float | None = None
 
 
 @dataclass(frozen=True)
@@ -57,13 +64,18 @@ class LogTrialResult:
     success: bool
     scans_to_converge: int | None
     time_to_converge_s: float
+    distance_to_converge_m: float
     position_rmse_m: float
+    position_rmse_from_first_m: float
+    confidently_wrong: bool
     heading_rmse_rad: float
     final_position_error_m: float
     final_heading_error_rad: float
     mean_particles: float
     mean_step_ms: float
     initialisation_ms: float
+    updates: int
+    mean_update_ms: float
     elapsed_s: NDArray[np.float64] = field(repr=False)
     position_errors: NDArray[np.float64] = field(repr=False)
     heading_errors: NDArray[np.float64] = field(repr=False)
@@ -71,15 +83,19 @@ class LogTrialResult:
 
 def run_log_trial(trial: LogTrial) -> LogTrialResult:
     """Run one trial (a top-level function, so any executor can run it)."""
-    f = make_filter(
-        trial.algorithm, trial.grid, filter_rng(trial.seed, trial.start_index, trial.algorithm)
+    rng = filter_rng(trial.seed, trial.start_index, trial.algorithm)
+    f = make_paced_filter(trial.algorithm, trial.grid, rng, trial.pace)
+    result = run_filter(
+        f, trial.log, update_when=None if trial.pace is None else trial.pace.policy()
     )
-    result = run_filter(f, trial.log)
     pos, head = result.position_errors, result.heading_errors
     if pos is None or head is None:
         raise ConfigError(f"trial {trial.name}: the log window has no ground truth")
-    score = score_errors(result.times, pos, head, hold=trial.hold)
     log = trial.log
+    score = score_errors(
+        result.times, pos, head, hold=trial.hold, hold_m=trial.hold_m, travelled=log.travelled_m
+    )
+    known = result.truth_known
     return LogTrialResult(
         name=trial.name,
         algorithm=trial.algorithm,
@@ -91,17 +107,39 @@ def run_log_trial(trial: LogTrial) -> LogTrialResult:
         success=score.success,
         scans_to_converge=score.scans_to_converge,
         time_to_converge_s=score.time_to_converge_s,
+        distance_to_converge_m=score.distance_to_converge_m,
         position_rmse_m=score.position_rmse_m,
+        position_rmse_from_first_m=score.position_rmse_from_first_m,
+        confidently_wrong=confidently_wrong(result),
         heading_rmse_rad=score.heading_rmse_rad,
-        final_position_error_m=float(pos[-1]),
-        final_heading_error_rad=float(head[-1]),
+        final_position_error_m=final_error(pos),
+        final_heading_error_rad=final_error(head),
         mean_particles=float(np.mean([d.n_particles for d in result.diagnostics])),
         mean_step_ms=float(result.step_ms.mean()),
         initialisation_ms=float(result.diagnostics[0].step_ms),
-        elapsed_s=result.times - result.times[0],
-        position_errors=pos,
-        heading_errors=head,
+        updates=result.updates,
+        mean_update_ms=float(result.update_ms.mean()),
+        # the scans with truth only (all of a corrected log's; a raw log's matched scans)
+        elapsed_s=(result.times - result.times[0])[known],
+        position_errors=pos[known],
+        heading_errors=head[known],
     )
+
+
+def confidently_wrong(result: RunResult, share: float = GATHERED_SHARE) -> bool:
+    """At the last scan with truth, the filter puts at least ``share`` (90 %) of its weight on
+    one hypothesis, and that hypothesis is not within the tolerances of the truth. (A filter
+    that shows one hypothesis, as Nav2 AMCL, is confidently wrong when its estimate is.)"""
+    known = np.flatnonzero(result.truth_known)
+    if known.size == 0 or result.truth is None:
+        return False
+    k = int(known[-1])
+    hyps = result.hypotheses[k]
+    total = float(hyps[:, 3].sum()) if hyps.shape[0] else 0.0
+    if total <= 0:
+        return False
+    top = int(np.argmax(hyps[:, 3]))
+    return bool(hyps[top, 3] / total >= share and not within(hyps[top, :3], result.truth[k]))
 
 
 @dataclass
@@ -113,6 +151,7 @@ class Evaluation:
     windows: list[tuple[int, int]]
     window: str
     out_dir: Path | None
+    update_policy: str = "every scan"
 
 
 def aggregate(results: Sequence[LogTrialResult], algorithms: Sequence[str]) -> list[dict[str, Any]]:
@@ -133,11 +172,22 @@ def aggregate(results: Sequence[LogTrialResult], algorithms: Sequence[str]) -> l
                 "runs": len(rs),
                 "success_rate": len(ok) / len(rs),
                 "time_to_converge_s": mean([r.time_to_converge_s for r in ok]),
+                "distance_to_converge_m": mean([r.distance_to_converge_m for r in ok]),
                 "scans_to_converge": mean([float(r.scans_to_converge or 0) for r in ok]),
                 "position_rmse_m": mean([r.position_rmse_m for r in ok]),
+                "position_rmse_from_first_m": mean(
+                    [
+                        r.position_rmse_from_first_m
+                        for r in rs
+                        if math.isfinite(r.position_rmse_from_first_m)
+                    ]
+                ),
+                "confidently_wrong": sum(r.confidently_wrong for r in rs),
                 "heading_rmse_rad": mean([r.heading_rmse_rad for r in ok]),
                 "mean_particles": mean([r.mean_particles for r in rs]),
                 "mean_step_ms": mean([r.mean_step_ms for r in rs]),
+                "mean_update_ms": mean([r.mean_update_ms for r in rs]),
+                "updates_per_run": mean([float(r.updates) for r in rs]),
                 "initialisation_ms": mean([r.initialisation_ms for r in rs]),
             }
         )
@@ -154,6 +204,7 @@ def evaluate_log(
     window_s: float | None = None,
     window_m: float | None = None,
     hold: int = HOLD_STEPS,
+    hold_m: float | None = None,
     map_source: str = "",
     executor: str = "local",
     workers: int | None = None,
@@ -161,6 +212,7 @@ def evaluate_log(
     progress: ProgressCallback | None = None,
     quiet: bool = False,
     skipped: dict[str, str] | None = None,
+    pace: UpdatePace | None = None,
 ) -> Evaluation:
     """Global localisation from ``starts`` points of the log with each algorithm.
 
@@ -187,18 +239,25 @@ def evaluate_log(
             log=log.window(s, e),
             seed=prepared.seed,
             hold=hold,
+            pace=pace,
+            hold_m=hold_m,
         )
         for s, e in windows
         for algo in algorithms
     ]
-    with open_executor(executor, workers) as ex:
-        results = map_trials(
-            ex, run_log_trial, trials, label=f"evaluate {log.name}", progress=progress, quiet=quiet
-        )
+    batch = Batch(executor, workers, progress, quiet)
+    results = batch.run(run_log_trial, trials, f"evaluate {log.name}")
     table = aggregate(results, algorithms)
     evaluation = Evaluation(
-        results, table, dict(skipped or {}), map_source, windows, window_what, out_dir
+        results,
+        table,
+        dict(skipped or {}),
+        map_source,
+        windows,
+        window_what,
+        out_dir,
+        "every scan" if pace is None else pace.describe(),
     )
     if out_dir is not None:
-        write_evaluation(evaluation, prepared, out_dir, hold=hold)
+        write_evaluation(evaluation, prepared, out_dir, hold=hold, hold_m=hold_m)
     return evaluation

@@ -32,6 +32,7 @@ import os
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
 from contextlib import contextmanager
+from dataclasses import dataclass
 from typing import Any, TypeVar
 
 from ceamcl.errors import CeamclError, ConfigError
@@ -212,3 +213,19 @@ def map_trials(
         for future in futures:
             future.cancel()
     return results
+
+
+@dataclass(frozen=True)
+class Batch:
+    """Where a batch of trials runs (:func:`open_executor`'s ``spec`` and ``workers``) and
+    whom it reports to (:func:`map_trials`' ``progress`` and ``quiet``)."""
+
+    executor: str = "local"
+    workers: int | None = None
+    progress: ProgressCallback | None = None
+    quiet: bool = False
+
+    def run(self, fn: Callable[[T], R], items: Sequence[T], label: str) -> list[R]:
+        """:func:`map_trials` on a freshly opened executor."""
+        with open_executor(self.executor, self.workers) as ex:
+            return map_trials(ex, fn, items, label=label, progress=self.progress, quiet=self.quiet)

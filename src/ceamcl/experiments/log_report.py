@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 
 from ceamcl.experiments.common import fmt, write_csv, write_text
 from ceamcl.experiments.metrics import HEADING_TOL_RAD, HOLD_STEPS, POSITION_TOL_M
+from ceamcl.replay import truth_source
 
 if TYPE_CHECKING:
     from ceamcl.experiments.evaluate_log import Evaluation
@@ -23,18 +24,28 @@ _CSV_FIELDS = (
     "success",
     "scans_to_converge",
     "time_to_converge_s",
+    "distance_to_converge_m",
     "position_rmse_m",
+    "position_rmse_from_first_m",
+    "confidently_wrong",
     "heading_rmse_rad",
     "final_position_error_m",
     "final_heading_error_rad",
     "mean_particles",
     "mean_step_ms",
     "initialisation_ms",
+    "updates",
+    "mean_update_ms",
 )
 
 
 def write_evaluation(
-    ev: Evaluation, prepared: PreparedLog, out_dir: Path, *, hold: int = HOLD_STEPS
+    ev: Evaluation,
+    prepared: PreparedLog,
+    out_dir: Path,
+    *,
+    hold: int = HOLD_STEPS,
+    hold_m: float | None = None,
 ) -> None:
     """``evaluate.csv`` (per run), ``evaluate.md`` (per algorithm) and two figures."""
     # matplotlib (~0.4 s) only when figures are drawn, as in the other experiments' writers:
@@ -43,11 +54,13 @@ def write_evaluation(
 
     rows = [{k: getattr(r, k) for k in _CSV_FIELDS} for r in ev.results]
     write_csv(out_dir / "evaluate.csv", rows)
-    write_text(out_dir / "evaluate.md", evaluation_markdown(ev, prepared, hold=hold))
+    write_text(out_dir / "evaluate.md", evaluation_markdown(ev, prepared, hold=hold, hold_m=hold_m))
     plot_evaluation(ev, out_dir)
 
 
-def evaluation_markdown(ev: Evaluation, prepared: PreparedLog, *, hold: int = HOLD_STEPS) -> str:
+def evaluation_markdown(
+    ev: Evaluation, prepared: PreparedLog, *, hold: int = HOLD_STEPS, hold_m: float | None = None
+) -> str:
     log = prepared.log
     lengths = [e - s for s, e in ev.windows]
     lines = [
@@ -63,31 +76,42 @@ def evaluation_markdown(ev: Evaluation, prepared: PreparedLog, *, hold: int = HO
             if prepared.noise is not None
             else ""
         ),
+        f"- ground truth: {truth_source(prepared)}",
+        f"- filter updates (every algorithm): {ev.update_policy}",
         f"- {len(ev.windows)} start points, windows of {ev.window} "
         f"({min(lengths)}-{max(lengths)} scans)",
         f"- success: within {POSITION_TOL_M} m and {HEADING_TOL_RAD} rad from a step on to the "
-        f"end of the window, for at least {hold} steps; times and RMSEs over successful runs",
+        f"end of the window, for at least "
+        + (f"{hold} steps" if hold_m is None else f"{hold_m:g} m of travel")
+        + "; times, distances and RMSEs over successful runs; RMSE from first: from the first "
+        "scan inside the tolerances to the end, excursions included (runs ever inside); "
+        "confidently wrong: runs ending with >= 90 % of the weight on one wrong hypothesis",
+        f"- windows: {ev.window}",
         "",
-        "| algorithm | runs | success | time to converge [s] | scans to converge | "
-        "position RMSE [m] | heading RMSE [rad] | mean particles | mean step [ms] | "
-        "initialisation [ms] |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "| algorithm | runs | success | confidently wrong | time to converge [s] | "
+        "scans to converge | distance to converge [m] | position RMSE [m] | "
+        "RMSE from first [m] | heading RMSE [rad] | mean particles | mean step [ms] | "
+        "initialisation [ms] | updates per run | mean update [ms] |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     digits = {
         "time_to_converge_s": 1,
         "scans_to_converge": 1,
+        "distance_to_converge_m": 1,
         "position_rmse_m": 3,
+        "position_rmse_from_first_m": 3,
         "heading_rmse_rad": 3,
         "mean_particles": 0,
         "mean_step_ms": 1,
         "initialisation_ms": 0,
+        "updates_per_run": 0,
+        "mean_update_ms": 1,
     }
     for row in ev.table:
         cells = [fmt(row[key], d, "-") for key, d in digits.items()]
         lines.append(
             f"| {row['algorithm']} | {row['runs']} | {100 * row['success_rate']:.0f}% | "
-            + " | ".join(cells)
-            + " |"
+            f"{row['confidently_wrong']} | " + " | ".join(cells) + " |"
         )
     for algo, why in ev.skipped.items():
         lines.append(f"\n{algo} skipped: {why}")

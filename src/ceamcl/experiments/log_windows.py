@@ -3,6 +3,8 @@ each a whole window of scans, seconds or metres of travel."""
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -32,9 +34,7 @@ def _progress(
     dist_m = DEFAULT_WINDOW_M if window_m is None else window_m
     if not dist_m > 0:
         raise ConfigError(f"window-m: expected a positive distance, got {dist_m}")
-    truth = log.true_poses if log.true_poses is not None else log.poses
-    step = np.hypot(*np.diff(truth[:, :2], axis=0).T)
-    return np.concatenate([[0.0], np.cumsum(step)]), float(dist_m), f"{dist_m:g} m of travel"
+    return log.travelled_m, float(dist_m), f"{dist_m:g} m of travel"
 
 
 def start_windows(
@@ -45,7 +45,8 @@ def start_windows(
     window_s: float | None = None,
     window_m: float | None = None,
 ) -> tuple[list[tuple[int, int]], str]:
-    """``starts`` windows ``(start, stop)`` with evenly spread starts, each a whole window
+    """Up to ``starts`` non-overlapping windows ``(start, stop)`` with evenly spread starts
+    (fewer, said in the description, when the log is too short for all), each a whole window
     (``scans`` scans, ``window_s`` seconds or ``window_m`` metres of travel; default
     :data:`DEFAULT_WINDOW_M`), and the window's description.
 
@@ -61,9 +62,22 @@ def start_windows(
             "choose a shorter --scans/--window-s/--window-m"
         )
     last = int(fits[-1])
-    picks = np.unique(np.round(np.linspace(0, last, starts)).astype(int))
-    windows = []
-    for s in picks:
-        stop = int(np.searchsorted(progress, progress[s] + length - 1e-9, side="left")) + 1
-        windows.append((int(s), max(stop, int(s) + 2)))
+
+    def spread(k: int) -> list[tuple[int, int]]:
+        picks = np.unique(np.round(np.linspace(0, last, k)).astype(int))
+        out = []
+        for s in picks:
+            stop = int(np.searchsorted(progress, progress[s] + length - 1e-9, side="left")) + 1
+            out.append((int(s), max(stop, int(s) + 2)))
+        return out
+
+    # Windows must not overlap (runs sharing scans are not independent): fewer starts when the
+    # log is too short for all of them.
+    k = starts
+    windows = spread(k)
+    while k > 1 and any(a[1] > b[0] for a, b in itertools.pairwise(windows)):
+        k -= 1
+        windows = spread(k)
+    if len(windows) < starts:
+        what += f" ({len(windows)} of the {starts} starts requested fit without overlap)"
     return windows, what

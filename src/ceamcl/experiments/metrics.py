@@ -36,8 +36,11 @@ POSITION_TOL_M = 0.5
 HEADING_TOL_RAD = 0.3
 GATHERED_SHARE = 0.9
 HOLD_S = 1.0
-#: Steps a real-log run must stay inside the tolerances at the end to count as a success.
+#: Steps a real-log run must stay inside the tolerances at the end to count as a success
+#: (``--hold N``), ...
 HOLD_STEPS = 10
+#: ... or metres of travel (``--hold-m``, evaluate-log's default: scans are 0.1-1 m apart).
+DEFAULT_HOLD_M = 5.0
 
 
 def within(
@@ -181,15 +184,32 @@ def trial_metrics(
     )
 
 
+def final_error(err: NDArray[np.float64]) -> float:
+    """The error at the last step with a true pose (NaN elsewhere); NaN when there is none."""
+    known = err[np.isfinite(err)]
+    return float(known[-1]) if known.size else math.nan
+
+
 @dataclass(frozen=True)
 class Score:
-    """Convergence of one run (module docstring). NaN/None where it did not converge."""
+    """Convergence of one run (module docstring). NaN/None where it did not converge.
+
+    position_rmse_m, heading_rmse_rad: over the final inside stretch (from the convergence).
+    first_inside: the first step inside the tolerances (``None``: never);
+    position_rmse_from_first_m: the position RMSE from that step to the end, excursions
+    included (a filter that converges, loses track and returns pays for the excursion here).
+    distance_to_converge_m: metres travelled from the start to the convergence (NaN without a
+    ``travelled`` series or without convergence).
+    """
 
     success: bool
     scans_to_converge: int | None
     time_to_converge_s: float
     position_rmse_m: float
     heading_rmse_rad: float
+    first_inside: int | None = None
+    position_rmse_from_first_m: float = math.nan
+    distance_to_converge_m: float = math.nan
 
 
 def score_errors(
@@ -200,18 +220,46 @@ def score_errors(
     pos_tol_m: float = POSITION_TOL_M,
     head_tol_rad: float = HEADING_TOL_RAD,
     hold: int = HOLD_STEPS,
+    hold_m: float | None = None,
+    travelled: NDArray[np.float64] | None = None,
 ) -> Score:
-    """Convergence step, success and RMSE after convergence of an error series."""
-    inside = (pos_err <= pos_tol_m) & (head_err <= head_tol_rad)
+    """Convergence step, success and RMSE after convergence of an error series.
+
+    Steps whose errors are NaN have no truth (a raw log scored at the scans it shares with its
+    corrected log): scoring uses the steps with truth only, ``hold`` counts those, and the
+    scans to converge count every step from the start.
+
+    With ``hold_m`` (and ``travelled``, the metres travelled up to each step) the final inside
+    stretch must cover ``hold_m`` metres of travel instead of ``hold`` steps (all of the window
+    when it is shorter): 10 scans are 34 s on one log and 2.4 s on another."""
+    known = np.flatnonzero(np.isfinite(pos_err) & np.isfinite(head_err))
+    pos, head = pos_err[known], head_err[known]
+    inside = (pos <= pos_tol_m) & (head <= head_tol_rad)
     n = inside.size
     outside = np.flatnonzero(~inside)
     c = 0 if outside.size == 0 else int(outside[-1]) + 1
-    if c >= n or n - c < min(hold, n):
-        return Score(False, None, math.nan, math.nan, math.nan)
+    firsts = np.flatnonzero(inside)
+    first = int(known[firsts[0]]) if firsts.size else None
+    rmse_first = float(np.sqrt(np.mean(pos[firsts[0] :] ** 2))) if firsts.size else math.nan
+    if hold_m is not None and travelled is None:
+        raise ValueError("score_errors: hold_m needs the travelled distance of every step")
+    if c >= n:
+        held = False
+    elif hold_m is not None and travelled is not None:
+        trav = travelled[known]
+        held = trav[-1] - trav[c] >= min(hold_m, trav[-1] - trav[0]) - 1e-9
+    else:
+        held = n - c >= min(hold, n)
+    if not held:
+        return Score(False, None, math.nan, math.nan, math.nan, first, rmse_first)
+    step = int(known[c])
     return Score(
         True,
-        c,
-        float(times[c] - times[0]),
-        float(np.sqrt(np.mean(pos_err[c:] ** 2))),
-        float(np.sqrt(np.mean(head_err[c:] ** 2))),
+        step,
+        float(times[step] - times[0]),
+        float(np.sqrt(np.mean(pos[c:] ** 2))),
+        float(np.sqrt(np.mean(head[c:] ** 2))),
+        first,
+        rmse_first,
+        math.nan if travelled is None else float(travelled[step] - travelled[0]),
     )

@@ -93,13 +93,19 @@ class StepRecord:
 @dataclass(frozen=True)
 class StepDiagnostics:
     """One step of a run, as the runner records it: what it measured (time, particle count,
-    ESS of the normalised weights) and the filter's own :class:`StepRecord`."""
+    ESS of the normalised weights) and the filter's own :class:`StepRecord`.
+
+    stepped: the filter was stepped (updated) with this scan. False when the runner's update
+    policy held the scan back (:func:`ceamcl.runner.run_filter` with ``update_when``): the
+    odometry then accumulates into the next update, and ``record`` is an empty
+    :class:`StepRecord`."""
 
     step: int
     n_particles: int
     ess: float
     step_ms: float
     record: StepRecord
+    stepped: bool = True
 
     @property
     def resampled(self) -> bool:
@@ -114,7 +120,8 @@ class StepDiagnostics:
         return self.record.reinitialised
 
     def row(self) -> dict[str, float | int | bool]:
-        """A flat record for CSV: step, particle count, ESS, the filter's fields, step time."""
+        """A flat record for CSV: step, particle count, ESS, resampled, evaluations, step time,
+        whether the filter was stepped, then the filter's own fields."""
         out: dict[str, float | int | bool] = {
             "step": self.step,
             "n_particles": self.n_particles,
@@ -125,6 +132,7 @@ class StepDiagnostics:
             (k, record.pop(k)) for k in ("resampled", "likelihood_evaluations") if k in record
         )
         out["step_ms"] = self.step_ms
+        out["stepped"] = self.stepped
         out.update(record)
         return out
 

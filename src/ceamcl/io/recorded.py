@@ -129,8 +129,28 @@ class RecordedLog:
 
     @property
     def path_length_m(self) -> float:
+        return float(self.travelled_m[-1]) if len(self) else 0.0
+
+    @property
+    def travelled_m(self) -> NDArray[np.float64]:
+        """Distance travelled along the true path (the recorded poses where there is no truth)
+        up to each scan. Scans without truth (NaN rows, a raw log paired with a corrected one)
+        are skipped: the path runs from one scan with truth to the next."""
         p = self.true_poses if self.true_poses is not None else self.poses
-        return float(np.hypot(*np.diff(p[:, :2], axis=0).T).sum()) if len(self) > 1 else 0.0
+        known = np.flatnonzero(np.all(np.isfinite(p), axis=1))
+        out = np.zeros(len(self))
+        if known.size > 1:
+            step = np.hypot(*np.diff(p[known, :2], axis=0).T)
+            out[known[1:]] = np.cumsum(step)
+            out = np.maximum.accumulate(out)
+        return out
+
+    @property
+    def has_truth_at(self) -> NDArray[np.bool_]:
+        """Which scans have a ground-truth pose (none when the log has no truth)."""
+        if self.true_poses is None:
+            return np.zeros(len(self), dtype=bool)
+        return np.asarray(np.all(np.isfinite(self.true_poses), axis=1), dtype=bool)
 
     def window(self, start: int, stop: int) -> RecordedLog:
         """Scans ``start .. stop-1`` as a log of their own."""

@@ -39,9 +39,10 @@ def plot_run(
             label="particles (final)",
             zorder=2,
         )
-    if result.truth is not None:
-        ax.plot(result.truth[:, 0], result.truth[:, 1], "g-", lw=2, label="ground truth", zorder=3)
-        ax.plot(*result.truth[-1, :2], "go", ms=8, zorder=4)
+    if result.truth is not None and result.truth_known.any():
+        truth = result.truth[result.truth_known]  # a raw log has truth at its matched scans
+        ax.plot(truth[:, 0], truth[:, 1], "g-", lw=2, label="ground truth", zorder=3)
+        ax.plot(*truth[-1, :2], "go", ms=8, zorder=4)
     tracks = _species_tracks(result)
     if tracks:
         # With species, the estimate (the fittest species) can hop between equally fit

@@ -1,0 +1,90 @@
+"""The evaluate-log protocol (docs/real-data.md): non-overlapping windows, holds in metres of
+travel, RMSE from the first convergence, distance to converge, "confidently wrong"."""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from ceamcl.experiments.evaluate_log import confidently_wrong
+from ceamcl.experiments.log_windows import start_windows
+from ceamcl.experiments.metrics import score_errors
+from ceamcl.io.recorded import RecordedLog
+from ceamcl.runner import RunResult
+
+
+def straight_log(n: int, step_m: float) -> RecordedLog:
+    poses = np.column_stack([np.arange(n) * step_m, np.zeros(n), np.zeros(n)])
+    return RecordedLog(
+        path="straight",
+        times=np.arange(n, dtype=np.float64),
+        poses=poses,
+        ranges_flat=np.ones(n),
+        offsets=np.arange(n + 1, dtype=np.intp),
+        angle_min=np.zeros(n),
+        angle_increment=np.full(n, 0.1),
+        range_min=np.zeros(n),
+        range_max=np.full(n, 30.0),
+        laser_mount=np.zeros((n, 3)),
+        true_poses=poses,
+    )
+
+
+def test_windows_never_overlap_and_fewer_starts_say_so() -> None:
+    log = straight_log(101, 1.0)  # 100 m
+    windows, what = start_windows(log, 3, window_m=30.0)
+    assert len(windows) == 3 and "fit without overlap" not in what
+    windows, what = start_windows(log, 10, window_m=30.0)
+    assert len(windows) == 3 and "3 of the 10 starts requested fit without overlap" in what
+    assert all(a[1] <= b[0] for a, b in itertools.pairwise(windows))
+
+
+def test_travelled_skips_scans_without_truth() -> None:
+    log = straight_log(5, 1.0)
+    truth = log.poses.copy()
+    truth[2] = np.nan
+    holey = replace(log, true_poses=truth)
+    assert holey.travelled_m.tolist() == [0.0, 1.0, 1.0, 3.0, 4.0]
+    assert holey.path_length_m == 4.0
+
+
+def test_hold_in_metres_rmse_from_first_and_distance_to_converge() -> None:
+    times = np.arange(8, dtype=np.float64)
+    travelled = np.array([0, 1, 2, 3, 3, 3, 3, 3.5])  # the robot stands still from scan 3
+    pos = np.array([2.0, 0.1, 0.1, 1.0, 0.1, 0.1, 0.1, 0.1])
+    head = np.zeros(8)
+    # 4 inside scans at the end: enough for a 3-scan hold, but only 0.5 m of travel
+    assert score_errors(times, pos, head, hold=3).success
+    metres = score_errors(times, pos, head, hold_m=1.0, travelled=travelled)
+    assert not metres.success and metres.first_inside == 1
+    held = score_errors(times, pos, head, hold_m=0.5, travelled=travelled)
+    assert held.success and held.scans_to_converge == 4 and held.distance_to_converge_m == 3.0
+    # the excursion at scan 3 counts in the RMSE from the first convergence, not in the other
+    assert held.position_rmse_m == 0.1
+    assert held.position_rmse_from_first_m == math.sqrt((6 * 0.01 + 1.0) / 7)
+
+
+def result_with(hyps: np.ndarray, truth: np.ndarray) -> RunResult:
+    return RunResult(
+        algorithm="x",
+        times=np.zeros(1),
+        estimates=hyps[:1, :3],
+        truth=truth[None, :],
+        diagnostics=[],
+        hypotheses=[hyps],
+        final_particles=None,  # type: ignore[arg-type]
+        initial_particles=None,  # type: ignore[arg-type]
+    )
+
+
+def test_confidently_wrong_needs_most_weight_on_a_wrong_hypothesis() -> None:
+    truth = np.array([0.0, 0.0, 0.0])
+    wrong_heavy = np.array([[5.0, 0, 0, 0.95, 1], [0.0, 0, 0, 0.05, 1]])
+    wrong_unsure = np.array([[5.0, 0, 0, 0.6, 1], [0.0, 0, 0, 0.4, 1]])
+    right_heavy = np.array([[0.1, 0, 0, 0.95, 1], [5.0, 0, 0, 0.05, 1]])
+    assert confidently_wrong(result_with(wrong_heavy, truth))
+    assert not confidently_wrong(result_with(wrong_unsure, truth))
+    assert not confidently_wrong(result_with(right_heavy, truth))

@@ -1,0 +1,105 @@
+"""Raw Radish logs (``../shared/data/carmen-raw``) with truth from their corrected logs
+(``--truth-from``), replayed at a real robot's pace. The logs are cut to their first few
+hundred scans (written to a temporary folder) to keep ``make test`` fast. Skipped, saying why,
+where the shared data is absent."""
+
+from __future__ import annotations
+
+import gzip
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ceamcl.cli import main
+from ceamcl.io.tum import read_tum
+
+DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+RAW = DATA / "carmen-raw" / "fr079.clf.gz"
+CORRECTED = DATA / "carmen" / "freiburg-079-corrected.log.gz"
+OTHER = DATA / "carmen" / "intel-corrected.log.gz"
+
+
+def need(*paths: Path) -> None:
+    for p in paths:
+        if not p.is_file():
+            pytest.skip(f"real log {p} is absent (the shared data folder is not mounted)")
+
+
+def head_of_log(src: Path, dst: Path, scans: int) -> Path:
+    """The log's lines up to (and with) its ``scans``-th FLASER line, as a plain file."""
+    kept = 0
+    with gzip.open(src, "rt") as fin, dst.open("w") as fout:
+        for line in fin:
+            fout.write(line)
+            if line.startswith("FLASER"):
+                kept += 1
+                if kept == scans:
+                    break
+    return dst
+
+
+@pytest.fixture(scope="module")
+def cut_logs(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    need(RAW, CORRECTED)
+    folder = tmp_path_factory.mktemp("raw")
+    raw = head_of_log(RAW, folder / "fr079-head.clf", 300)
+    corrected = head_of_log(CORRECTED, folder / "fr079-corrected-head.log", 250)
+    return raw, corrected
+
+
+def test_run_raw_with_truth_from_the_corrected_log(
+    cut_logs: tuple[Path, Path], tmp_path: Path
+) -> None:
+    raw, corrected = cut_logs
+    out = tmp_path / "run"
+    args = ["run", str(raw), "--truth-from", str(corrected), "--algorithm", "mcl"]
+    code = main([*args, "--quiet", "--out", str(out)])
+    assert code == 0
+    summary = json.loads((out / "summary.json").read_text())
+    pairing = summary["truth_pairing"]
+    assert summary["scans"] == 300 and summary["odometry"] == "recorded"
+    assert 200 <= pairing["matched_scans"] <= 250
+    assert "corrected log" in summary["map"]  # the raw odometry drifts: map from the truth
+    # the filter was stepped at the robot's pace, not at every scan
+    assert summary["update_policy"].startswith("update when moved 0.25 m or turned 0.2 rad")
+    assert 0 < summary["updates"] < 299
+    # groundtruth.tum at the matched scans, trajectory.tum at every scan, both evo-readable
+    t_truth, truth = read_tum(out / "groundtruth.tum")
+    t_est, _ = read_tum(out / "trajectory.tum")
+    assert t_truth.size == pairing["matched_scans"] and t_est.size == 300
+    assert np.all(np.isfinite(truth)) and set(t_truth) <= set(t_est)
+    assert np.isfinite(summary["final_position_error_m"])
+
+
+def test_logs_of_different_runs_are_a_one_line_error(
+    cut_logs: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    need(OTHER)
+    raw, _ = cut_logs
+    out = tmp_path / "run"
+    code = main(["run", str(raw), "--truth-from", str(OTHER), "--quiet", "--out", str(out)])
+    err = capsys.readouterr().err.strip()
+    assert code != 0
+    assert "none of its 910 scans has the ranges of a scan of" in err
+    assert len(err.splitlines()) == 1
+    assert not out.exists()  # nothing half-done left behind
+
+
+def test_evaluate_log_raw_with_truth_from(cut_logs: tuple[Path, Path], tmp_path: Path) -> None:
+    raw, corrected = cut_logs
+    out = tmp_path / "ev"
+    args = ["evaluate-log", str(raw), "--truth-from", str(corrected), "--starts", "2"]
+    args += ["--scans", "120", "--algorithms", "mcl", "kld-amcl", "--executor", "serial"]
+    assert main([*args, "--quiet", "--out", str(out)]) == 0
+    md = (out / "evaluate.md").read_text()
+    assert "at the 250 of 300 scans that match" in md
+    assert "filter updates (every algorithm): update when moved 0.25 m" in md
+    rows = (out / "evaluate.csv").read_text().splitlines()
+    assert len(rows) == 1 + 2 * 2
+    header = rows[0].split(",")
+    upd = [int(r.split(",")[header.index("updates")]) for r in rows[1:]]
+    # the same windows and the same pace: both algorithms are stepped equally often
+    assert upd[0] == upd[1] and upd[2] == upd[3] and 0 < upd[0] < 119
+    assert (out / "errors.png").is_file()
