@@ -18,7 +18,10 @@ Three steps (docs/real-data.md), each a function; in Python::
    written (:func:`ceamcl.outputs.write_run_files`).
 
 Convergence in the summary is :func:`ceamcl.experiments.metrics.score_errors`, the measure
-``ceamcl evaluate-log`` uses too.
+``ceamcl evaluate-log`` uses too, told in one sentence by
+:func:`~ceamcl.experiments.metrics.convergence_verdict` (``verdict``); beside it the estimate's
+jumps (:func:`~ceamcl.experiments.metrics.estimate_jumps`) and the filter's restarts
+(:func:`restarts`).
 """
 
 from __future__ import annotations
@@ -32,7 +35,12 @@ from typing import Any, Literal
 
 import numpy as np
 
-from ceamcl.experiments.metrics import score_errors
+from ceamcl.experiments.metrics import (
+    JUMP_M,
+    convergence_verdict,
+    estimate_jumps,
+    score_errors,
+)
 from ceamcl.filters.registry import make_filter
 from ceamcl.io.logs import DEFAULT_SYNTHETIC_NOISE, open_log, poses_look_corrected
 from ceamcl.io.recorded import RecordedLog
@@ -158,6 +166,21 @@ def replay_log(
     return ReplayOutcome(result, summary, out_dir, files)
 
 
+def restarts(result: RunResult) -> dict[str, Any]:
+    """The filter's restarts of global localisation after its first: how many, at which
+    scans, and how many of them were kidnap recoveries (CEAMCL's fitness collapse; the
+    ``recoveries`` of a step's record). A restart throws the estimate anywhere."""
+    scans = [d.step for d in result.diagnostics[1:] if d.reinitialised]
+    recoveries = sum(int(d.record.columns().get("recoveries", 0)) for d in result.diagnostics)
+    return {"restarts": len(scans), "restart_scans": scans, "kidnap_recoveries": recoveries}
+
+
+ODOMETRY_SOURCES = {
+    "synthetic": "synthetic, from the corrected poses",
+    "recorded": "recorded in the log",
+}
+
+
 def run_summary(
     result: RunResult, prepared: PreparedLog, grid: OccupancyGrid, map_source: str
 ) -> dict[str, Any]:
@@ -176,6 +199,7 @@ def run_summary(
         "ground_truth": "the log's poses (SLAM-corrected)" if prepared.has_truth else None,
         "ground_truth_decision": prepared.truth_reason,
         "odometry": prepared.odometry,
+        "odometry_source": ODOMETRY_SOURCES[prepared.odometry],
         "repaired_times": int(log.info.get("repaired_times", 0)),
         "map": map_source,
         "map_size_m": list(grid.size_m),
@@ -186,6 +210,7 @@ def run_summary(
         "particles_initial": int(result.diagnostics[0].n_particles),
         "particles_final": int(result.diagnostics[-1].n_particles),
         "mean_particles": float(np.mean([d.n_particles for d in result.diagnostics])),
+        **restarts(result),
     }
     if prepared.noise is not None:
         summary["odometry_noise"] = {
@@ -199,10 +224,19 @@ def run_summary(
             "stream": "SeedSequence(seed).spawn(1)[0]",
         }
     pos, head = result.position_errors, result.heading_errors
+    jumps_from = 0
     if pos is not None and head is not None:
         score = score_errors(result.times, pos, head)
+        verdict = convergence_verdict(result.times, pos, head)
+        jumps_from = verdict.first_localised_scan or 0
         summary.update(
             {
+                "verdict": verdict.text,
+                "convergence": verdict.status,
+                "first_localised_scan": verdict.first_localised_scan,
+                "first_localised_s": verdict.first_localised_s,
+                "scans_inside_tolerance": verdict.scans_inside,
+                "final_stretch_scans": verdict.final_stretch,
                 "final_position_error_m": float(pos[-1]),
                 "final_heading_error_rad": float(head[-1]),
                 "converged": score.success,
@@ -212,4 +246,13 @@ def run_summary(
                 "heading_rmse_after_convergence_rad": score.heading_rmse_rad,
             }
         )
+    jumps = estimate_jumps(result.estimates, log.odometry, jumps_from)
+    summary.update(
+        {
+            "jumps_from_scan": jumps.from_scan,
+            "largest_jump_m": jumps.largest_m,
+            "largest_jump_scan": jumps.largest_at_scan,
+            f"jumps_over_{JUMP_M:g}m": jumps.over_threshold,
+        }
+    )
     return summary

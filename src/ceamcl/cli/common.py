@@ -4,7 +4,7 @@ bar, a run's summary table."""
 from __future__ import annotations
 
 import argparse
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -18,9 +18,11 @@ from rich.progress import (
     TimeElapsedColumn,
 )
 from rich.table import Table
+from rich.text import Text
 
 from ceamcl import budget
 from ceamcl.errors import ConfigError
+from ceamcl.experiments.common import fmt
 from ceamcl.filters import registry
 from ceamcl.outputs import DEFAULT_FPS, DEFAULT_STRIDE
 
@@ -61,6 +63,8 @@ def require_available(algorithm: str) -> None:
     reason = registry.unavailable_reason(algorithm)
     if reason is not None:
         raise ConfigError(f"algorithm: {algorithm} cannot run here: {reason}")
+
+
 def check_particles(count: int | None) -> None:
     """Refuse a ``--particles`` count beyond the memory budget, before any filter is built."""
     if count is not None:
@@ -125,16 +129,33 @@ class TrialsProgress:
         self.progress.update(self.tasks[label], completed=done, total=total)
 
 
-def summary_table(title: str, summary: Mapping[str, Any], keys: Iterable[str]) -> Table:
-    """A two-column table of the ``keys`` of ``summary`` that are present and not None."""
-    table = Table(title=title)
-    table.add_column("measure")
-    table.add_column("value", justify="right")
-    for key in keys:
-        v = summary.get(key)
-        if v is not None:
-            table.add_row(key, f"{v:.3f}" if isinstance(v, float) else str(v))
+def plural(count: int, noun: str) -> str:
+    """``1 run``, ``2 runs``."""
+    return f"{count} {noun}" + ("" if count == 1 else "s")
+
+
+def plain_table(
+    title: str, header: Sequence[str], rows: Iterable[Sequence[str]], *, left: int = 1
+) -> Table:
+    """A table of plain text (no Rich markup, so units such as ``[s]`` show as written); the
+    first ``left`` columns are left-aligned, the others right-aligned."""
+    table = Table(title=Text(title))
+    for i, name in enumerate(header):
+        table.add_column(Text(name), justify="left" if i < left else "right")
+    for row in rows:
+        table.add_row(*(Text(cell) for cell in row))
     return table
+
+
+def summary_table(title: str, summary: Mapping[str, Any], keys: Iterable[str]) -> Table:
+    """A two-column table of the ``keys`` of ``summary`` that are present and not None (a
+    number that is not finite shows as ``-``)."""
+    rows = [
+        (key, fmt(v, 3, "-") if isinstance(v, float) else str(v))
+        for key in keys
+        if (v := summary.get(key)) is not None
+    ]
+    return plain_table(title, ("measure", "value"), rows)
 
 
 def print_written(console: Console, out_dir: Path | None, files: Iterable[Path]) -> None:

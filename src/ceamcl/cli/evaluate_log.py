@@ -6,11 +6,10 @@ from __future__ import annotations
 import argparse
 
 from rich.console import Console
-from rich.table import Table
 
 from ceamcl import budget
 from ceamcl.checks import physical_warnings
-from ceamcl.cli.common import TrialsProgress, positive_float, positive_int
+from ceamcl.cli.common import TrialsProgress, plain_table, plural, positive_float, positive_int
 from ceamcl.cli.experiment import RUN_BYTES
 from ceamcl.cli.run import (
     add_log_arguments,
@@ -132,24 +131,22 @@ def run(args: argparse.Namespace, console: Console) -> int:
             skipped=skipped,
         )
     if not args.quiet:
-        table = Table(
-            title=f"evaluate-log {prepared.log.name}: {len(ev.windows)} starts, "
+        title = (
+            f"evaluate-log {prepared.log.name}: {plural(len(ev.windows), 'start')}, "
             f"windows of {ev.window}"
         )
-        for col in (
+        header = (
             "algorithm",
             "success",
-            "t conv [s]",
-            "scans conv",
+            "conv. [s]",
+            "conv. [scans]",
             "pos RMSE [m]",
             "head RMSE [rad]",
             "particles",
             "step [ms]",
-        ):
-            table.add_column(col, justify="left" if col == "algorithm" else "right")
-
-        for row in ev.table:
-            table.add_row(
+        )
+        rows = [
+            (
                 row["algorithm"],
                 pct(row["success_rate"]),
                 fmt(row["time_to_converge_s"], 1, "-"),
@@ -159,6 +156,9 @@ def run(args: argparse.Namespace, console: Console) -> int:
                 fmt(row["mean_particles"], 0, "-"),
                 fmt(row["mean_step_ms"], 1, "-"),
             )
+            for row in ev.table
+        ]
+        table = plain_table(title, header, rows)
         console.print(table)
         console.print(f"results written to [bold]{ev.out_dir}[/]")
     return 0

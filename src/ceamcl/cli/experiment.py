@@ -20,6 +20,7 @@ from ceamcl.cli.common import (
     add_output_arguments,
     make_progress,
     non_negative_int,
+    plural,
     positive_float,
     positive_int,
 )
@@ -330,7 +331,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     ensure_output_dir(args.out)  # fail on an unwritable folder before hours of trials
     if not args.quiet:
         console.print(
-            f"[bold]{args.experiment}[/] on {settings.course.name}: {runs} runs "
+            f"[bold]{args.experiment}[/] on {settings.course.name}: {plural(runs, 'run')} "
             f"({', '.join(settings.algorithms)}) on executor {settings.executor}"
         )
     meta = run_metadata(settings)
@@ -342,7 +343,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     if not args.quiet:
         console.print(experiment.table(result))
         console.print(
-            f"{runs} runs in {meta['wall_time_s']:.1f} s; wrote "
+            f"{plural(runs, 'run')} in {meta['wall_time_s']:.1f} s; wrote "
             + ", ".join(p.name for p in paths)
             + f" to {args.out}"
         )

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from ceamcl.motion.odometry import apply_increment, increment_between
 from ceamcl.pose import heading_error, position_error
 
 POSITION_TOL_M = 0.5
@@ -214,4 +215,150 @@ def score_errors(
         float(times[c] - times[0]),
         float(np.sqrt(np.mean(pos_err[c:] ** 2))),
         float(np.sqrt(np.mean(head_err[c:] ** 2))),
+    )
+
+
+#: An estimate *jumps* at a scan when it lands more than this far from where the previous
+#: estimate moved by the odometry increment puts it.
+JUMP_M = 1.0
+
+
+@dataclass(frozen=True)
+class Jumps:
+    """Estimate jumps (:func:`estimate_jumps`) after scan ``from_scan``: the largest, at
+    which scan (``None``: no scan measured), and how many exceed :data:`JUMP_M`."""
+
+    from_scan: int
+    largest_m: float
+    largest_at_scan: int | None
+    over_threshold: int
+
+
+def estimate_jumps(
+    estimates: NDArray[np.float64], odometry: NDArray[np.float64], from_scan: int = 0
+) -> Jumps:
+    """For scans ``k > from_scan``: how far the estimate ``e[k]`` lands from the previous
+    estimate moved by the odometry increment, ``e[k-1] (+) (o[k-1] -> o[k])`` (eq. 5.34-5.36
+    applied in the estimate's frame): the motion the odometry does not explain. A filter that
+    tracks the robot moves its estimate by about the odometry increment; one that hops between
+    hypotheses or restarts jumps by metres."""
+    e = np.asarray(estimates, dtype=np.float64).reshape(-1, 3)
+    o = np.asarray(odometry, dtype=np.float64).reshape(-1, 3)
+    start = max(1, from_scan + 1)
+    if e.shape[0] <= start:
+        return Jumps(from_scan, 0.0, None, 0)
+    incs = [increment_between(o[k - 1], o[k]) for k in range(start, e.shape[0])]
+    predicted = apply_increment(
+        e[start - 1 : -1],
+        [i.rot1 for i in incs],
+        [i.trans for i in incs],
+        [i.rot2 for i in incs],
+    )
+    dist = np.hypot(*(e[start:, :2] - predicted[:, :2]).T)
+    j = int(np.argmax(dist))
+    return Jumps(from_scan, float(dist[j]), start + j, int(np.sum(dist > JUMP_M)))
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """What happened in a run with ground truth, in the terms of :func:`score_errors`.
+
+    ``status``: ``"converged"`` (inside the tolerances from ``converged_scan`` to the end, at
+    least ``hold`` scans), ``"not held"`` (inside at the end, but for fewer than ``hold``
+    scans), ``"lost"`` (inside at some scan, outside at the end) or ``"never"``.
+    ``final_stretch``: scans inside at the end; ``scans_inside``: scans inside anywhere;
+    ``longest_stretch``: (first scan, length) of the longest run of scans inside.
+    """
+
+    status: str
+    text: str
+    first_localised_scan: int | None
+    first_localised_s: float | None
+    converged_scan: int | None
+    converged_s: float | None
+    final_stretch: int
+    scans_inside: int
+    scans: int
+    longest_stretch: tuple[int, int] | None
+    hold: int
+
+
+def _stretches(inside: NDArray[np.bool_]) -> list[tuple[int, int]]:
+    """(first index, length) of each run of True."""
+    edges = np.diff(np.concatenate([[0], inside.astype(np.int8), [0]]))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    return [(int(a), int(b - a)) for a, b in zip(starts, ends, strict=True)]
+
+
+def convergence_verdict(
+    times: NDArray[np.float64],
+    pos_err: NDArray[np.float64],
+    head_err: NDArray[np.float64],
+    *,
+    pos_tol_m: float = POSITION_TOL_M,
+    head_tol_rad: float = HEADING_TOL_RAD,
+    hold: int = HOLD_STEPS,
+) -> Verdict:
+    """The verdict (:class:`Verdict`) on an error series, in one sentence (``text``) that
+    agrees with :func:`score_errors`: ``converged`` exactly when its ``success``."""
+    t = np.asarray(times, dtype=np.float64)
+    inside = (np.asarray(pos_err) <= pos_tol_m) & (np.asarray(head_err) <= head_tol_rad)
+    n = int(inside.size)
+    runs = _stretches(inside)
+    tol = f"{pos_tol_m:g} m and {head_tol_rad:g} rad"
+    if not runs:
+        return Verdict(
+            "never",
+            f"never localised: no scan within {tol} of the truth",
+            None,
+            None,
+            None,
+            None,
+            0,
+            0,
+            n,
+            None,
+            hold,
+        )
+    first = runs[0][0]
+    first_s = float(t[first] - t[0])
+    longest = max(runs, key=lambda r: r[1])
+    final = runs[-1][1] if runs[-1][0] + runs[-1][1] == n else 0
+    share = f"inside {int(inside.sum())} of {n} scans"
+    need = min(hold, n)
+    if final >= need:
+        c = n - final
+        text = (
+            f"converged at scan {c} (t = {t[c] - t[0]:.1f} s) and held to the end "
+            f"({final} scans within {tol})"
+        )
+        return Verdict(
+            "converged",
+            text,
+            first,
+            first_s,
+            c,
+            float(t[c] - t[0]),
+            final,
+            int(inside.sum()),
+            n,
+            longest,
+            hold,
+        )
+    where = f"first localised at scan {first} (t = {first_s:.1f} s), {share}"
+    if final > 0:
+        status = "not held"
+        text = (
+            f"not converged: localised at the end but only for the last {final} scans "
+            f"(fewer than {need}); {where}, longest stretch {longest[1]} scans from scan "
+            f"{longest[0]}"
+        )
+    else:
+        status = "lost"
+        text = (
+            f"not converged: lost at the end (final error {float(pos_err[-1]):.2f} m); "
+            f"{where}, longest stretch {longest[1]} scans from scan {longest[0]}"
+        )
+    return Verdict(
+        status, text, first, first_s, None, None, final, int(inside.sum()), n, longest, hold
     )
