@@ -82,6 +82,7 @@ def test_demo_writes_png_and_diagnostics(demo_dir: Path) -> None:
     assert len(rows) == steps
     assert {"step", "n_particles", "ess", "step_ms"} <= set(rows[0])
     assert [int(r["step"]) for r in rows] == list(range(steps))
+    assert not (demo_dir / "species.csv").exists()  # MCL has no species
 
 
 def test_demo_is_reproducible(demo_dir: Path, tmp_path: Path) -> None:

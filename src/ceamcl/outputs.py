@@ -1,6 +1,6 @@
 """Everything a run writes: its files (``trajectory.tum``, ``groundtruth.tum``,
-``diagnostics.csv``, ``summary.json``, ``run.png``, ``species.png``) and the visual outputs
-(``run.gif``/``run.mp4``, ``report.html``, MCAP for Foxglove).
+``diagnostics.csv``, ``species.csv``, ``summary.json``, ``run.png``, ``species.png``) and the
+visual outputs (``run.gif``/``run.mp4``, ``report.html``, MCAP for Foxglove).
 
 The runner (:mod:`ceamcl.runner`) runs a filter and returns a :class:`~ceamcl.runner.RunResult`;
 this module, one layer above it, turns results into files. In Python::
@@ -25,7 +25,7 @@ from typing import Any
 from ceamcl.errors import ConfigError
 from ceamcl.filters.ceamcl.records import species_of
 from ceamcl.io.mcap_export import ScanLog, write_mcap
-from ceamcl.io.results import write_diagnostics_csv, write_json
+from ceamcl.io.results import write_diagnostics_csv, write_json, write_species_csv
 from ceamcl.io.tum import write_tum
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.runner import RunResult
@@ -196,8 +196,8 @@ def write_run_files(
     """The files of one run, as ``ceamcl demo`` and ``ceamcl run`` write them.
 
     With ``out_dir``: ``trajectory.tum``, ``groundtruth.tum`` (where the run has a truth),
-    ``diagnostics.csv``, ``run.png``, ``species.png`` (filters with species) and
-    ``summary.json``. ``outputs`` (:class:`OutputOptions`) adds the visual
+    ``diagnostics.csv``, ``run.png``, ``species.csv`` and ``species.png`` (filters with
+    species) and ``summary.json``. ``outputs`` (:class:`OutputOptions`) adds the visual
     outputs (without ``out_dir`` only the MCAP file, a path of its own); ``log`` gives the MCAP
     file its scans, ``on_frame(i, total)`` reports the animation's progress. Returns the
     visual outputs written.
@@ -214,6 +214,7 @@ def write_run_files(
         write_diagnostics_csv(out / "diagnostics.csv", result.diagnostics, list(result.times))
         plot_run(result, grid, out / "run.png", title=title)
         if any(species_of(d) for d in result.diagnostics):
+            write_species_csv(out / "species.csv", result.diagnostics, list(result.times))
             plot_species(
                 result, out / "species.png", title=f"{title}: sample size and resources (Fig. 6)"
             )
