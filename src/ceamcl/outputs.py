@@ -72,7 +72,8 @@ class OutputOptions:
         """Options from parsed command-line arguments (an ``argparse.Namespace`` from
         :func:`ceamcl.cli.common.add_output_arguments`, or a mapping; missing ones take their
         defaults). ``--mp4`` without ffmpeg on the PATH is an error, raised here, before the
-        run."""
+        run; so is ``--mcap`` into a folder that does not exist and that ``--out`` (``out``)
+        does not create."""
         get: Callable[[str, Any], Any]
         if isinstance(args, Mapping):
             get = args.get
@@ -91,7 +92,8 @@ class OutputOptions:
             mcap=None if mcap is None else Path(mcap),
         )
         if options.mcap is not None:
-            _check_mcap_target(options.mcap)
+            out = get("out", None)
+            _check_mcap_target(options.mcap, None if out is None else Path(out))
         if options.mp4:
             from ceamcl.viz.animation import ffmpeg_path  # matplotlib: see write_run_files
 
@@ -116,8 +118,14 @@ class OutputOptions:
         return self.stride if self.any else 0
 
 
-def _check_mcap_target(path: Path) -> None:
+def _check_mcap_target(path: Path, out_dir: Path | None = None) -> None:
+    """Refuse an MCAP path whose folder does not exist, unless the command's output folder
+    ``out_dir`` (created before anything is written) is that folder or lies inside it."""
     folder = path.parent
+    if out_dir is not None and not out_dir.exists():
+        target = out_dir.resolve()
+        if folder.resolve() in (target, *target.parents):
+            return
     if not folder.is_dir():
         raise ConfigError(f"mcap: the folder {str(folder)!r} of {str(path)!r} does not exist")
     if path.is_dir():
