@@ -21,7 +21,7 @@ Convergence in the summary is :func:`ceamcl.experiments.metrics.score_errors`, t
 ``ceamcl evaluate-log`` uses too, told in one sentence by
 :func:`~ceamcl.experiments.metrics.convergence_verdict` (``verdict``); beside it the estimate's
 jumps (:func:`~ceamcl.experiments.metrics.estimate_jumps`) and the filter's restarts
-(:func:`restarts`).
+(:func:`~ceamcl.experiments.metrics.restarts`).
 """
 
 from __future__ import annotations
@@ -39,6 +39,7 @@ from ceamcl.experiments.metrics import (
     JUMP_M,
     convergence_verdict,
     estimate_jumps,
+    restarts,
     score_errors,
 )
 from ceamcl.filters.registry import make_filter
@@ -166,15 +167,6 @@ def replay_log(
     return ReplayOutcome(result, summary, out_dir, files)
 
 
-def restarts(result: RunResult) -> dict[str, Any]:
-    """The filter's restarts of global localisation after its first: how many, at which
-    scans, and how many of them were kidnap recoveries (CEAMCL's fitness collapse; the
-    ``recoveries`` of a step's record). A restart throws the estimate anywhere."""
-    scans = [d.step for d in result.diagnostics[1:] if d.reinitialised]
-    recoveries = sum(int(d.record.columns().get("recoveries", 0)) for d in result.diagnostics)
-    return {"restarts": len(scans), "restart_scans": scans, "kidnap_recoveries": recoveries}
-
-
 ODOMETRY_SOURCES = {
     "synthetic": "synthetic, from the corrected poses",
     "recorded": "recorded in the log",
@@ -210,7 +202,7 @@ def run_summary(
         "particles_initial": int(result.diagnostics[0].n_particles),
         "particles_final": int(result.diagnostics[-1].n_particles),
         "mean_particles": float(np.mean([d.n_particles for d in result.diagnostics])),
-        **restarts(result),
+        **restarts(result.diagnostics),
     }
     if prepared.noise is not None:
         summary["odometry_noise"] = {
@@ -252,7 +244,8 @@ def run_summary(
             "jumps_from_scan": jumps.from_scan,
             "largest_jump_m": jumps.largest_m,
             "largest_jump_scan": jumps.largest_at_scan,
-            f"jumps_over_{JUMP_M:g}m": jumps.over_threshold,
+            "jump_threshold_m": JUMP_M,
+            "jumps_over_threshold": jumps.over_threshold,
         }
     )
     return summary

@@ -11,6 +11,7 @@ from ceamcl.experiments.metrics import (
     JUMP_M,
     convergence_verdict,
     estimate_jumps,
+    restarts,
     score_errors,
 )
 
@@ -84,3 +85,21 @@ def test_jumps_are_motion_the_odometry_does_not_explain() -> None:
 def test_no_jump_measured_on_one_scan() -> None:
     j = estimate_jumps(np.zeros((1, 3)), np.zeros((1, 3)))
     assert j.largest_at_scan is None and j.over_threshold == 0
+
+
+def test_restarts_count_every_reinitialisation_after_the_first() -> None:
+    from ceamcl.filters.base import StepDiagnostics, StepRecord
+    from ceamcl.filters.ceamcl.records import CEAMCLRecord, Events
+
+    steps = [
+        StepDiagnostics(0, 10, 1.0, 1.0, CEAMCLRecord()),  # the first initialisation
+        StepDiagnostics(1, 10, 1.0, 1.0, CEAMCLRecord()),
+        StepDiagnostics(2, 10, 1.0, 1.0, CEAMCLRecord(reinitialised=True)),  # species extinct
+        StepDiagnostics(3, 10, 1.0, 1.0, CEAMCLRecord()),
+        StepDiagnostics(
+            4, 10, 1.0, 1.0, CEAMCLRecord(reinitialised=True, events=Events(recoveries=1))
+        ),
+    ]
+    assert restarts(steps) == {"restarts": 2, "restart_scans": [2, 4], "kidnap_recoveries": 1}
+    mcl = [StepDiagnostics(k, 5, 1.0, 1.0, StepRecord(reinitialised=k == 3)) for k in range(5)]
+    assert restarts(mcl) == {"restarts": 1, "restart_scans": [3], "kidnap_recoveries": 0}

@@ -4,6 +4,7 @@ bar, a run's summary table."""
 from __future__ import annotations
 
 import argparse
+import math
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -22,7 +23,6 @@ from rich.text import Text
 
 from ceamcl import budget
 from ceamcl.errors import ConfigError
-from ceamcl.experiments.common import fmt
 from ceamcl.filters import registry
 from ceamcl.outputs import DEFAULT_FPS, DEFAULT_STRIDE
 
@@ -129,6 +129,13 @@ class TrialsProgress:
         self.progress.update(self.tasks[label], completed=done, total=total)
 
 
+def number(value: float | None, digits: int = 3, missing: str = "-") -> str:
+    """A number for a table, or ``missing`` for ``None``/NaN/inf (never ``nan``)."""
+    if value is None or not math.isfinite(value):
+        return missing
+    return f"{value:.{digits}f}"
+
+
 def plural(count: int, noun: str) -> str:
     """``1 run``, ``2 runs``."""
     return f"{count} {noun}" + ("" if count == 1 else "s")
@@ -151,7 +158,7 @@ def summary_table(title: str, summary: Mapping[str, Any], keys: Iterable[str]) -
     """A two-column table of the ``keys`` of ``summary`` that are present and not None (a
     number that is not finite shows as ``-``)."""
     rows = [
-        (key, fmt(v, 3, "-") if isinstance(v, float) else str(v))
+        (key, number(v) if isinstance(v, float) else str(v))
         for key in keys
         if (v := summary.get(key)) is not None
     ]

@@ -16,6 +16,7 @@ from ceamcl.cli.common import (
     add_output_arguments,
     make_progress,
     non_negative_int,
+    number,
     plain_table,
     positive_float,
     positive_int,
@@ -23,8 +24,6 @@ from ceamcl.cli.common import (
     require_available,
 )
 from ceamcl.errors import ConfigError
-from ceamcl.experiments.common import fmt
-from ceamcl.experiments.metrics import JUMP_M
 from ceamcl.filters import registry
 from ceamcl.outputs import OutputOptions
 from ceamcl.replay import obtain_map, prepare_log, replay_log
@@ -131,8 +130,8 @@ def run_table(title: str, summary: Mapping[str, Any]) -> Table:
     s = summary
     rows: list[tuple[str, str]] = [
         ("scans", str(s["scans"])),
-        ("duration [s]", fmt(s["duration_s"], 1, "-")),
-        ("path length [m]", fmt(s["path_length_m"], 1, "-")),
+        ("duration [s]", number(s["duration_s"], 1)),
+        ("path length [m]", number(s["path_length_m"], 1)),
         ("odometry", s["odometry_source"]),
         ("ground truth", s["ground_truth"] or "none: no errors scored"),
     ]
@@ -143,7 +142,7 @@ def run_table(title: str, summary: Mapping[str, Any]) -> Table:
             ("first localised", _at(s["first_localised_scan"], s["first_localised_s"])),
             ("converged, held to the end", _at(s["scans_to_converge"], s["time_to_converge_s"])),
             ("scans inside 0.5 m, 0.3 rad", f"{s['scans_inside_tolerance']} of {s['scans']}"),
-            ("RMSE after convergence [m, rad]", f"{fmt(rmse[0], 3, '-')}, {fmt(rmse[1], 3, '-')}"),
+            ("RMSE after convergence [m, rad]", f"{number(rmse[0], 3)}, {number(rmse[1], 3)}"),
             (
                 "final error [m, rad]",
                 f"{s['final_position_error_m']:.3f}, {s['final_heading_error_rad']:.3f}",
@@ -152,7 +151,6 @@ def run_table(title: str, summary: Mapping[str, Any]) -> Table:
     restarts = str(s["restarts"])
     if s["kidnap_recoveries"]:
         restarts += f" ({s['kidnap_recoveries']} kidnap recoveries)"
-    jump_key = f"jumps_over_{JUMP_M:g}m"
     rows += [
         ("restarts of global localisation", restarts),
         (
@@ -161,10 +159,10 @@ def run_table(title: str, summary: Mapping[str, Any]) -> Table:
             if s["largest_jump_scan"] is None
             else f"{s['largest_jump_m']:.2f} at scan {s['largest_jump_scan']}",
         ),
-        (f"jumps over {JUMP_M:g} m", str(s[jump_key])),
-        ("initialisation [ms]", fmt(s["initialisation_ms"], 0, "-")),
-        ("mean step [ms]", fmt(s["mean_step_ms"], 1, "-")),
-        ("mean particles", fmt(s["mean_particles"], 0, "-")),
+        (f"jumps over {s['jump_threshold_m']:g} m", str(s["jumps_over_threshold"])),
+        ("initialisation [ms]", number(s["initialisation_ms"], 0)),
+        ("mean step [ms]", number(s["mean_step_ms"], 1)),
+        ("mean particles", number(s["mean_particles"], 0)),
     ]
     return plain_table(title, ("measure", "value"), rows)
 

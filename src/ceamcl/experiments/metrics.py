@@ -25,11 +25,14 @@ are ``t[c] - t[0]`` and ``c``; the RMSEs are over steps ``c..end``.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from ceamcl.filters.base import StepDiagnostics
 from ceamcl.motion.odometry import apply_increment, increment_between
 from ceamcl.pose import heading_error, position_error
 
@@ -362,3 +365,13 @@ def convergence_verdict(
     return Verdict(
         status, text, first, first_s, None, None, final, int(inside.sum()), n, longest, hold
     )
+
+
+def restarts(diagnostics: Sequence[StepDiagnostics]) -> dict[str, Any]:
+    """The filter's restarts of global localisation after its first (a step whose record says
+    ``reinitialised``): how many, at which steps, and how many of them were kidnap recoveries
+    (CEAMCL's fitness collapse: the ``recoveries`` of its records). A restart throws the
+    estimate anywhere."""
+    steps = [d.step for d in diagnostics[1:] if d.reinitialised]
+    recoveries = sum(int(d.record.columns().get("recoveries", 0)) for d in diagnostics)
+    return {"restarts": len(steps), "restart_scans": steps, "kidnap_recoveries": recoveries}
