@@ -151,15 +151,19 @@ def run_table(title: str, summary: Mapping[str, Any]) -> Table:
     restarts = str(s["restarts"])
     if s["kidnap_recoveries"]:
         restarts += f" ({s['kidnap_recoveries']} kidnap recoveries)"
+    after = f" after scan {s['jumps_from_scan']}" if s["jumps_from_scan"] else ""
     rows += [
         ("restarts of global localisation", restarts),
         (
-            f"largest estimate jump [m] from scan {s['jumps_from_scan']}",
+            "largest estimate jump [m]",
             "-"
             if s["largest_jump_scan"] is None
             else f"{s['largest_jump_m']:.2f} at scan {s['largest_jump_scan']}",
         ),
-        (f"jumps over {s['jump_threshold_m']:g} m", str(s["jumps_over_threshold"])),
+        (
+            f"jumps over {s['jump_threshold_m']:g} m{after}",
+            str(s["jumps_over_threshold"]),
+        ),
         ("initialisation [ms]", number(s["initialisation_ms"], 0)),
         ("mean step [ms]", number(s["mean_step_ms"], 1)),
         ("mean particles", number(s["mean_particles"], 0)),
