@@ -36,7 +36,9 @@ from typing import Any, Literal
 import numpy as np
 
 from ceamcl.experiments.metrics import (
+    HEADING_TOL_RAD,
     JUMP_M,
+    POSITION_TOL_M,
     convergence_verdict,
     estimate_jumps,
     restarts,
@@ -219,7 +221,8 @@ def run_summary(
     jumps_from = 0
     if pos is not None and head is not None:
         score = score_errors(result.times, pos, head)
-        verdict = convergence_verdict(result.times, pos, head)
+        inside = (pos <= POSITION_TOL_M) & (head <= HEADING_TOL_RAD)
+        verdict = convergence_verdict(result.times, inside, float(pos[-1]))
         jumps_from = verdict.first_localised_scan or 0
         summary.update(
             {

@@ -32,7 +32,7 @@ def _series(inside: list[bool]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 )
 def test_verdict_agrees_with_the_errors_and_the_score(inside: list[bool], status: str) -> None:
     t, pos, head = _series(inside)
-    v = convergence_verdict(t, pos, head)
+    v = convergence_verdict(t, (pos <= 0.5) & (head <= 0.3), float(pos[-1]))
     score = score_errors(t, pos, head)
     assert v.status == status
     assert (v.status == "converged") == score.success
@@ -59,7 +59,7 @@ def test_verdict_agrees_with_the_errors_and_the_score(inside: list[bool], status
 def test_heading_outside_the_tolerance_is_not_localised() -> None:
     t, pos, head = _series([True] * 20)
     head[:] = 0.5
-    assert convergence_verdict(t, pos, head).status == "never"
+    assert convergence_verdict(t, (pos <= 0.5) & (head <= 0.3), 0.2).status == "never"
 
 
 def test_jumps_are_motion_the_odometry_does_not_explain() -> None:

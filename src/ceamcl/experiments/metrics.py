@@ -295,24 +295,20 @@ def _stretches(inside: NDArray[np.bool_]) -> list[tuple[int, int]]:
 
 def convergence_verdict(
     times: NDArray[np.float64],
-    pos_err: NDArray[np.float64],
-    head_err: NDArray[np.float64],
-    *,
-    pos_tol_m: float = POSITION_TOL_M,
-    head_tol_rad: float = HEADING_TOL_RAD,
+    inside: NDArray[np.bool_],
+    final_error_m: float,
     hold: int = HOLD_STEPS,
 ) -> Verdict:
-    """The verdict (:class:`Verdict`) on an error series, in one sentence (``text``) that
-    agrees with :func:`score_errors`: ``converged`` exactly when its ``success``."""
+    """The verdict (:class:`Verdict`) on which steps were inside the tolerances (``inside``,
+    as :func:`score_errors` finds them), in one sentence (``text``) that agrees with
+    :func:`score_errors`: ``converged`` exactly when its ``success``."""
     t = np.asarray(times, dtype=np.float64)
-    inside = (np.asarray(pos_err) <= pos_tol_m) & (np.asarray(head_err) <= head_tol_rad)
     n = int(inside.size)
     runs = _stretches(inside)
-    tol = f"{pos_tol_m:g} m and {head_tol_rad:g} rad"
     if not runs:
         return Verdict(
             "never",
-            f"never localised: no scan within {tol} of the truth",
+            "never localised: no scan within the tolerances of the truth",
             None,
             None,
             None,
@@ -333,7 +329,7 @@ def convergence_verdict(
         c = n - final
         text = (
             f"converged at scan {c} (t = {t[c] - t[0]:.1f} s) and held to the end "
-            f"({final} scans within {tol})"
+            f"({final} scans within the tolerances)"
         )
         return Verdict(
             "converged",
@@ -359,7 +355,7 @@ def convergence_verdict(
     else:
         status = "lost"
         text = (
-            f"not converged: lost at the end (final error {float(pos_err[-1]):.2f} m); "
+            f"not converged: lost at the end (final error {final_error_m:.2f} m); "
             f"{where}, longest stretch {longest[1]} scans from scan {longest[0]}"
         )
     return Verdict(
