@@ -25,6 +25,7 @@ def _series(inside: list[bool]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     ("inside", "status"),
     [
         ([False] * 5 + [True] * 20, "converged"),
+        ([False] * 5 + [True] * 8 + [False] * 4 + [True] * 12, "converged"),
         ([False] * 5 + [True] * 30 + [False] * 10 + [True] * 6, "not held"),
         ([False] * 5 + [True] * 30 + [False] * 3, "lost"),
         ([False] * 40, "never"),
@@ -46,8 +47,11 @@ def test_verdict_agrees_with_the_errors_and_the_score(inside: list[bool], status
     assert v.first_localised_scan == inside.index(True) == 5
     assert v.first_localised_s == pytest.approx(10.0)
     assert "scan 5 (t = 10.0 s)" in v.text
-    if status == "converged":
+    if status == "converged" and v.converged_scan == 5:
         assert v.text.startswith("converged at scan 5 (t = 10.0 s) and held to the end")
+    elif status == "converged":  # localised, lost, back for good at scan 17
+        assert v.text.startswith("converged at scan 17 (t = 34.0 s) and held to the end")
+        assert "first localised at scan 5 (t = 10.0 s), inside 20 of 29 scans" in v.text
     elif status == "not held":
         # the intel case: right at the end, but not for long enough to call it converged
         assert f"only for the last 6 scans (fewer than {HOLD_STEPS})" in v.text

@@ -331,6 +331,8 @@ def convergence_verdict(
             f"converged at scan {c} (t = {t[c] - t[0]:.1f} s) and held to the end "
             f"({final} scans within the tolerances)"
         )
+        if c > first:  # localised earlier, then lost again: say so
+            text += f"; first localised at scan {first} (t = {first_s:.1f} s), {share}"
         return Verdict(
             "converged",
             text,
