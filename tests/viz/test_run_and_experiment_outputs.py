@@ -197,3 +197,17 @@ def test_rerun_is_checked_against_the_record(tmp_path: Path) -> None:
     flagged = json.loads((tmp_path / "b" / "summary.json").read_text())
     assert same.same_as_record and [p.name for p in same.files] == ["summary.json"]
     assert not differs.same_as_record and flagged["same_as_recorded_trial"] is False
+
+
+def test_run_without_truth_says_it_is_not_scored(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    log = box_log(tmp_path)
+    out = tmp_path / "out"
+    assert main(["run", str(log), "--truth", "no", "--out", str(out)]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "verdict: not scored: the log has no ground truth" in text
+    assert "recorded in the log" in text and "nan" not in text
+    summary = json.loads((out / "summary.json").read_text())
+    assert "verdict" not in summary and summary["odometry_source"] == "recorded in the log"
+    assert summary["jumps_from_scan"] == 0 and summary["restarts"] == 0

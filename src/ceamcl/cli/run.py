@@ -9,6 +9,7 @@ from typing import Any
 
 from rich.console import Console
 from rich.table import Table
+from rich.text import Text
 
 from ceamcl.checks import physical_warnings
 from ceamcl.cli.common import (
@@ -238,7 +239,9 @@ def run(args: argparse.Namespace, console: Console) -> int:
         console.print(
             run_table(f"ceamcl run ({args.algorithm}, seed {args.seed})", outcome.summary)
         )
-        if "verdict" in outcome.summary:
-            console.print(f"verdict: {outcome.summary['verdict']}")
+        verdict = outcome.summary.get(
+            "verdict", "not scored: the log has no ground truth (see restarts and jumps)"
+        )
+        console.print(Text(f"verdict: {verdict}"))
         print_written(console, outcome.out_dir, outcome.files)
     return 0
