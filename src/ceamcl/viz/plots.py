@@ -91,7 +91,12 @@ def plot_run(
             xy = life.xy
             ax.plot(xy[:, 0], xy[:, 1], "-", lw=1, color=cmap(life.species_id % 10), zorder=3)
         ax.plot(
-            [], [], "-", color="gray", lw=1, label=f"tracks of the {len(living)} living species"
+            [],
+            [],
+            "-",
+            color="gray",
+            lw=1,
+            label=f"species alive at the end ({len(living)}): tracks",
         )
         ax.plot(
             result.estimates[:, 0],
