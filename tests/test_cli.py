@@ -82,6 +82,7 @@ def test_demo_writes_png_and_diagnostics(demo_dir: Path) -> None:
     assert len(rows) == steps
     assert {"step", "n_particles", "ess", "step_ms"} <= set(rows[0])
     assert [int(r["step"]) for r in rows] == list(range(steps))
+    assert not (demo_dir / "species.csv").exists()  # MCL has no species
 
 
 def test_demo_is_reproducible(demo_dir: Path, tmp_path: Path) -> None:
@@ -213,3 +214,30 @@ def test_an_algorithm_that_cannot_run_here_is_refused_with_the_reason(
     err = capsys.readouterr().err
     assert "nav2-amcl cannot run here: Nav2's AMCL is not installed" in err
     assert not out.exists()
+
+
+def test_delta_refuses_another_algorithm_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "delta"
+    argv = ["experiment", "delta", "--algorithms", "mcl", "--trials", "1", "--out", str(out)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["ceamcl: error: algorithms: the delta experiment runs ceamcl only, got mcl"]
+    assert not out.exists()
+    with pytest.raises(SystemExit):
+        main(["experiment", "delta", "--help"])
+    assert "only ceamcl" in " ".join(capsys.readouterr().out.split())
+
+
+def test_experiment_console_one_run_units_and_width(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """One run is "1 run"; the table shows its units and fits 100 columns, with no nan."""
+    argv = ["experiment", "table1", "--trials", "1", "--algorithms", "mcl", "--starts", "0"]
+    argv += ["--max-time", "1", "--executor", "serial", "--out", str(tmp_path / "t")]
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    assert "1 run " in text and "1 runs" not in text and "nan" not in text
+    assert "conv. [s]" in text and "err [m]" in text and "step [ms]" in text
+    assert max(len(line) for line in text.splitlines()) <= 100

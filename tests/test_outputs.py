@@ -4,6 +4,7 @@ the animation, the report and the MCAP file."""
 from __future__ import annotations
 
 import argparse
+import csv
 import os
 from pathlib import Path
 
@@ -92,6 +93,25 @@ def demo_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     finally:
         os.chdir(old)
     return cwd
+
+
+def test_demo_writes_species_in_long_format(demo_run: Path) -> None:
+    """CEAMCL's species go to species.csv, one row per step and species; per step their sizes
+    add up to the sample size in diagnostics.csv, whose width stays small."""
+    out = demo_run / "demo-out"
+    with (out / "diagnostics.csv").open(newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows[0]) < 30
+    with (out / "species.csv").open(newline="") as fh:
+        species = list(csv.DictReader(fh))
+    size: dict[int, int] = {}
+    count: dict[int, int] = {}
+    for s in species:
+        k = int(s["step"])
+        size[k] = size.get(k, 0) + int(s["n"])
+        count[k] = count.get(k, 0) + 1
+    assert size == {int(r["step"]): int(r["n_particles"]) for r in rows}
+    assert count == {int(r["step"]): int(r["n_species"]) for r in rows}
 
 
 def test_demo_writes_gif_report_and_mcap(demo_run: Path) -> None:

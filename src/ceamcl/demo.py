@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ceamcl.experiments.metrics import covers
+from ceamcl.experiments.metrics import covers, restarts
 from ceamcl.filters import make_filter
 from ceamcl.filters.ceamcl.records import species_of
 from ceamcl.io.results import ensure_output_dir
@@ -67,6 +67,7 @@ def summarise(result: RunResult, log: SimulatedLog, **context: Any) -> dict[str,
         "particles_final": int(result.diagnostics[-1].n_particles),
         "samples_initial": int(result.diagnostics[0].n_particles),
         "samples_final": int(result.diagnostics[-1].n_particles),
+        **restarts(result.diagnostics),
         "hypotheses_final": [
             {"x": h[0], "y": h[1], "theta": h[2], "weight": h[3], "fitness": h[4]}
             for h in final_h[:16]

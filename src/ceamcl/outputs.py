@@ -1,6 +1,6 @@
 """Everything a run writes: its files (``trajectory.tum``, ``groundtruth.tum``,
-``diagnostics.csv``, ``summary.json``, ``run.png``, ``species.png``) and the visual outputs
-(``run.gif``/``run.mp4``, ``report.html``, MCAP for Foxglove).
+``diagnostics.csv``, ``species.csv``, ``summary.json``, ``run.png``, ``species.png``) and the
+visual outputs (``run.gif``/``run.mp4``, ``report.html``, MCAP for Foxglove).
 
 The runner (:mod:`ceamcl.runner`) runs a filter and returns a :class:`~ceamcl.runner.RunResult`;
 this module, one layer above it, turns results into files. In Python::
@@ -25,7 +25,7 @@ from typing import Any
 from ceamcl.errors import ConfigError
 from ceamcl.filters.ceamcl.records import species_of
 from ceamcl.io.mcap_export import ScanLog, write_mcap
-from ceamcl.io.results import write_diagnostics_csv, write_json
+from ceamcl.io.results import write_diagnostics_csv, write_json, write_species_csv
 from ceamcl.io.tum import write_tum
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.runner import RunResult
@@ -72,7 +72,8 @@ class OutputOptions:
         """Options from parsed command-line arguments (an ``argparse.Namespace`` from
         :func:`ceamcl.cli.common.add_output_arguments`, or a mapping; missing ones take their
         defaults). ``--mp4`` without ffmpeg on the PATH is an error, raised here, before the
-        run."""
+        run; so is ``--mcap`` into a folder that does not exist and that ``--out`` (``out``)
+        does not create."""
         get: Callable[[str, Any], Any]
         if isinstance(args, Mapping):
             get = args.get
@@ -91,7 +92,8 @@ class OutputOptions:
             mcap=None if mcap is None else Path(mcap),
         )
         if options.mcap is not None:
-            _check_mcap_target(options.mcap)
+            out = get("out", None)
+            _check_mcap_target(options.mcap, None if out is None else Path(out))
         if options.mp4:
             from ceamcl.viz.animation import ffmpeg_path  # matplotlib: see write_run_files
 
@@ -116,8 +118,14 @@ class OutputOptions:
         return self.stride if self.any else 0
 
 
-def _check_mcap_target(path: Path) -> None:
+def _check_mcap_target(path: Path, out_dir: Path | None = None) -> None:
+    """Refuse an MCAP path whose folder does not exist, unless the command's output folder
+    ``out_dir`` (created before anything is written) is that folder or lies inside it."""
     folder = path.parent
+    if out_dir is not None and not out_dir.exists():
+        target = out_dir.resolve()
+        if folder.resolve() in (target, *target.parents):
+            return
     if not folder.is_dir():
         raise ConfigError(f"mcap: the folder {str(folder)!r} of {str(path)!r} does not exist")
     if path.is_dir():
@@ -196,8 +204,8 @@ def write_run_files(
     """The files of one run, as ``ceamcl demo`` and ``ceamcl run`` write them.
 
     With ``out_dir``: ``trajectory.tum``, ``groundtruth.tum`` (where the run has a truth),
-    ``diagnostics.csv``, ``run.png``, ``species.png`` (filters with species) and
-    ``summary.json``. ``outputs`` (:class:`OutputOptions`) adds the visual
+    ``diagnostics.csv``, ``run.png``, ``species.csv`` and ``species.png`` (filters with
+    species) and ``summary.json``. ``outputs`` (:class:`OutputOptions`) adds the visual
     outputs (without ``out_dir`` only the MCAP file, a path of its own); ``log`` gives the MCAP
     file its scans, ``on_frame(i, total)`` reports the animation's progress. Returns the
     visual outputs written.
@@ -215,6 +223,7 @@ def write_run_files(
         write_diagnostics_csv(out / "diagnostics.csv", result.diagnostics, list(result.times))
         plot_run(result, grid, out / "run.png", title=title)
         if any(species_of(d) for d in result.diagnostics):
+            write_species_csv(out / "species.csv", result.diagnostics, list(result.times))
             plot_species(
                 result, out / "species.png", title=f"{title}: sample size and resources (Fig. 6)"
             )

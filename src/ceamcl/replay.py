@@ -18,7 +18,10 @@ Three steps (docs/real-data.md), each a function; in Python::
    written (:func:`ceamcl.outputs.write_run_files`).
 
 Convergence in the summary is :func:`ceamcl.experiments.metrics.score_errors`, the measure
-``ceamcl evaluate-log`` uses too.
+``ceamcl evaluate-log`` uses too, told in one sentence by
+:func:`~ceamcl.experiments.metrics.convergence_verdict` (``verdict``); beside it the estimate's
+jumps (:func:`~ceamcl.experiments.metrics.estimate_jumps`) and the filter's restarts
+(:func:`~ceamcl.experiments.metrics.restarts`).
 """
 
 from __future__ import annotations
@@ -34,7 +37,16 @@ from typing import Any, Literal
 import numpy as np
 
 from ceamcl.errors import ConfigError
-from ceamcl.experiments.metrics import final_error, score_errors
+from ceamcl.experiments.metrics import (
+    HEADING_TOL_RAD,
+    JUMP_M,
+    POSITION_TOL_M,
+    convergence_verdict,
+    estimate_jumps,
+    final_error,
+    restarts,
+    score_errors,
+)
 from ceamcl.filters.base import LocalisationFilter
 from ceamcl.filters.policies import Policy, on_motion
 from ceamcl.filters.registry import make_filter, with_config
@@ -288,6 +300,12 @@ def truth_source(prepared: PreparedLog) -> str | None:
     return "the log's poses (SLAM-corrected)" if prepared.has_truth else None
 
 
+ODOMETRY_SOURCES = {
+    "synthetic": "synthetic, from the corrected poses",
+    "recorded": "recorded in the log",
+}
+
+
 def run_summary(
     result: RunResult,
     prepared: PreparedLog,
@@ -310,6 +328,7 @@ def run_summary(
         "ground_truth": truth_source(prepared),
         "ground_truth_decision": prepared.truth_reason,
         "odometry": prepared.odometry,
+        "odometry_source": ODOMETRY_SOURCES[prepared.odometry],
         "repaired_times": int(log.info.get("repaired_times", 0)),
         "map": map_source,
         "map_size_m": list(grid.size_m),
@@ -323,6 +342,7 @@ def run_summary(
         "particles_initial": int(result.diagnostics[0].n_particles),
         "particles_final": int(result.diagnostics[-1].n_particles),
         "mean_particles": float(np.mean([d.n_particles for d in result.diagnostics])),
+        **restarts(result.diagnostics),
     }
     if prepared.pairing is not None:
         p = prepared.pairing
@@ -346,10 +366,25 @@ def run_summary(
             "stream": "SeedSequence(seed).spawn(1)[0]",
         }
     pos, head = result.position_errors, result.heading_errors
+    jumps_from = 0
     if pos is not None and head is not None:
         score = score_errors(result.times, pos, head)
+        # Scored at the scans with a truth (all of them, or a raw log's matched scans).
+        known = np.flatnonzero(np.isfinite(pos) & np.isfinite(head))
+        inside = (pos[known] <= POSITION_TOL_M) & (head[known] <= HEADING_TOL_RAD)
+        partial = known.size < pos.size
+        verdict = convergence_verdict(
+            result.times, inside, final_error(pos), scan_ids=known if partial else None
+        )
+        jumps_from = verdict.first_localised_scan or 0
         summary.update(
             {
+                "verdict": verdict.text,
+                "convergence": verdict.status,
+                "first_localised_scan": verdict.first_localised_scan,
+                "first_localised_s": verdict.first_localised_s,
+                "scans_inside_tolerance": verdict.scans_inside,
+                "final_stretch_scans": verdict.final_stretch,
                 "final_position_error_m": final_error(pos),
                 "final_heading_error_rad": final_error(head),
                 "converged": score.success,
@@ -359,4 +394,14 @@ def run_summary(
                 "heading_rmse_after_convergence_rad": score.heading_rmse_rad,
             }
         )
+    jumps = estimate_jumps(result.estimates, log.odometry, jumps_from)
+    summary.update(
+        {
+            "jumps_from_scan": jumps.from_scan,
+            "largest_jump_m": jumps.largest_m,
+            "largest_jump_scan": jumps.largest_at_scan,
+            "jump_threshold_m": JUMP_M,
+            "jumps_over_threshold": jumps.over_threshold,
+        }
+    )
     return summary

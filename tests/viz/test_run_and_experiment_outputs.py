@@ -89,6 +89,44 @@ def test_run_writes_gif_report_and_mcap_from_the_replay(
     assert counts["/particles"] == len(frames)
 
 
+def test_mcap_into_the_new_output_folder(tmp_path: Path) -> None:
+    """README: ``--mcap o/run.mcap --out o`` works when ``o`` does not exist yet."""
+    log = box_log(tmp_path)
+    out = tmp_path / "new" / "o"
+    argv = ["run", str(log), "--truth", "yes", "--mcap", str(out / "run.mcap")]
+    assert main([*argv, "--out", str(out), "--quiet"]) == 0
+    assert mcap_counts(out / "run.mcap")["/scan"] == SCANS
+    assert (out / "summary.json").is_file()
+
+
+def test_run_console_says_what_happened(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The table and the verdict of ``ceamcl run``: odometry source, restarts, units, no
+    ``nan``, within 100 columns, and a verdict that agrees with summary.json."""
+    log = box_log(tmp_path)
+    out = tmp_path / "out"
+    assert main(["run", str(log), "--truth", "yes", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    summary = json.loads((out / "summary.json").read_text())
+    assert max(len(line) for line in text.splitlines()) <= 100
+    assert "nan" not in text
+    for row in (
+        "odometry",
+        "synthetic, from the corrected poses",
+        "restarts of global",
+        "duration [s]",
+        "final error [m, rad]",
+        "largest estimate jump [m]",
+    ):
+        assert row in text, row
+    assert summary["odometry_source"] == "synthetic, from the corrected poses"
+    assert summary["restarts"] == len(summary["restart_scans"])
+    verdict = " ".join(text.split("verdict: ", 1)[1].split())
+    assert verdict.startswith(" ".join(summary["verdict"].split())[:60])
+    assert (summary["convergence"] == "converged") == summary["converged"]
+    if summary["converged"]:
+        assert verdict.startswith(f"converged at scan {summary['scans_to_converge']}")
+
+
 def test_run_writes_no_visual_output_unless_asked(tmp_path: Path) -> None:
     log = box_log(tmp_path)
     out = tmp_path / "out"
@@ -159,3 +197,17 @@ def test_rerun_is_checked_against_the_record(tmp_path: Path) -> None:
     flagged = json.loads((tmp_path / "b" / "summary.json").read_text())
     assert same.same_as_record and [p.name for p in same.files] == ["summary.json"]
     assert not differs.same_as_record and flagged["same_as_recorded_trial"] is False
+
+
+def test_run_without_truth_says_it_is_not_scored(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    log = box_log(tmp_path)
+    out = tmp_path / "out"
+    assert main(["run", str(log), "--truth", "no", "--out", str(out)]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "verdict: not scored: the log has no ground truth" in text
+    assert "recorded in the log" in text and "nan" not in text
+    summary = json.loads((out / "summary.json").read_text())
+    assert "verdict" not in summary and summary["odometry_source"] == "recorded in the log"
+    assert summary["jumps_from_scan"] == 0 and summary["restarts"] == 0

@@ -7,6 +7,7 @@ function that adds its parser and sets ``run(args, console) -> exit code`` as it
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import warnings
 from collections.abc import Sequence
@@ -113,12 +114,18 @@ def _show_warning(
 _default_showwarning = warnings.showwarning
 
 
+#: Width of the console output when it goes to a pipe or a file (Rich's default is 80).
+CONSOLE_COLUMNS = 100
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run one command. Bad input: one line on stderr, exit 2. Ctrl-C: one line, exit 130.
     Either way an output folder the command created is removed again."""
     parser = build_parser()
     args = parser.parse_args(argv)
     console = Console(stderr=False)
+    if not console.is_terminal and "COLUMNS" not in os.environ:
+        console.width = CONSOLE_COLUMNS  # a pipe or a file: tables of 100 columns, not 80
     limits = args.memory_budget or Budget.default()
     ok = False
     try:

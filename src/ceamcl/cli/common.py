@@ -4,6 +4,7 @@ bar, a run's summary table."""
 from __future__ import annotations
 
 import argparse
+import math
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -18,6 +19,7 @@ from rich.progress import (
     TimeElapsedColumn,
 )
 from rich.table import Table
+from rich.text import Text
 
 from ceamcl import budget
 from ceamcl.errors import ConfigError
@@ -138,26 +140,40 @@ class TrialsProgress:
         self.progress.update(self.tasks[label], completed=done, total=total)
 
 
-def summary_table(title: str, summary: Mapping[str, Any], keys: Iterable[str]) -> Table:
-    """A two-column table of the ``keys`` of ``summary`` that are present and not None."""
-    table = Table(title=title)
-    table.add_column("measure")
-    table.add_column("value", justify="right")
-    for key in keys:
-        v = summary.get(key)
-        if v is not None:
-            table.add_row(key, f"{v:.3f}" if isinstance(v, float) else str(v))
-    return table
+def number(value: float | None, digits: int = 3, missing: str = "-") -> str:
+    """A number for a table, or ``missing`` for ``None``/NaN/inf (never ``nan``)."""
+    if value is None or not math.isfinite(value):
+        return missing
+    return f"{value:.{digits}f}"
 
 
-def rows_table(title: str, columns: Sequence[str], rows: Iterable[Sequence[str]]) -> Table:
-    """A table with ``columns`` (the first left-aligned, the others right) and ``rows``."""
-    table = Table(title=title)
-    for i, col in enumerate(columns):
-        table.add_column(col, justify="left" if i == 0 else "right")
+def plural(count: int, noun: str) -> str:
+    """``1 run``, ``2 runs``."""
+    return f"{count} {noun}" + ("" if count == 1 else "s")
+
+
+def plain_table(
+    title: str, header: Sequence[str], rows: Iterable[Sequence[str]], *, left: int = 1
+) -> Table:
+    """A table of plain text (no Rich markup, so units such as ``[s]`` show as written); the
+    first ``left`` columns are left-aligned, the others right-aligned."""
+    table = Table(title=Text(title))
+    for i, name in enumerate(header):
+        table.add_column(Text(name), justify="left" if i < left else "right")
     for row in rows:
-        table.add_row(*row)
+        table.add_row(*(Text(cell) for cell in row))
     return table
+
+
+def summary_table(title: str, summary: Mapping[str, Any], keys: Iterable[str]) -> Table:
+    """A two-column table of the ``keys`` of ``summary`` that are present and not None (a
+    number that is not finite shows as ``-``)."""
+    rows = [
+        (key, number(v) if isinstance(v, float) else str(v))
+        for key in keys
+        if (v := summary.get(key)) is not None
+    ]
+    return plain_table(title, ("measure", "value"), rows)
 
 
 def print_written(console: Console, out_dir: Path | None, files: Iterable[Path]) -> None:

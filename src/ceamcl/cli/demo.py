@@ -98,6 +98,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
                 "median_step_ms",
                 "samples_initial",
                 "samples_final",
+                "restarts",
                 "species_final",
                 "symmetric_images_covered",
             ),

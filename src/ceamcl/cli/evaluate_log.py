@@ -9,7 +9,7 @@ from rich.console import Console
 
 from ceamcl import budget
 from ceamcl.checks import physical_warnings
-from ceamcl.cli.common import TrialsProgress, positive_float, positive_int, rows_table
+from ceamcl.cli.common import TrialsProgress, plain_table, plural, positive_float, positive_int
 from ceamcl.cli.experiment import RUN_BYTES
 from ceamcl.cli.run import (
     add_log_arguments,
@@ -175,10 +175,24 @@ def run(args: argparse.Namespace, console: Console) -> int:
             pace=pace,
         )
     if not args.quiet:
-        columns = ["algorithm", "success", "conf. wrong", "t conv [s]", "m conv", "pos RMSE [m]"]
-        columns += ["RMSE 1st [m]", "head RMSE [rad]", "particles", "step [ms]"]
+        title = (
+            f"evaluate-log {prepared.log.name}: {plural(len(ev.windows), 'start')}, "
+            f"windows of {ev.window}"
+        )
+        header = (
+            "algorithm",
+            "success",
+            "conf. wrong",
+            "conv. [s]",
+            "conv. [m]",
+            "pos RMSE [m]",
+            "from 1st [m]",
+            "head RMSE [rad]",
+            "particles",
+            "step [ms]",
+        )
         rows = [
-            [
+            (
                 row["algorithm"],
                 pct(row["success_rate"]),
                 str(row["confidently_wrong"]),
@@ -189,13 +203,10 @@ def run(args: argparse.Namespace, console: Console) -> int:
                 fmt(row["heading_rmse_rad"], 3, "-"),
                 fmt(row["mean_particles"], 0, "-"),
                 fmt(row["mean_step_ms"], 1, "-"),
-            ]
+            )
             for row in ev.table
         ]
-        title = (
-            f"evaluate-log {prepared.log.name}: {len(ev.windows)} starts, windows of {ev.window}"
-        )
-        console.print(rows_table(title, columns, rows))
+        console.print(plain_table(title, header, rows))
         console.print(f"results written to [bold]{ev.out_dir}[/]")
     return 0
 
@@ -245,6 +256,6 @@ def run_tracking(
             f"tracking on {prepared.log.name}: {particles} particles, start moved "
             f"0.5 m / 0.3 rad (seed {prepared.seed})"
         )
-        console.print(rows_table(title, columns, rows))
+        console.print(plain_table(title, columns, rows))
         console.print(f"results written to [bold]{tr.out_dir}[/]")
     return 0

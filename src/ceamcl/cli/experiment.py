@@ -20,6 +20,8 @@ from ceamcl.cli.common import (
     add_output_arguments,
     make_progress,
     non_negative_int,
+    plain_table,
+    plural,
     positive_float,
     positive_int,
 )
@@ -68,27 +70,39 @@ class Experiment:
 
 # ---------------------------------------------------------------- the tables printed
 def table1_rich(result: Table1Result) -> Table:
-    t = Table(title=f"Table 1 on {result.settings.course.name} (docs/experiments.md)")
     n_images = result.settings.course.n_images
-    for col in ("algorithm", "conv s", "exp s", "success", f"all {n_images}", "err m", "N", "ms"):
-        t.add_column(col, justify="left" if col == "algorithm" else "right")
+    header = (
+        "algorithm",
+        "conv. [s]",
+        "exp. [s]",
+        "success",
+        f"all {n_images}",
+        "err [m]",
+        "N",
+        "step [ms]",
+    )
+    rows = []
     for s in result.summaries:
         exp = (
             "-"
             if s.converged_runs == 0
             else f"{fmt(s.expired_s)} {s.expired_runs}/{s.converged_runs}"
         )
-        t.add_row(
-            s.algorithm,
-            f"{fmt(s.converged_s)} {s.converged_runs}/{s.runs}",
-            exp,
-            pct(s.success_rate),
-            pct(s.kept_all_rate),
-            f"{s.final_error_mean_m:.2f}",
-            f"{s.mean_particles:.0f}",
-            f"{s.median_step_ms:.1f}",
+        rows.append(
+            (
+                s.algorithm,
+                f"{fmt(s.converged_s)} {s.converged_runs}/{s.runs}",
+                exp,
+                pct(s.success_rate),
+                pct(s.kept_all_rate),
+                fmt(s.final_error_mean_m, 2, "-"),
+                fmt(s.mean_particles, 0, "-"),
+                fmt(s.median_step_ms, 1, "-"),
+            )
         )
-    return t
+    return plain_table(
+        f"Table 1 on {result.settings.course.name} (docs/experiments.md)", header, rows
+    )
 
 
 def delta_rich(result: DeltaResult) -> Table:
@@ -112,18 +126,18 @@ def marked_rich(result: MarkedResult) -> Table:
 
 
 def kidnapped_rich(result: KidnapResult) -> Table:
-    t = Table(title=f"kidnapped robot on {result.settings.course.name}")
-    for col in ("algorithm", "runs", "localised before", "recovered", "recovery s"):
-        t.add_column(col, justify="left" if col == "algorithm" else "right")
-    for s in result.summaries:
-        t.add_row(
+    header = ("algorithm", "runs", "localised before", "recovered", "recovery [s]")
+    rows = [
+        (
             s.algorithm,
             str(s.runs),
             pct(s.localised_before_rate),
             pct(s.recovery_rate),
             fmt(s.mean_recovery_s, 1, "-"),
         )
-    return t
+        for s in result.summaries
+    ]
+    return plain_table(f"kidnapped robot on {result.settings.course.name}", header, rows)
 
 
 def _delta_arguments(p: argparse.ArgumentParser) -> None:
@@ -205,7 +219,12 @@ def _floats(text: str) -> list[float]:
     return [positive_float(t) for t in _names(text)]
 
 
-def _add_common(p: argparse.ArgumentParser, name: str, default_trials: int) -> None:
+def _add_common(
+    p: argparse.ArgumentParser,
+    name: str,
+    default_trials: int,
+    fixed: tuple[str, ...] | None = None,
+) -> None:
     p.add_argument(
         "--trials",
         type=positive_int,
@@ -218,7 +237,10 @@ def _add_common(p: argparse.ArgumentParser, name: str, default_trials: int) -> N
         default=None,
         metavar="NAME",
         help="algorithms to run, space- or comma-separated (default: all; see --help of "
-        "`ceamcl experiment`)",
+        "`ceamcl experiment`)"
+        if fixed is None
+        else f"only {', '.join(fixed)}: the {name} experiment is about {', '.join(fixed)} "
+        "alone, other names are refused",
     )
     where = p.add_mutually_exclusive_group()
     where.add_argument("--world", default=None, help="built-in world to run on")
@@ -275,7 +297,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     which = exp.add_subparsers(dest="experiment", required=True)
     for name, experiment in EXPERIMENTS.items():
         p = which.add_parser(name, help=experiment.help, description=experiment.help)
-        _add_common(p, name, experiment.default_trials)
+        _add_common(p, name, experiment.default_trials, experiment.algorithms)
         experiment.add_arguments(p)
         p.set_defaults(run=run)
 
@@ -296,7 +318,8 @@ def _settings(args: argparse.Namespace, console: Console) -> ExperimentSettings:
         algorithms = list(fixed)
         if names and names != algorithms:
             raise ConfigError(
-                f"algorithms: the {args.experiment} experiment runs {', '.join(fixed)} only"
+                f"algorithms: the {args.experiment} experiment runs {', '.join(fixed)} only, "
+                f"got {', '.join(names)}"
             )
     else:
         algorithms, skipped = registry.resolve(names)
@@ -330,7 +353,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     ensure_output_dir(args.out)  # fail on an unwritable folder before hours of trials
     if not args.quiet:
         console.print(
-            f"[bold]{args.experiment}[/] on {settings.course.name}: {runs} runs "
+            f"[bold]{args.experiment}[/] on {settings.course.name}: {plural(runs, 'run')} "
             f"({', '.join(settings.algorithms)}) on executor {settings.executor}"
         )
     meta = run_metadata(settings)
@@ -342,7 +365,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     if not args.quiet:
         console.print(experiment.table(result))
         console.print(
-            f"{runs} runs in {meta['wall_time_s']:.1f} s; wrote "
+            f"{plural(runs, 'run')} in {meta['wall_time_s']:.1f} s; wrote "
             + ", ".join(p.name for p in paths)
             + f" to {args.out}"
         )

@@ -4,9 +4,12 @@ localisation, and write its trajectory, summary, diagnostics and plot."""
 from __future__ import annotations
 
 import argparse
+from collections.abc import Mapping
 from typing import Any
 
 from rich.console import Console
+from rich.table import Table
+from rich.text import Text
 
 from ceamcl.checks import physical_warnings
 from ceamcl.cli.common import (
@@ -15,11 +18,12 @@ from ceamcl.cli.common import (
     make_progress,
     non_negative_float,
     non_negative_int,
+    number,
+    plain_table,
     positive_float,
     positive_int,
     print_written,
     require_available,
-    summary_table,
 )
 from ceamcl.errors import ConfigError
 from ceamcl.filters import registry
@@ -168,6 +172,64 @@ def print_truth(console: Console, prepared: Any) -> None:
         console.print(f"scan times: {repaired} raised to the latest before them (--repair-times)")
 
 
+def _at(scan: int | None, time_s: float | None) -> str:
+    return "never" if scan is None else f"scan {scan} ({time_s or 0.0:.1f} s)"
+
+
+def run_table(title: str, summary: Mapping[str, Any]) -> Table:
+    """The console table of ``ceamcl run``: what was run and what happened, units in the
+    measures' names, ``never``/``-`` where there is no number."""
+    s = summary
+    rows: list[tuple[str, str]] = [
+        ("scans", str(s["scans"])),
+        ("duration [s]", number(s["duration_s"], 1)),
+        ("path length [m]", number(s["path_length_m"], 1)),
+        ("odometry", s["odometry_source"]),
+        ("ground truth", s["ground_truth"] or "none: no errors scored"),
+    ]
+    if "verdict" in s:
+        rmse = s["position_rmse_after_convergence_m"], s["heading_rmse_after_convergence_rad"]
+        rows += [
+            ("convergence", s["convergence"]),
+            ("first localised", _at(s["first_localised_scan"], s["first_localised_s"])),
+            ("converged, held to the end", _at(s["scans_to_converge"], s["time_to_converge_s"])),
+            (
+                "scans inside 0.5 m, 0.3 rad",
+                f"{s['scans_inside_tolerance']} of {scored} with truth"
+                if (scored := (s.get("truth_pairing") or {}).get("matched_scans"))
+                else f"{s['scans_inside_tolerance']} of {s['scans']}",
+            ),
+            ("RMSE after convergence [m, rad]", f"{number(rmse[0], 3)}, {number(rmse[1], 3)}"),
+            (
+                "final error [m, rad]",
+                f"{s['final_position_error_m']:.3f}, {s['final_heading_error_rad']:.3f}",
+            ),
+        ]
+    restarts = str(s["restarts"])
+    if s["kidnap_recoveries"]:
+        restarts += f" ({s['kidnap_recoveries']} kidnap recoveries)"
+    after = f" after scan {s['jumps_from_scan']}" if s["jumps_from_scan"] else ""
+    rows += [
+        ("restarts of global localisation", restarts),
+        (
+            "largest estimate jump [m]",
+            "-"
+            if s["largest_jump_scan"] is None
+            else f"{s['largest_jump_m']:.2f} at scan {s['largest_jump_scan']}",
+        ),
+        (
+            f"jumps over {s['jump_threshold_m']:g} m{after}",
+            str(s["jumps_over_threshold"]),
+        ),
+        ("initialisation [ms]", number(s["initialisation_ms"], 0)),
+        ("filter updates", f"{s['updates']} ({s['update_policy']})"),
+        ("mean step [ms]", number(s["mean_step_ms"], 1)),
+        ("median update [ms]", number(s["median_update_ms"], 1)),
+        ("mean particles", number(s["mean_particles"], 0)),
+    ]
+    return plain_table(title, ("measure", "value"), rows)
+
+
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add ``ceamcl run``."""
     p = sub.add_parser(
@@ -239,25 +301,12 @@ def run(args: argparse.Namespace, console: Console) -> int:
             pace=pace,
         )
     if not args.quiet:
-        keys = (
-            "scans",
-            "duration_s",
-            "path_length_m",
-            "converged",
-            "scans_to_converge",
-            "time_to_converge_s",
-            "position_rmse_after_convergence_m",
-            "heading_rmse_after_convergence_rad",
-            "final_position_error_m",
-            "final_heading_error_rad",
-            "initialisation_ms",
-            "mean_step_ms",
-            "median_step_ms",
-            "updates",
-            "median_update_ms",
-            "mean_particles",
+        console.print(
+            run_table(f"ceamcl run ({args.algorithm}, seed {args.seed})", outcome.summary)
         )
-        title = f"ceamcl run ({args.algorithm}, seed {args.seed})"
-        console.print(summary_table(title, outcome.summary, keys))
+        verdict = outcome.summary.get(
+            "verdict", "not scored: the log has no ground truth (see restarts and jumps)"
+        )
+        console.print(Text(f"verdict: {verdict}"))
         print_written(console, outcome.out_dir, outcome.files)
     return 0

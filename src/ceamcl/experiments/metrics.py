@@ -25,11 +25,15 @@ are ``t[c] - t[0]`` and ``c``; the RMSEs are over steps ``c..end``.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from ceamcl.filters.base import StepDiagnostics
+from ceamcl.motion.odometry import apply_increment, increment_between
 from ceamcl.pose import heading_error, position_error
 
 POSITION_TOL_M = 0.5
@@ -263,3 +267,176 @@ def score_errors(
         rmse_first,
         math.nan if travelled is None else float(travelled[step] - travelled[0]),
     )
+
+
+#: An estimate *jumps* at a scan when it lands more than this far from where the previous
+#: estimate moved by the odometry increment puts it.
+JUMP_M = 1.0
+
+
+@dataclass(frozen=True)
+class Jumps:
+    """Estimate jumps (:func:`estimate_jumps`) after scan ``from_scan``: the largest, at
+    which scan (``None``: no scan measured), and how many exceed :data:`JUMP_M`."""
+
+    from_scan: int
+    largest_m: float
+    largest_at_scan: int | None
+    over_threshold: int
+
+
+def estimate_jumps(
+    estimates: NDArray[np.float64], odometry: NDArray[np.float64], from_scan: int = 0
+) -> Jumps:
+    """For scans ``k > from_scan``: how far the estimate ``e[k]`` lands from the previous
+    estimate moved by the odometry increment, ``e[k-1] (+) (o[k-1] -> o[k])`` (eq. 5.34-5.36
+    applied in the estimate's frame): the motion the odometry does not explain. A filter that
+    tracks the robot moves its estimate by about the odometry increment; one that hops between
+    hypotheses or restarts jumps by metres."""
+    e = np.asarray(estimates, dtype=np.float64).reshape(-1, 3)
+    o = np.asarray(odometry, dtype=np.float64).reshape(-1, 3)
+    start = max(1, from_scan + 1)
+    if e.shape[0] <= start:
+        return Jumps(from_scan, 0.0, None, 0)
+    incs = [increment_between(o[k - 1], o[k]) for k in range(start, e.shape[0])]
+    predicted = apply_increment(
+        e[start - 1 : -1],
+        [i.rot1 for i in incs],
+        [i.trans for i in incs],
+        [i.rot2 for i in incs],
+    )
+    dist = np.hypot(*(e[start:, :2] - predicted[:, :2]).T)
+    j = int(np.argmax(dist))
+    return Jumps(from_scan, float(dist[j]), start + j, int(np.sum(dist > JUMP_M)))
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """What happened in a run with ground truth, in the terms of :func:`score_errors`.
+
+    ``status``: ``"converged"`` (inside the tolerances from ``converged_scan`` to the end, at
+    least ``hold`` scans), ``"not held"`` (inside at the end, but for fewer than ``hold``
+    scans), ``"lost"`` (inside at some scan, outside at the end) or ``"never"``.
+    ``final_stretch``: scans inside at the end; ``scans_inside``: scans inside anywhere;
+    ``longest_stretch``: (first scan, length) of the longest run of scans inside.
+    """
+
+    status: str
+    text: str
+    first_localised_scan: int | None
+    first_localised_s: float | None
+    converged_scan: int | None
+    converged_s: float | None
+    final_stretch: int
+    scans_inside: int
+    scans: int
+    longest_stretch: tuple[int, int] | None
+    hold: int
+
+
+def _stretches(inside: NDArray[np.bool_]) -> list[tuple[int, int]]:
+    """(first index, length) of each run of True."""
+    edges = np.diff(np.concatenate([[0], inside.astype(np.int8), [0]]))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    return [(int(a), int(b - a)) for a, b in zip(starts, ends, strict=True)]
+
+
+def convergence_verdict(
+    times: NDArray[np.float64],
+    inside: NDArray[np.bool_],
+    final_error_m: float,
+    hold: int = HOLD_STEPS,
+    scan_ids: NDArray[np.intp] | None = None,
+) -> Verdict:
+    """The verdict (:class:`Verdict`) on which steps were inside the tolerances (``inside``,
+    as :func:`score_errors` finds them), in one sentence (``text``) that agrees with
+    :func:`score_errors`: ``converged`` exactly when its ``success``.
+
+    ``scan_ids``: where only some scans have a truth (a raw log scored at the scans it shares
+    with its corrected log), ``inside[i]`` is about scan ``scan_ids[i]``; the verdict counts
+    the scans with truth and names scans by their number in the log, times from its start
+    (``times`` has one entry per scan of the log)."""
+    ids = np.arange(inside.size) if scan_ids is None else np.asarray(scan_ids, dtype=np.intp)
+    t_all = np.asarray(times, dtype=np.float64)
+    t = t_all[ids] - t_all[0] if t_all.size else np.zeros(0)  # seconds from the log's start
+    scans = "scans" if scan_ids is None else "scans with truth"
+    n = int(inside.size)
+    runs = _stretches(inside)
+    if not runs:
+        return Verdict(
+            "never",
+            "never localised: no scan within the tolerances of the truth",
+            None,
+            None,
+            None,
+            None,
+            0,
+            0,
+            n,
+            None,
+            hold,
+        )
+    first = runs[0][0]
+    first_s = float(t[first])
+    longest = max(runs, key=lambda r: r[1])
+    final = runs[-1][1] if runs[-1][0] + runs[-1][1] == n else 0
+    share = f"inside {int(inside.sum())} of {n} {scans}"
+    need = min(hold, n)
+    if final >= need:
+        c = n - final
+        text = (
+            f"converged at scan {ids[c]} (t = {t[c]:.1f} s) and held to the end "
+            f"({final} {scans} within the tolerances)"
+        )
+        if c > first:  # localised earlier, then lost again: say so
+            text += f"; first localised at scan {ids[first]} (t = {first_s:.1f} s), {share}"
+        return Verdict(
+            "converged",
+            text,
+            int(ids[first]),
+            first_s,
+            int(ids[c]),
+            float(t[c]),
+            final,
+            int(inside.sum()),
+            n,
+            (int(ids[longest[0]]), longest[1]),
+            hold,
+        )
+    where = f"first localised at scan {ids[first]} (t = {first_s:.1f} s), {share}"
+    if final > 0:
+        status = "not held"
+        text = (
+            f"not converged: localised at the end but only for the last {final} {scans} "
+            f"(fewer than {need}); {where}, longest stretch {longest[1]} {scans} from scan "
+            f"{ids[longest[0]]}"
+        )
+    else:
+        status = "lost"
+        text = (
+            f"not converged: lost at the end (final error {final_error_m:.2f} m); "
+            f"{where}, longest stretch {longest[1]} {scans} from scan {ids[longest[0]]}"
+        )
+    return Verdict(
+        status,
+        text,
+        int(ids[first]),
+        first_s,
+        None,
+        None,
+        final,
+        int(inside.sum()),
+        n,
+        (int(ids[longest[0]]), longest[1]),
+        hold,
+    )
+
+
+def restarts(diagnostics: Sequence[StepDiagnostics]) -> dict[str, Any]:
+    """The filter's restarts of global localisation after its first (a step whose record says
+    ``reinitialised``): how many, at which steps, and how many of them were kidnap recoveries
+    (CEAMCL's fitness collapse: the ``recoveries`` of its records). A restart throws the
+    estimate anywhere."""
+    steps = [d.step for d in diagnostics[1:] if d.reinitialised]
+    recoveries = sum(int(d.record.columns().get("recoveries", 0)) for d in diagnostics)
+    return {"restarts": len(steps), "restart_scans": steps, "kidnap_recoveries": recoveries}

@@ -1,4 +1,5 @@
-"""Writing a run's results: ``summary.json``, ``diagnostics.csv``, TUM trajectories."""
+"""Writing a run's results: ``summary.json``, ``diagnostics.csv``, ``species.csv``, TUM
+trajectories."""
 
 from __future__ import annotations
 
@@ -69,30 +70,45 @@ def write_json(path: str | os.PathLike[str], data: Mapping[str, Any]) -> Path:
     return Path(path)
 
 
+SPECIES_FIELDS = ("n", "dn", "fitness", "area_m2", "resources", "capacity", "x", "y", "theta")
+
+
 def write_diagnostics_csv(
     path: str | os.PathLike[str], records: list[StepDiagnostics], times: list[float] | None = None
 ) -> Path:
-    """One row per step: the runner's fields, the filter's record's scalars, and per-species
-    columns ``species_<id>_<field>`` for CEAMCL (blank while a species does not exist)."""
+    """One row per step: ``time_s``, the runner's fields and the filter's record's scalars.
+    The columns are the same at every step, so the width does not grow with the run; the
+    species of CEAMCL go to :func:`write_species_csv` (long format)."""
     rows = [r.row() for r in records]
-    species_ids = sorted({s.species_id for r in records for s in species_of(r)})
     fields: list[str] = ["time_s"] if times is not None else []
     for row in rows:
         for key in row:
             if key not in fields:
                 fields.append(key)
-    species_fields = ("n", "dn", "fitness", "area_m2", "resources", "capacity", "x", "y", "theta")
-    for sid in species_ids:
-        fields.extend(f"species_{sid}_{f}" for f in species_fields)
     with atomic_write(path) as tmp, tmp.open("w", newline="") as fh:
         writer = csv.DictWriter(fh, fieldnames=fields, restval="")
         writer.writeheader()
-        for k, (rec, row) in enumerate(zip(records, rows, strict=True)):
+        for k, row in enumerate(rows):
             full: dict[str, Any] = dict(row)
             if times is not None:
                 full["time_s"] = times[k]
-            for s in species_of(rec):
-                for f in species_fields:
-                    full[f"species_{s.species_id}_{f}"] = getattr(s, f)
             writer.writerow(full)
+    return Path(path)
+
+
+def write_species_csv(
+    path: str | os.PathLike[str], records: list[StepDiagnostics], times: list[float] | None = None
+) -> Path:
+    """CEAMCL's species in long format: one row per step and living species, columns
+    ``time_s``, ``step``, ``species_id`` and :data:`SPECIES_FIELDS`."""
+    fields = [*(["time_s"] if times is not None else []), "step", "species_id", *SPECIES_FIELDS]
+    with atomic_write(path) as tmp, tmp.open("w", newline="") as fh:
+        writer = csv.writer(fh)
+        writer.writerow(fields)
+        for k, rec in enumerate(records):
+            head = [times[k]] if times is not None else []
+            for sp in species_of(rec):
+                writer.writerow(
+                    [*head, rec.step, sp.species_id, *(getattr(sp, f) for f in SPECIES_FIELDS)]
+                )
     return Path(path)

@@ -164,7 +164,11 @@ def figures_html(result: RunResult, grid: OccupancyGrid, title: str) -> str:
     with tempfile.TemporaryDirectory(prefix="ceamcl-report-") as tmp:
         run_png = plot_run(result, grid, Path(tmp) / "run.png", title=title)
         parts.append(
-            ("run", run_png, "Map, true path, species tracks, final particles and hypotheses.")
+            (
+                "run",
+                run_png,
+                "Map, tracks of the living species, final particles and hypotheses, true path.",
+            )
         )
         if any(species_of(d) for d in result.diagnostics):
             sp = plot_species(result, Path(tmp) / "species.png", title=f"{title}: species")
