@@ -26,6 +26,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "run",
     "map_from_log",
     "evaluate_log",
+    "node",
 )
 
 
@@ -43,7 +44,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    words = list(sys.argv[1:] if argv is None else argv)
+    # ROS's own arguments (``ceamcl node --ros-args -p name:=value``) pass through untouched
+    cut = words.index("--ros-args") if "--ros-args" in words else len(words)
+    args = parser.parse_args(words[:cut])
+    args.ros_args = words[cut:]
     console = Console(stderr=False)
     try:
         code: int = args.run(args, console)
