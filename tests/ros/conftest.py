@@ -35,9 +35,10 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             item.add_marker(pytest.mark.skip(reason=MISSING))
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture
 def driver() -> Iterator[object]:
-    """The test's own ROS node (publishes inputs, listens to outputs)."""
+    """The test's own ROS node (publishes inputs, listens to outputs); one per test, so no
+    latched message of an earlier test reaches the next node."""
     from tests.ros.harness import Driver
 
     d = Driver()

@@ -82,6 +82,15 @@ class NodeProcess:
     def log(self) -> str:
         return self.log_path.read_text(errors="replace")
 
+    def wait_for(self, text: str, timeout_s: float = 10.0, count: int = 1) -> bool:
+        """Until ``text`` appears ``count`` times in the node's output."""
+        end = time.monotonic() + timeout_s
+        while time.monotonic() < end:
+            if self.log().count(text) >= count:
+                return True
+            time.sleep(0.05)
+        return self.log().count(text) >= count
+
 
 class Driver:
     """The test's node: inputs out, the localisation node's outputs in."""
@@ -168,6 +177,13 @@ class Driver:
         msg.info.origin = m.pose_msg(grid.origin)
         msg.data = grid.data.reshape(-1).tolist()
         self.map_pub.publish(msg)
+
+    def start_run(self, node: NodeProcess, log: SimulatedLog, grid: OccupancyGrid) -> None:
+        """The laser mount and the map, and wait until the node has the map."""
+        seen = node.log().count("map received")
+        self.publish_mount(log.laser.pose)
+        self.publish_map(grid)
+        assert node.wait_for("map received", 20.0, count=seen + 1), node.log()[-2000:]
 
     def publish_mount(self, mount: Pose2, frame: str = LASER) -> None:
         self.tf_static_pub.publish(TFMessage(transforms=[m.transform_msg(BASE, frame, mount, 0.0)]))

@@ -32,8 +32,7 @@ def run_route(driver, world: str, tmp_path: Path, seed: int = 0):  # type: ignor
     args = ["--ros-args", "-p", f"seed:={seed}", "-p", f"transform_tolerance:={TOLERANCE_S}"]
     with NodeProcess(tmp_path, args) as node:
         driver.configure_and_activate()
-        driver.publish_mount(log.laser.pose)
-        driver.publish_map(scenario.grid())
+        driver.start_run(node, log, scenario.grid())
         t0 = 1_000.0
         driver.map_to_odom.clear()
         deadline = time.monotonic() + RUN_BUDGET_S

@@ -151,7 +151,7 @@ class LocalisationNode(LifecycleNode):
             self.get_logger().error(f"cannot configure: {exc}")
             return TransitionCallbackReturn.FAILURE
         for warning in params.warnings:
-            self.get_logger().warn(warning)
+            self.get_logger().warning(warning)
         self.params = params
         self._reset_state()
         self.rng = np.random.default_rng(params.seed)
@@ -250,7 +250,7 @@ class LocalisationNode(LifecycleNode):
             try:
                 callback(msg)
             except CeamclError as exc:
-                self.get_logger().warn(f"{topic}: message ignored: {exc}")
+                self.get_logger().warning(f"{topic}: message ignored: {exc}")
             except Exception as exc:  # a node must outlive any one message
                 self.get_logger().error(
                     f"{topic}: message ignored after an unexpected error: {exc!r}\n"
@@ -271,7 +271,7 @@ class LocalisationNode(LifecycleNode):
             try:
                 self.tf.set_transform(parent, child, pose, m.seconds(t.header.stamp), static=static)
             except TransformError as exc:
-                self.get_logger().warn(f"tf: {exc}", throttle_duration_sec=THROTTLE_S)
+                self.get_logger().warning(f"tf: {exc}", throttle_duration_sec=THROTTLE_S)
                 continue
             if flipped:
                 self.upside_down.add(child)
@@ -292,7 +292,7 @@ class LocalisationNode(LifecycleNode):
         if self.grid is not None and grid == self.grid:
             return
         if msg.header.frame_id.lstrip("/") != self.params["global_frame_id"]:
-            self.get_logger().warn(
+            self.get_logger().warning(
                 f"map: frame {msg.header.frame_id!r} is not global_frame_id "
                 f"{self.params['global_frame_id']!r}; using it as that frame"
             )
@@ -331,7 +331,7 @@ class LocalisationNode(LifecycleNode):
         pose = m.pose2_from_msg(msg.pose.pose)
         cov = m.covariance_from_msg(msg.pose.covariance)
         if np.any(np.diag(cov) <= 0) or np.any(np.linalg.eigvalsh(cov) < 0):
-            self.get_logger().warn("initialpose: covariance not positive; Nav2's default used")
+            self.get_logger().warning("initialpose: covariance not positive; Nav2's default used")
             cov = DEFAULT_INIT_COV
         self.pending = (pose, cov)
         self.get_logger().info(f"initial pose set: {pose[0]:.3f} {pose[1]:.3f} {pose[2]:.3f}")
@@ -352,7 +352,7 @@ class LocalisationNode(LifecycleNode):
         assert self.params is not None
         p = self.params
         if self.filter is None:
-            self.get_logger().warn(
+            self.get_logger().warning(
                 "scan: no map yet; waiting for one on " + p["map_topic"],
                 throttle_duration_sec=THROTTLE_S,
             )
@@ -361,7 +361,7 @@ class LocalisationNode(LifecycleNode):
         frame = msg.header.frame_id.lstrip("/")
         if self.waiting_scan is not None and self.waiting_scan[0] is not msg:
             dropped, reason = self.waiting_scan
-            self.get_logger().warn(
+            self.get_logger().warning(
                 f"scan in frame {dropped.header.frame_id!r} dropped: {reason}",
                 throttle_duration_sec=THROTTLE_S,
             )
