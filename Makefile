@@ -6,6 +6,9 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
+# ROS 2 (tests/ros, examples): DDS discovery stays on this machine (docs/ros.md).
+export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
+
 .PHONY: demo test lint typecheck pytest bench clean
 
 # The ROS 2 extras come from PyPI; tf2_msgs, which is not there, is built into the venv from its

@@ -88,3 +88,9 @@ def test_bad_yaml_files_are_named(tmp_path: Path, text: str, match: str) -> None
     with pytest.raises(ConfigError, match=match) as err:
         load_yaml(f)
     assert str(f) in str(err.value)
+
+
+def test_the_example_parameter_file_is_valid() -> None:
+    example = Path(__file__).resolve().parents[2] / "ros" / "ceamcl_params.yaml"
+    p = parse(load_yaml(example))
+    assert p.algorithm == "ceamcl" and p["z_hit"] == 0.95 and p.warnings == ()
