@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 import rclpy
-from geometry_msgs.msg import PoseArray, PoseWithCovarianceStamped
+from geometry_msgs.msg import PoseArray, PoseStamped, PoseWithCovarianceStamped
 from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState, GetState
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
@@ -27,6 +27,7 @@ from visualization_msgs.msg import MarkerArray
 
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.ros import messages as m
+from ceamcl.ros.play import grid_msg
 from ceamcl.ros.transforms import Pose2, compose
 from ceamcl.simulation.simulator import SimulatedLog
 
@@ -37,11 +38,20 @@ BASE, ODOM, MAP, LASER = "base_footprint", "odom", "map", "laser"
 
 
 class NodeProcess:
-    """``python -m ceamcl.ros`` in a subprocess, its output in ``log_path``; ended (SIGINT,
-    then SIGKILL after ``grace_s``) when the ``with`` block exits, whatever happened."""
+    """``python -m ceamcl.ros`` (or ``command``) in a subprocess, its output in ``log_path``;
+    ended (SIGINT, then SIGKILL after ``grace_s``) when the ``with`` block exits, whatever
+    happened."""
 
-    def __init__(self, tmp: Path, args: Sequence[str] = (), grace_s: float = 10.0) -> None:
-        self.log_path = tmp / "node.log"
+    def __init__(
+        self,
+        tmp: Path,
+        args: Sequence[str] = (),
+        grace_s: float = 10.0,
+        command: Sequence[str] = ("-m", "ceamcl.ros"),
+        name: str = "node",
+    ) -> None:
+        self.log_path = tmp / f"{name}.log"
+        self.command = list(command)
         self.args = list(args)
         self.grace_s = grace_s
         self.proc: subprocess.Popen[bytes] | None = None
@@ -50,7 +60,7 @@ class NodeProcess:
         self._log = self.log_path.open("wb")
         env = dict(os.environ, PYTHONUNBUFFERED="1", RCUTILS_LOGGING_BUFFERED_STREAM="0")
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "ceamcl.ros", *self.args],
+            [sys.executable, *self.command, *self.args],
             stdout=self._log,
             stderr=subprocess.STDOUT,
             env=env,
@@ -78,6 +88,14 @@ class NodeProcess:
     @property
     def alive(self) -> bool:
         return self.proc is not None and self.proc.poll() is None
+
+    def wait(self, timeout_s: float) -> int | None:
+        """The exit code once it ends by itself within ``timeout_s`` (``None``: still running)."""
+        assert self.proc is not None
+        try:
+            return self.proc.wait(timeout_s)
+        except subprocess.TimeoutExpired:
+            return None
 
     def log(self) -> str:
         return self.log_path.read_text(errors="replace")
@@ -118,6 +136,14 @@ class Driver:
         n.create_subscription(PoseArray, "particle_cloud", self.clouds.append,
                               qos_profile_sensor_data)
         n.create_subscription(TFMessage, "/tf", self._on_tf, 100)
+        self.truth: dict[float, Pose2] = {}
+        n.create_subscription(
+            PoseStamped, "ground_truth",
+            lambda msg: self.truth.__setitem__(
+                m.seconds(msg.header.stamp), m.pose2_from_msg(msg.pose)
+            ),
+            100,
+        )
         self.change_state = n.create_client(ChangeState, "amcl/change_state")
         self.get_state = n.create_client(GetState, "amcl/get_state")
         self.reinit = n.create_client(Empty, "reinitialize_global_localization")
@@ -169,14 +195,7 @@ class Driver:
 
     # ------------------------------------------------------------------ inputs
     def publish_map(self, grid: OccupancyGrid, frame: str = MAP) -> None:
-        msg = OccupancyGridMsg()
-        msg.header.frame_id = frame
-        msg.header.stamp = m.time_msg(time.time())
-        msg.info.resolution = grid.resolution
-        msg.info.width, msg.info.height = grid.width, grid.height
-        msg.info.origin = m.pose_msg(grid.origin)
-        msg.data = grid.data.reshape(-1).tolist()
-        self.map_pub.publish(msg)
+        self.map_pub.publish(grid_msg(grid, frame, time.time()))
 
     def start_run(self, node: NodeProcess, log: SimulatedLog, grid: OccupancyGrid) -> None:
         """The laser mount and the map, and wait until the node has the map."""

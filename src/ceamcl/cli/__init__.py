@@ -27,6 +27,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "map_from_log",
     "evaluate_log",
     "node",
+    "play",
 )
 
 

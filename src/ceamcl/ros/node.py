@@ -14,10 +14,10 @@ Where Nav2 waits for an initial pose, this node localises globally from the firs
 
 from __future__ import annotations
 
-import math
 import traceback
+from collections import deque
 from collections.abc import Callable
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 import rclpy
@@ -37,11 +37,9 @@ from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import MarkerArray
 
 from ceamcl.errors import CeamclError
-from ceamcl.filters import registry
-from ceamcl.filters.base import LocalisationFilter
-from ceamcl.maps.grid import OccupancyGrid
-from ceamcl.motion.odometry import OdometryNoise, increment_between
+from ceamcl.filters.base import PoseEstimate
 from ceamcl.ros import messages as m
+from ceamcl.ros.localiser import DEFAULT_INIT_COV, Localiser
 from ceamcl.ros.params import NAV2_DEFAULTS, OWN_DEFAULTS, NodeParams, parse
 from ceamcl.ros.transforms import (
     Pose2,
@@ -49,65 +47,12 @@ from ceamcl.ros.transforms import (
     TransformError,
     compose,
     inverse,
-    wrap,
 )
-from ceamcl.sensors.base import SensorModel
-from ceamcl.sensors.beam_model import BeamModel, BeamModelConfig
-from ceamcl.sensors.likelihood_field import LikelihoodFieldConfig, LikelihoodFieldModel
 
-#: Nav2's covariance for an initial pose set without one (its init_cov defaults).
-DEFAULT_INIT_COV = np.diag([0.5**2, 0.5**2, (math.pi / 12.0) ** 2])
 #: Seconds between repeats of the same warning.
 THROTTLE_S = 5.0
-
-
-class MotionGate:
-    """Nav2's update trigger: update when the odometry moved more than ``update_min_d``
-    along x or y, or turned more than ``update_min_a``, since the last update, or when forced.
-
-    Kept in the node until the particle core offers this policy (``update_min_d/a`` there);
-    then the node hands the thresholds to the filter instead.
-    """
-
-    def __init__(self, min_d: float, min_a: float) -> None:
-        self.min_d, self.min_a = min_d, min_a
-        self.reference: Pose2 | None = None
-        self.force = False
-
-    def due(self, odom: Pose2) -> bool:
-        if self.reference is None or self.force:
-            return True
-        r = self.reference
-        return (
-            abs(odom[0] - r[0]) > self.min_d
-            or abs(odom[1] - r[1]) > self.min_d
-            or abs(wrap(odom[2] - r[2])) > self.min_a
-        )
-
-    def updated(self, odom: Pose2) -> None:
-        self.reference = odom
-        self.force = False
-
-
-def sensor_model(params: NodeParams, grid: OccupancyGrid) -> SensorModel:
-    """The laser model Nav2's parameters ask for, built on ``grid``."""
-    p = params.nav2
-    if params.sensor == "beam":
-        return BeamModel(
-            grid,
-            BeamModelConfig(
-                z_hit=p["z_hit"], z_short=p["z_short"], z_max=p["z_max"], z_rand=p["z_rand"],
-                sigma_hit_m=p["sigma_hit"], lambda_short=p["lambda_short"],
-                max_beams=p["max_beams"],
-            ),
-        )
-    return LikelihoodFieldModel(
-        grid,
-        LikelihoodFieldConfig(
-            z_hit=p["z_hit"], z_rand=p["z_rand"], sigma_hit_m=p["sigma_hit"],
-            max_occ_dist_m=p["laser_likelihood_max_dist"], max_beams=p["max_beams"],
-        ),
-    )
+#: Scans held while their transforms are on the way (Nav2's message filter holds 10).
+SCAN_QUEUE = 10
 
 
 class LocalisationNode(LifecycleNode):
@@ -130,17 +75,12 @@ class LocalisationNode(LifecycleNode):
     # ------------------------------------------------------------------ state
     def _reset_state(self) -> None:
         self.active = False
-        self.grid: OccupancyGrid | None = None
-        self.filter: LocalisationFilter | None = None
-        self.pending: Literal["global"] | tuple[Pose2, np.ndarray] | None = None
-        self.gate = MotionGate(0.0, 0.0)
+        self.localiser: Localiser | None = None
         self.tf = TransformBuffer()
         self.upside_down: set[str] = set()
         self.map_T_odom: Pose2 | None = None
-        self.last_estimate: Pose2 | None = None
-        # a scan whose odometry has not arrived yet (tf2's message filter, queue of one)
-        self.waiting_scan: tuple[LaserScanMsg, str] | None = None
-        self.rng = np.random.default_rng(0)
+        # scans whose transforms have not arrived yet (tf2's message filter)
+        self.waiting: deque[tuple[LaserScanMsg, str]] = deque()
 
     # ------------------------------------------------------------------ lifecycle
     def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
@@ -154,8 +94,7 @@ class LocalisationNode(LifecycleNode):
             self.get_logger().warning(warning)
         self.params = params
         self._reset_state()
-        self.rng = np.random.default_rng(params.seed)
-        self.gate = MotionGate(params["update_min_d"], params["update_min_a"])
+        self.localiser = Localiser(params)
         self._create_interfaces(params)
         self.get_logger().info(
             f"configured: {params.algorithm} ({params.sensor} model, seed {params.seed})"
@@ -163,14 +102,12 @@ class LocalisationNode(LifecycleNode):
         return TransitionCallbackReturn.SUCCESS
 
     def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
-        assert self.params is not None
+        assert self.params is not None and self.localiser is not None
         if self.params["set_initial_pose"]:
             p = self.params.nav2
-            self.pending = (
-                (p["initial_pose.x"], p["initial_pose.y"], p["initial_pose.yaw"]),
-                DEFAULT_INIT_COV,
-            )
-            self.get_logger().info(f"initial pose from parameters: {self.pending[0]}")
+            pose = (p["initial_pose.x"], p["initial_pose.y"], p["initial_pose.yaw"])
+            self.localiser.set_pose(pose)
+            self.get_logger().info(f"initial pose from parameters: {pose}")
         self.active = True
         return super().on_activate(state)
 
@@ -209,6 +146,12 @@ class LocalisationNode(LifecycleNode):
         )
         self.tf_pub = self.create_lifecycle_publisher(TFMessage, "/tf", 100)
         self._entities = [
+            # TF first: the executor serves ready subscriptions in this order, so a scan's
+            # odometry is read before the next scan pushes it out of the queue
+            self.create_subscription(TFMessage, "/tf", self._guard("tf", self._on_tf), 100),
+            self.create_subscription(
+                TFMessage, "/tf_static", self._guard("tf_static", self._on_tf_static), latched
+            ),
             self.create_subscription(
                 LaserScanMsg, params["scan_topic"], self._guard("scan", self._on_scan),
                 qos_profile_sensor_data,
@@ -219,10 +162,6 @@ class LocalisationNode(LifecycleNode):
             self.create_subscription(
                 PoseWithCovarianceStamped, "initialpose",
                 self._guard("initialpose", self._on_initial_pose), 10,
-            ),
-            self.create_subscription(TFMessage, "/tf", self._guard("tf", self._on_tf), 100),
-            self.create_subscription(
-                TFMessage, "/tf_static", self._guard("tf_static", self._on_tf_static), latched
             ),
             self.create_service(
                 Empty, "reinitialize_global_localization", self._on_reinitialise
@@ -277,48 +216,22 @@ class LocalisationNode(LifecycleNode):
                 self.upside_down.add(child)
             else:
                 self.upside_down.discard(child)
-        if self.waiting_scan is not None:
-            self._on_scan(self.waiting_scan[0])
+        self._retry_waiting()
 
     def _on_tf_static(self, msg: TFMessage) -> None:
         self._on_tf(msg, static=True)
 
     def _on_map(self, msg: OccupancyGridMsg) -> None:
-        assert self.params is not None
-        if self.grid is not None and self.params["first_map_only"]:
-            self.get_logger().info("map: a new map ignored (first_map_only)")
-            return
+        assert self.params is not None and self.localiser is not None
         grid = m.grid_from_msg(msg)
-        if self.grid is not None and grid == self.grid:
-            return
         if msg.header.frame_id.lstrip("/") != self.params["global_frame_id"]:
             self.get_logger().warning(
                 f"map: frame {msg.header.frame_id!r} is not global_frame_id "
                 f"{self.params['global_frame_id']!r}; using it as that frame"
             )
-        if grid.free_cells.size == 0:
-            raise CeamclError("map: no free cell to localise in")
-        new_filter = registry.make_filter(
-            self.params.algorithm,
-            grid,
-            self.rng,
-            sensor=sensor_model(self.params, grid),
-            odometry_noise=OdometryNoise(*(self.params[f"alpha{i}"] for i in range(1, 5))),
-            n_particles=self.params["max_particles"],
-            config=self.params.config,
-        )
-        changed = self.grid is not None
-        self.grid, self.filter = grid, new_filter
-        if self.pending is None:
-            if changed and self.last_estimate is not None:
-                self.pending = (self.last_estimate, DEFAULT_INIT_COV)
-            else:
-                self.pending = "global"
-        self.get_logger().info(
-            f"map {'changed' if changed else 'received'}: {grid.width} x {grid.height} cells at "
-            f"{grid.resolution} m; "
-            + ("localising globally" if self.pending == "global" else "restarting at the last pose")
-        )
+        news = self.localiser.set_map(grid)
+        if news is not None:
+            self.get_logger().info(news)
 
     def _on_initial_pose(self, msg: PoseWithCovarianceStamped) -> None:
         assert self.params is not None
@@ -333,16 +246,19 @@ class LocalisationNode(LifecycleNode):
         if np.any(np.diag(cov) <= 0) or np.any(np.linalg.eigvalsh(cov) < 0):
             self.get_logger().warning("initialpose: covariance not positive; Nav2's default used")
             cov = DEFAULT_INIT_COV
-        self.pending = (pose, cov)
+        assert self.localiser is not None
+        self.localiser.set_pose(pose, cov)
         self.get_logger().info(f"initial pose set: {pose[0]:.3f} {pose[1]:.3f} {pose[2]:.3f}")
 
     def _on_reinitialise(self, request: Any, response: Any) -> Any:
-        self.pending = "global"
+        if self.localiser is not None:
+            self.localiser.request_global()
         self.get_logger().info("global localisation requested: from the next scan")
         return response
 
     def _on_nomotion(self, request: Any, response: Any) -> Any:
-        self.gate.force = True
+        if self.localiser is not None:
+            self.localiser.request_update()
         self.get_logger().info("request for an update without motion")
         return response
 
@@ -351,36 +267,70 @@ class LocalisationNode(LifecycleNode):
             return
         assert self.params is not None
         p = self.params
-        if self.filter is None:
+        if self.localiser is None or self.localiser.filter is None:
             self.get_logger().warning(
                 "scan: no map yet; waiting for one on " + p["map_topic"],
                 throttle_duration_sec=THROTTLE_S,
             )
             return
+        if self.waiting:
+            self._retry_waiting()
+        reason = self._process(msg)
+        if reason is None:
+            self._drop_waiting_before(m.seconds(msg.header.stamp))
+        else:
+            self._wait(msg, reason)
+
+    def _wait(self, msg: LaserScanMsg, reason: str) -> None:
+        """Hold a scan whose transforms have not arrived, as tf2's message filter does: up to
+        :data:`SCAN_QUEUE` scans, the oldest dropped (and logged, with the reason) beyond."""
+        if len(self.waiting) == SCAN_QUEUE:
+            self._drop(*self.waiting.popleft())
+        self.waiting.append((msg, reason))
+
+    def _drop(self, msg: LaserScanMsg, reason: str) -> None:
+        self.get_logger().warning(
+            f"scan in frame {msg.header.frame_id!r} dropped: {reason}",
+            throttle_duration_sec=THROTTLE_S,
+        )
+
+    def _drop_waiting_before(self, stamp: float) -> None:
+        """A held scan older than one just used can no longer be used: drop it."""
+        while self.waiting and m.seconds(self.waiting[0][0].header.stamp) < stamp:
+            self._drop(*self.waiting.popleft())
+
+    def _retry_waiting(self) -> None:
+        """Process the held scans, oldest first, that can be now; keep the others."""
+        kept: deque[tuple[LaserScanMsg, str]] = deque()
+        while self.waiting:
+            msg, _ = self.waiting.popleft()
+            reason = self._process(msg)
+            if reason is None:  # the held scans before it can no longer be used
+                while kept:
+                    self._drop(*kept.popleft())
+            else:
+                kept.append((msg, reason))
+        self.waiting = kept
+
+    def _process(self, msg: LaserScanMsg) -> str | None:
+        """Localise with one scan; the reason when its transforms are not (yet) known."""
+        assert self.params is not None
+        p = self.params
         stamp = m.seconds(msg.header.stamp)
         frame = msg.header.frame_id.lstrip("/")
-        if self.waiting_scan is not None and self.waiting_scan[0] is not msg:
-            dropped, reason = self.waiting_scan
-            self.get_logger().warning(
-                f"scan in frame {dropped.header.frame_id!r} dropped: {reason}",
-                throttle_duration_sec=THROTTLE_S,
-            )
-        self.waiting_scan = None
         try:
             mount = self.tf.lookup(p["base_frame_id"], frame, stamp)
             odom = self.tf.lookup(p["odom_frame_id"], p["base_frame_id"], stamp)
         except TransformError as exc:
-            # its transforms may be on the way: retried at the next TF message, dropped (and
-            # logged) when the next scan comes first, as tf2's message filter does
-            self.waiting_scan = (msg, str(exc))
-            return
+            return str(exc)
         scan = m.scan_from_msg(
             msg, mount, upside_down=frame in self.upside_down,
             range_min=p["laser_min_range"], range_max=p["laser_max_range"],
         )
-        updated = self._update(odom, scan)
-        if updated:
-            self._publish_estimate(odom, stamp)
+        assert self.localiser is not None
+        estimate = self.localiser.scan(odom, scan)
+        if estimate is not None:
+            self._publish_estimate(estimate, odom, stamp)
         if self.map_T_odom is not None and p["tf_broadcast"]:
             self.tf_pub.publish(
                 TFMessage(
@@ -392,44 +342,18 @@ class LocalisationNode(LifecycleNode):
                     ]
                 )
             )
+        return None
 
-    # ------------------------------------------------------------------ filtering
-    def _update(self, odom: Pose2, scan: Any) -> bool:
-        """Initialise or step the filter with this scan; whether it did anything."""
-        f = self.filter
-        assert f is not None
-        if self.pending == "global":
-            f.initialise_global(scan)
-            self.pending = None
-            self.gate.updated(odom)
-            return True
-        if self.pending is not None:
-            pose, cov = self.pending
-            f.initialise_pose(np.asarray(pose), cov)
-            self.pending = None
-            self.gate.reference = odom
-            self.gate.force = True
-        if not self.gate.due(odom):
-            return False
-        assert self.gate.reference is not None
-        f.step(increment_between(self.gate.reference, odom), scan)
-        self.gate.updated(odom)
-        return True
-
-    def _publish_estimate(self, odom: Pose2, stamp: float) -> None:
-        assert self.filter is not None and self.params is not None
+    def _publish_estimate(self, estimate: PoseEstimate, odom: Pose2, stamp: float) -> None:
+        assert self.localiser is not None and self.localiser.filter is not None
+        assert self.params is not None and self.localiser.last_estimate is not None
+        f = self.localiser.filter
         frame = self.params["global_frame_id"]
-        estimate = self.filter.estimate()
-        if not (np.all(np.isfinite(estimate.pose)) and np.all(np.isfinite(estimate.covariance))):
-            self.get_logger().error("the filter gave a non-finite pose; nothing published")
-            return
-        pose = (float(estimate.pose[0]), float(estimate.pose[1]), float(estimate.pose[2]))
-        self.last_estimate = pose
-        self.map_T_odom = compose(pose, inverse(odom))
+        self.map_T_odom = compose(self.localiser.last_estimate, inverse(odom))
         self.pose_pub.publish(m.pose_with_covariance(estimate, frame, stamp))
         if self.cloud_pub.get_subscription_count() > 0:
-            self.cloud_pub.publish(m.pose_array(self.filter.particles().poses, frame, stamp))
-        hypotheses = self.filter.hypotheses()
+            self.cloud_pub.publish(m.pose_array(f.particles().poses, frame, stamp))
+        hypotheses = f.hypotheses()
         self.hyp_pub.publish(
             m.pose_array(np.array([h.pose for h in hypotheses]).reshape(-1, 3), frame, stamp)
         )
