@@ -47,6 +47,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument(
         "--wait", type=float, default=5.0, help="seconds to wait for a subscriber to scan"
     )
+    p.add_argument(
+        "--delay", type=float, default=2.0,
+        help="seconds between the map and the first scan (the localiser takes the map in)",
+    )
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(run=run)
 
@@ -91,6 +95,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
             rate=args.rate,
             frames=frames,
             wait_s=args.wait,
+            delay_s=args.delay,
             on_scan=lambda k: progress.update(task, completed=k + 1),
             args=["ceamcl", *args.ros_args],
         )

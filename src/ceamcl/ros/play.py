@@ -77,15 +77,18 @@ def play(
     rate: float = 1.0,
     frames: Frames = Frames(),
     wait_s: float = 5.0,
+    delay_s: float = 0.0,
     on_scan: Callable[[int], None] | None = None,
     args: list[str] | None = None,
 ) -> int:
     """Publish ``log`` (scans ``0 .. n-1``) in real time divided by ``rate``; the number of
-    scans published. Waits up to ``wait_s`` for a subscriber to ``scan`` first."""
+    scans published. Waits up to ``wait_s`` for a subscriber to ``scan`` first, then
+    ``delay_s`` more (a localiser needs a moment to take in the map)."""
     if not rate > 0:
         raise ConfigError(f"rate: expected a positive number, got {rate}")
-    if not wait_s >= 0:
-        raise ConfigError(f"wait: expected a non-negative number of seconds, got {wait_s}")
+    for name, value in (("wait", wait_s), ("delay", delay_s)):
+        if not value >= 0:
+            raise ConfigError(f"{name}: expected a non-negative number of seconds, got {value}")
     rclpy.init(args=args)
     node = rclpy.create_node("ceamcl_play")
     try:
@@ -105,6 +108,7 @@ def play(
         deadline = time.monotonic() + wait_s
         while scan_pub.get_subscription_count() == 0 and time.monotonic() < deadline:
             time.sleep(0.05)
+        time.sleep(delay_s)
         t0_wall, t0_log = time.time(), float(log.times[0])
         for k in range(len(log)):
             due = t0_wall + (float(log.times[k]) - t0_log) / rate
