@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import argparse
+from importlib import import_module
 from pathlib import Path
+from types import ModuleType
 
 from rich.console import Console
 
@@ -30,14 +32,19 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     node.set_defaults(run=run)
 
 
-def run(args: argparse.Namespace, console: Console) -> int:
+def import_ros(module: str, command: str) -> ModuleType:
+    """``ceamcl.ros.<module>``, or a :class:`CeamclError` saying how to get ROS 2."""
     try:
-        from ceamcl.ros.node import main
+        return import_module(f"ceamcl.ros.{module}")
     except ImportError as exc:
         raise CeamclError(
-            f"ceamcl node needs ROS 2 (rclpy and the message packages): install "
+            f"ceamcl {command} needs ROS 2 (rclpy and the message packages): install "
             f"'ceamcl[ros]' or source a ROS 2 installation ({exc})"
         ) from None
+
+
+def run(args: argparse.Namespace, console: Console) -> int:
+    main = import_ros("node", "node").main
     ros_args = list(args.ros_args)
     if args.params is not None:
         if not args.params.is_file():

@@ -6,18 +6,9 @@ import argparse
 
 from rich.console import Console
 
-from ceamcl.cli.common import make_progress, non_negative_int
+from ceamcl.cli.common import make_progress, non_negative_int, positive_float
+from ceamcl.cli.node import import_ros
 from ceamcl.errors import CeamclError
-
-
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
-    return value
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -31,7 +22,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     )
     p.add_argument("log", help="CARMEN .log/.clf (plain or gzip), ROS 1 .bag or ROS 2 bag folder")
     p.add_argument("--map", default=None, help="ROS map YAML (default: built from the log's poses)")
-    p.add_argument("--rate", type=_positive_float, default=1.0, help="speed-up over real time")
+    p.add_argument("--rate", type=positive_float, default=1.0, help="speed-up over real time")
     p.add_argument(
         "--synthetic-odometry",
         action="store_true",
@@ -39,7 +30,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "ROS amcl's default noise (for SLAM-corrected logs, whose odometry is the truth)",
     )
     p.add_argument("--seed", type=non_negative_int, default=0, help="seed of that odometry")
-    p.add_argument("--max-range", type=_positive_float, default=None, help="metres")
+    p.add_argument("--max-range", type=positive_float, default=None, help="metres")
     p.add_argument("--base-frame", default="base_footprint")
     p.add_argument("--odom-frame", default="odom")
     p.add_argument("--map-frame", default="map")
@@ -61,13 +52,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     from ceamcl.io.logs import open_log, poses_look_corrected
     from ceamcl.motion.odometry import OdometryNoise
 
-    try:
-        from ceamcl.ros.play import Frames, play
-    except ImportError as exc:
-        raise CeamclError(
-            f"ceamcl play needs ROS 2 (rclpy and the message packages): install "
-            f"'ceamcl[ros]' or source a ROS 2 installation ({exc})"
-        ) from None
+    ros_play = import_ros("play", "play")
     log = open_log(args.log, max_range_m=args.max_range)
     if len(log) == 0:
         raise CeamclError(f"{args.log}: no scan to play")
@@ -84,11 +69,11 @@ def run(args: argparse.Namespace, console: Console) -> int:
         from ceamcl.mapping import map_from_log
 
         grid, _ = map_from_log(log)
-    frames = Frames(args.map_frame, args.odom_frame, args.base_frame, args.laser_frame)
+    frames = ros_play.Frames(args.map_frame, args.odom_frame, args.base_frame, args.laser_frame)
     progress = make_progress(f"[bold]play[/] {log.name}", console, quiet=args.quiet)
     with progress:
         task = progress.add_task("scans", total=len(log))
-        played = play(
+        played = ros_play.play(
             log,
             grid,
             truth,
