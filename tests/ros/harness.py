@@ -46,7 +46,7 @@ class NodeProcess:
         self,
         tmp: Path,
         args: Sequence[str] = (),
-        grace_s: float = 10.0,
+        grace_s: float = 20.0,
         command: Sequence[str] = ("-m", "ceamcl.ros"),
         name: str = "node",
     ) -> None:

@@ -186,4 +186,6 @@ def test_services_and_bad_messages_are_survived(driver, hall_log, tmp_path: Path
         assert d < 0.3 and a < 0.3
         assert node.alive
         assert "Traceback" not in node.log()
-        assert node.stop() == 0  # ends cleanly on SIGINT
+        tail = node.log()[-2000:]
+        code = node.stop()
+        assert code == 0, f"exit code {code} on SIGINT\n{tail}\n{node.log()[-2000:]}"

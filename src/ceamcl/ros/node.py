@@ -84,7 +84,7 @@ class LocalisationNode(LifecycleNode):
 
     # ------------------------------------------------------------------ lifecycle
     def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
-        values = {name: p.value for name, p in self._parameters.items()}
+        values = {name: p.value for name, p in self.get_parameters_by_prefix("").items()}
         try:
             params = parse(values)
         except CeamclError as exc:
