@@ -49,6 +49,9 @@ def run(args: argparse.Namespace, console: Console) -> int:
     if args.params is not None:
         if not args.params.is_file():
             raise CeamclError(f"--params: {args.params}: no such file")
+        from ceamcl.ros.params import load_yaml
+
+        load_yaml(args.params)  # a broken file is named here; its values are checked at configure
         if "--ros-args" not in ros_args:
             ros_args.insert(0, "--ros-args")
         ros_args += ["--params-file", str(args.params)]

@@ -365,7 +365,10 @@ class LocalisationNode(LifecycleNode):
 
 def main(args: list[str] | None = None, *, autostart: bool = False) -> int:
     """Run the node until it is interrupted (``ros2 run``-style ``args``)."""
-    rclpy.init(args=args)
+    try:
+        rclpy.init(args=args)
+    except Exception as exc:  # rclpy raises its own RCLError for bad --ros-args
+        raise CeamclError(f"ROS 2 could not start: {exc}") from None
     node = LocalisationNode()
     try:
         if autostart:

@@ -23,7 +23,7 @@ from sensor_msgs.msg import LaserScan as LaserScanMsg
 from std_msgs.msg import Header
 from tf2_msgs.msg import TFMessage
 
-from ceamcl.errors import ConfigError
+from ceamcl.errors import CeamclError, ConfigError
 from ceamcl.io.logs import RecordedLog
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.ros import messages as m
@@ -89,7 +89,10 @@ def play(
     for name, value in (("wait", wait_s), ("delay", delay_s)):
         if not value >= 0:
             raise ConfigError(f"{name}: expected a non-negative number of seconds, got {value}")
-    rclpy.init(args=args)
+    try:
+        rclpy.init(args=args)
+    except Exception as exc:  # rclpy raises its own RCLError for bad --ros-args
+        raise CeamclError(f"ROS 2 could not start: {exc}") from None
     node = rclpy.create_node("ceamcl_play")
     try:
         map_pub = node.create_publisher(OccupancyGridMsg, "map", LATCHED)
