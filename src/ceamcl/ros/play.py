@@ -41,7 +41,7 @@ class Frames:
     laser: str = "laser"
 
 
-def _pose2(p: np.ndarray) -> m.Pose2:
+def pose2(p: np.ndarray) -> m.Pose2:
     return (float(p[0]), float(p[1]), float(p[2]))
 
 
@@ -106,7 +106,7 @@ def play(
         fixed_mount = bool(np.all(mounts == mounts[0]))
         if fixed_mount:
             static_pub.publish(TFMessage(transforms=[
-                m.transform_msg(frames.base, frames.laser, _pose2(mounts[0]), start)
+                m.transform_msg(frames.base, frames.laser, pose2(mounts[0]), start)
             ]))
         deadline = time.monotonic() + wait_s
         while scan_pub.get_subscription_count() == 0 and time.monotonic() < deadline:
@@ -120,11 +120,11 @@ def play(
                 time.sleep(pause)
             stamp = due
             transforms = [
-                m.transform_msg(frames.odom, frames.base, _pose2(log.odometry[k]), stamp)
+                m.transform_msg(frames.odom, frames.base, pose2(log.odometry[k]), stamp)
             ]
             if not fixed_mount:
                 transforms.append(m.transform_msg(
-                    frames.base, frames.laser, _pose2(mounts[k]), stamp
+                    frames.base, frames.laser, pose2(mounts[k]), stamp
                 ))
             tf_pub.publish(TFMessage(transforms=transforms))
             scan_pub.publish(scan_msg(log, k, frames.laser, stamp))
