@@ -27,6 +27,7 @@ from visualization_msgs.msg import MarkerArray
 
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.ros import messages as m
+from ceamcl.ros.latency import simulated_scan_msg
 from ceamcl.ros.play import grid_msg
 from ceamcl.ros.transforms import Pose2, compose
 from ceamcl.simulation.simulator import SimulatedLog
@@ -208,16 +209,7 @@ class Driver:
         self.tf_static_pub.publish(TFMessage(transforms=[m.transform_msg(BASE, frame, mount, 0.0)]))
 
     def scan_msg(self, ranges: np.ndarray, log: SimulatedLog, stamp: float, frame: str) -> Any:
-        g = log.laser
-        msg = LaserScanMsg()
-        msg.header.frame_id = frame
-        msg.header.stamp = m.time_msg(stamp)
-        msg.angle_min = g.angle_min
-        msg.angle_increment = g.angle_increment
-        msg.angle_max = g.angle_min + g.angle_increment * (g.n_beams - 1)
-        msg.range_min, msg.range_max = g.range_min, g.range_max
-        msg.ranges = [float(r) for r in ranges]
-        return msg
+        return simulated_scan_msg(ranges, log.laser, stamp, frame)
 
     def publish_odom(self, pose: Sequence[float], stamp: float) -> None:
         p = (float(pose[0]), float(pose[1]), float(pose[2]))

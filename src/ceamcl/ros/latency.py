@@ -29,12 +29,16 @@ from tf2_msgs.msg import TFMessage
 from ceamcl.errors import CeamclError
 from ceamcl.ros import messages as m
 from ceamcl.ros.play import LATCHED, grid_msg, pose2
+from ceamcl.sensors.scan import LaserGeometry
 from ceamcl.simulation.scenarios import paper_scenario
 
 
-def _scan(ranges: np.ndarray, geometry: Any, stamp: float) -> LaserScanMsg:
+def simulated_scan_msg(
+    ranges: np.ndarray, geometry: LaserGeometry, stamp: float, frame: str = "laser"
+) -> LaserScanMsg:
+    """One simulated scan (``SimulatedLog.ranges[k]`` of ``SimulatedLog.laser``) as a message."""
     msg = LaserScanMsg()
-    msg.header.frame_id, msg.header.stamp = "laser", m.time_msg(stamp)
+    msg.header.frame_id, msg.header.stamp = frame, m.time_msg(stamp)
     msg.angle_min, msg.angle_increment = geometry.angle_min, geometry.angle_increment
     msg.angle_max = geometry.angle_min + geometry.angle_increment * (geometry.n_beams - 1)
     msg.range_min, msg.range_max = geometry.range_min, geometry.range_max
@@ -115,7 +119,7 @@ def measure_latency(
             # the first scan may wait for the map: resend it until the node answers
             for _ in range(30 if k == 0 else 1):
                 sent = time.perf_counter()
-                scan_pub.publish(_scan(log.ranges[k], log.laser, stamp))
+                scan_pub.publish(simulated_scan_msg(log.ranges[k], log.laser, stamp))
                 def answered(key: float = key) -> bool:
                     return key in received
 
