@@ -131,7 +131,10 @@ class Driver:
         self.markers: list[MarkerArray] = []
         self.clouds: list[PoseArray] = []
         self.map_to_odom: dict[float, Pose2] = {}
-        n.create_subscription(PoseWithCovarianceStamped, "amcl_pose", self.poses.append, LATCHED)
+        # transient local like the node's publisher, with room for every pose of a run
+        deep = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
+                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        n.create_subscription(PoseWithCovarianceStamped, "amcl_pose", self.poses.append, deep)
         n.create_subscription(PoseArray, "amcl/hypotheses", self.hypotheses.append, 10)
         n.create_subscription(MarkerArray, "amcl/hypotheses/markers", self.markers.append, 10)
         n.create_subscription(PoseArray, "particle_cloud", self.clouds.append,
@@ -143,7 +146,7 @@ class Driver:
             lambda msg: self.truth.__setitem__(
                 m.seconds(msg.header.stamp), m.pose2_from_msg(msg.pose)
             ),
-            100,
+            1000,
         )
         self.change_state = n.create_client(ChangeState, "amcl/change_state")
         self.get_state = n.create_client(GetState, "amcl/get_state")

@@ -99,7 +99,8 @@ def play(
         scan_pub = node.create_publisher(LaserScanMsg, "scan", qos_profile_sensor_data)
         tf_pub = node.create_publisher(TFMessage, "/tf", 100)
         static_pub = node.create_publisher(TFMessage, "/tf_static", LATCHED)
-        truth_pub = node.create_publisher(PoseStamped, "ground_truth", 10)
+        # reliable with a deep history: a recorder or a test gets every pose even at high rates
+        truth_pub = node.create_publisher(PoseStamped, "ground_truth", 1000)
         start = time.time()
         map_pub.publish(grid_msg(grid, frames.map, start))
         mounts = log.laser_mount
