@@ -6,12 +6,18 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
+# ROS 2 (tests/ros, examples): DDS discovery stays on this machine (docs/ros.md).
+export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
+
 .PHONY: demo test lint typecheck pytest bench clean
 
-$(STAMP): pyproject.toml
+# The ROS 2 extras come from PyPI; tf2_msgs, which is not there, is built into the venv from its
+# .msg (cmake + gcc, a few seconds; docs/ros.md).
+$(STAMP): pyproject.toml ros/build-tf2-msgs.sh ros/tf2_msgs/CMakeLists.txt ros/tf2_msgs/package.xml ros/tf2_msgs/msg/TFMessage.msg
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[dev,peers,distributed]'
+	$(BIN)/python -m pip install --quiet -e '.[dev,peers,distributed,ros,ros-build]'
+	sh ros/build-tf2-msgs.sh $(VENV)
 	@touch $(STAMP)
 
 demo: $(STAMP)

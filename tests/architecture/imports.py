@@ -128,7 +128,7 @@ CORE = (
     "ceamcl.mapping",
 )
 #: What the core must never import.
-FRONT_ENDS = ("ceamcl.experiments", "ceamcl.bench", "ceamcl.viz", "ceamcl.cli")
+FRONT_ENDS = ("ceamcl.experiments", "ceamcl.bench", "ceamcl.viz", "ceamcl.cli", "ceamcl.ros")
 FORBIDDEN_THIRD_PARTY = ("rich",)
 
 
@@ -203,9 +203,16 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ),
     (
         "drivers",
-        ("ceamcl.replay", "ceamcl.demo", "ceamcl.soak", "ceamcl.experiments", "ceamcl.bench"),
+        (
+            "ceamcl.replay",
+            "ceamcl.demo",
+            "ceamcl.soak",
+            "ceamcl.experiments",
+            "ceamcl.bench",
+            "ceamcl.ros",  # the ROS 2 node: a driver like replay, fed by ROS topics
+        ),
     ),
-    ("command line", ("ceamcl.cli", "ceamcl.__main__")),
+    ("command line", ("ceamcl.cli", "ceamcl.__main__", "ceamcl.ros.__main__")),
 )
 #: Third-party modules only the command line may import: argument parsing and the terminal.
 CLI_ONLY_THIRD_PARTY = ("argparse", "rich")

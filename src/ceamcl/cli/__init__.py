@@ -31,6 +31,8 @@ COMMAND_MODULES: tuple[str, ...] = (
     "run",
     "map_from_log",
     "evaluate_log",
+    "node",
+    "play",
 )
 
 
@@ -122,7 +124,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run one command. Bad input: one line on stderr, exit 2. Ctrl-C: one line, exit 130.
     Either way an output folder the command created is removed again."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    words = list(sys.argv[1:] if argv is None else argv)
+    # ROS's own arguments (``ceamcl node --ros-args -p name:=value``) pass through untouched
+    cut = words.index("--ros-args") if "--ros-args" in words else len(words)
+    args = parser.parse_args(words[:cut])
+    args.ros_args = words[cut:]
     console = Console(stderr=False)
     if not console.is_terminal and "COLUMNS" not in os.environ:
         console.width = CONSOLE_COLUMNS  # a pipe or a file: tables of 100 columns, not 80

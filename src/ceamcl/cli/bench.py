@@ -27,11 +27,58 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument(
         "--quick", action="store_true", help="a smoke run of a few seconds with small sizes"
     )
+    p.add_argument(
+        "--ros-latency",
+        action="store_true",
+        help="instead: scan-in to pose-out latency through the ROS 2 node (needs the [ros] "
+        "extra), p50/p95 at 1000 and 5000 particles; writes ros_latency.json",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=run)
 
 
+#: Algorithms and particle budgets of ``--ros-latency`` (CEAMCL sizes its species itself).
+ROS_LATENCY_RUNS = (("kld-amcl", 1000), ("kld-amcl", 5000), ("mcl", 1000), ("mcl", 5000),
+                    ("ceamcl", 1000))
+#: Issue 15's target: p95 at 1,000 particles on 2 cores.
+ROS_LATENCY_TARGET_MS = 20.0
+
+
+def run_ros_latency(args: argparse.Namespace, console: Console) -> int:
+    import json
+
+    from ceamcl.cli.node import import_ros
+    from ceamcl.io.results import ensure_output_dir
+
+    latency = import_ros("latency", "bench --ros-latency")
+    out = ensure_output_dir(args.out)
+    scans = 40 if args.quick else 150
+    rows = []
+    with make_progress("{task.description}", console, quiet=args.quiet) as progress:
+        task = progress.add_task("ROS latency", total=len(ROS_LATENCY_RUNS))
+        for algorithm, n in ROS_LATENCY_RUNS:
+            progress.update(task, description=f"ROS latency: {algorithm}, {n} particles")
+            rows.append(latency.measure_latency(algorithm, n, scans=scans))
+            progress.advance(task)
+    path = out / "ros_latency.json"
+    path.write_text(json.dumps({"target_p95_ms_at_1000": ROS_LATENCY_TARGET_MS, "runs": rows},
+                               indent=2))
+    for r in rows:
+        size = "own size" if r["algorithm"] == "ceamcl" else f"{r['particles']} particles"
+        verdict = ""
+        if r["particles"] == 1000 and r["algorithm"] != "ceamcl":
+            verdict = "PASS" if r["p95_ms"] <= ROS_LATENCY_TARGET_MS else "FAIL"
+        console.print(
+            f"{r['algorithm']:>10} {size:>15}: p50 {r['p50_ms']:6.2f} ms  p95 {r['p95_ms']:6.2f}"
+            f" ms  max {r['max_ms']:7.2f} ms  ({r['scans']} scans) {verdict}"
+        )
+    console.print(f"wrote {path}")
+    return 0
+
+
 def run(args: argparse.Namespace, console: Console) -> int:
+    if args.ros_latency:
+        return run_ros_latency(args, console)
     out = ensure_output_dir(args.out)  # fail before minutes of work, not after
     settings = BenchSettings.quick_run() if args.quick else BenchSettings()
     with_peer = peers.available()

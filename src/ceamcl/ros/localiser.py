@@ -1,0 +1,168 @@
+"""What the node does with its inputs, without ROS: Nav2 AMCL's behaviour around any filter.
+
+The node (:mod:`ceamcl.ros.node`) converts messages and hands them here; tests drive this class
+directly with the same converted inputs to check that the node adds nothing but transport.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Literal
+
+import numpy as np
+
+from ceamcl.errors import CeamclError
+from ceamcl.filters import registry
+from ceamcl.filters.base import LocalisationFilter, PoseEstimate
+from ceamcl.maps.grid import OccupancyGrid
+from ceamcl.motion.odometry import OdometryNoise, increment_between
+from ceamcl.ros.params import NodeParams
+from ceamcl.ros.transforms import Pose2, wrap
+from ceamcl.sensors.base import SensorModel
+from ceamcl.sensors.beam_model import BeamModel, BeamModelConfig
+from ceamcl.sensors.likelihood_field import LikelihoodFieldConfig, LikelihoodFieldModel
+from ceamcl.sensors.scan import LaserScan
+
+#: Nav2's covariance for an initial pose set without one (its init_cov defaults).
+DEFAULT_INIT_COV = np.diag([0.5**2, 0.5**2, (math.pi / 12.0) ** 2])
+
+
+class MotionGate:
+    """Nav2's update trigger: update when the odometry moved more than ``update_min_d``
+    along x or y, or turned more than ``update_min_a``, since the last update, or when forced.
+
+    Kept here until the particle core offers this policy (``update_min_d/a`` there); then the
+    thresholds go to the filter instead.
+    """
+
+    def __init__(self, min_d: float, min_a: float) -> None:
+        self.min_d, self.min_a = min_d, min_a
+        self.reference: Pose2 | None = None
+        self.force = False
+
+    def due(self, odom: Pose2) -> bool:
+        if self.reference is None or self.force:
+            return True
+        r = self.reference
+        return (
+            abs(odom[0] - r[0]) > self.min_d
+            or abs(odom[1] - r[1]) > self.min_d
+            or abs(wrap(odom[2] - r[2])) > self.min_a
+        )
+
+    def updated(self, odom: Pose2) -> None:
+        self.reference = odom
+        self.force = False
+
+
+def sensor_model(params: NodeParams, grid: OccupancyGrid) -> SensorModel:
+    """The laser model Nav2's parameters ask for, built on ``grid``."""
+    p = params.nav2
+    if params.sensor == "beam":
+        return BeamModel(
+            grid,
+            BeamModelConfig(
+                z_hit=p["z_hit"], z_short=p["z_short"], z_max=p["z_max"], z_rand=p["z_rand"],
+                sigma_hit_m=p["sigma_hit"], lambda_short=p["lambda_short"],
+                max_beams=p["max_beams"],
+            ),
+        )
+    return LikelihoodFieldModel(
+        grid,
+        LikelihoodFieldConfig(
+            z_hit=p["z_hit"], z_rand=p["z_rand"], sigma_hit_m=p["sigma_hit"],
+            max_occ_dist_m=p["laser_likelihood_max_dist"], max_beams=p["max_beams"],
+        ),
+    )
+
+
+class Localiser:
+    """A filter driven as Nav2 drives its particle filter: built on each new map, initialised
+    globally or at a pose when asked, stepped on scans when the odometry has moved enough."""
+
+    def __init__(self, params: NodeParams) -> None:
+        self.params = params
+        self.rng = np.random.default_rng(params.seed)
+        self.gate = MotionGate(params["update_min_d"], params["update_min_a"])
+        self.grid: OccupancyGrid | None = None
+        self.filter: LocalisationFilter | None = None
+        self.pending: Literal["global"] | tuple[Pose2, Any] | None = None
+        self.last_estimate: Pose2 | None = None
+
+    def set_map(self, grid: OccupancyGrid) -> str | None:
+        """Use ``grid`` from now on; what happens next, in words (``None``: nothing changed)."""
+        if self.grid is not None and self.params["first_map_only"]:
+            return "a new map ignored (first_map_only)"
+        if self.grid is not None and grid == self.grid:
+            return None
+        if grid.free_cells.size == 0:
+            raise CeamclError("map: no free cell to localise in")
+        p = self.params
+        new_filter = registry.make_filter(
+            p.algorithm,
+            grid,
+            self.rng,
+            sensor=sensor_model(p, grid),
+            odometry_noise=OdometryNoise(*(p[f"alpha{i}"] for i in range(1, 5))),
+            n_particles=p["max_particles"],
+            config=p.config,
+        )
+        changed = self.grid is not None
+        self.grid, self.filter = grid, new_filter
+        if self.pending is None:
+            if changed and self.last_estimate is not None:
+                self.pending = (self.last_estimate, DEFAULT_INIT_COV)
+            else:
+                self.pending = "global"
+        start = (
+            "localising globally"
+            if self.pending == "global"
+            else "starting at {:.3f} {:.3f} {:.3f}".format(*self.pending[0])
+        )
+        return (
+            f"map {'changed' if changed else 'received'}: {grid.width} x {grid.height} cells "
+            f"at {grid.resolution:g} m; {start}"
+        )
+
+    def set_pose(self, pose: Pose2, covariance: Any = DEFAULT_INIT_COV) -> None:
+        """Track from ``pose`` at the next scan."""
+        self.pending = (pose, covariance)
+
+    def request_global(self) -> None:
+        """Localise globally at the next scan."""
+        self.pending = "global"
+
+    def request_update(self) -> None:
+        """Update at the next scan even without motion."""
+        self.gate.force = True
+
+    def scan(self, odom: Pose2, scan: LaserScan) -> PoseEstimate | None:
+        """Initialise or step the filter with this scan (``odom``: odometry at its time); the
+        new estimate, or ``None`` when the filter did not update. A non-finite estimate is an
+        error and leaves the last one in place."""
+        f = self.filter
+        if f is None:
+            return None
+        if self.pending == "global":
+            f.initialise_global(scan)
+            self.pending = None
+            self.gate.updated(odom)
+        else:
+            if self.pending is not None:
+                pose, cov = self.pending
+                f.initialise_pose(np.asarray(pose), cov)
+                self.pending = None
+                self.gate.reference = odom
+                self.gate.force = True
+            if not self.gate.due(odom):
+                return None
+            assert self.gate.reference is not None
+            f.step(increment_between(self.gate.reference, odom), scan)
+            self.gate.updated(odom)
+        estimate = f.estimate()
+        if not (np.all(np.isfinite(estimate.pose)) and np.all(np.isfinite(estimate.covariance))):
+            raise CeamclError("the filter gave a non-finite pose; nothing published")
+        self.last_estimate = (
+            float(estimate.pose[0]), float(estimate.pose[1]), float(estimate.pose[2])
+        )
+        return estimate

@@ -1,0 +1,96 @@
+"""The node's parameters, read without ROS: Nav2's names and defaults, checks, mapping."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from ceamcl.errors import ConfigError
+from ceamcl.filters.ceamcl.config import CEAMCLConfig
+from ceamcl.filters.kld_amcl import KLDAMCLConfig
+from ceamcl.ros.params import NAV2_DEFAULTS, flatten, load_yaml, parse
+
+
+def test_defaults_are_nav2s_and_ceamcl() -> None:
+    p = parse({})
+    assert p.algorithm == "ceamcl" and p.seed == 0
+    assert isinstance(p.config, CEAMCLConfig)
+    assert p["z_hit"] == 0.5 and p["update_min_d"] == 0.25
+    assert p["base_frame_id"] == "base_footprint"
+    assert p.sensor == "likelihood-field"
+    assert p.warnings == ()
+
+
+def test_every_problem_is_named_at_once() -> None:
+    with pytest.raises(ConfigError) as err:
+        parse({"alhpa1": 0.1, "z_hit": 2.0, "max_beams": "sixty", "seed": -1,
+               "laser_model_type": "likelihood_field_prob", "min_particles": 900,
+               "max_particles": 100})
+    text = str(err.value)
+    for expected in ("unknown parameter: alhpa1", "z_hit: expected a number in [0, 1], got 2.0",
+                     "max_beams: expected an integer, got 'sixty'",
+                     "seed: expected a non-negative integer", "laser_model_type: expected one of",
+                     "max_particles: expected a count >= min_particles (900), got 100"):
+        assert expected in text
+
+
+def test_nav2_particle_filter_settings_reach_kld_amcl() -> None:
+    p = parse({"algorithm": "kld-amcl", "pf_err": 0.02, "pf_z": 3.0, "min_particles": 100,
+               "recovery_alpha_slow": 0.001, "recovery_alpha_fast": 0.1, "resample_interval": 2,
+               "kld_amcl.bin_xy_m": 0.25})
+    c = p.config
+    assert isinstance(c, KLDAMCLConfig)
+    assert (c.kld_err, c.kld_z, c.min_particles, c.alpha_slow, c.alpha_fast) == (
+        0.02, 3.0, 100, 0.001, 0.1)
+    assert c.resample_interval == 2 and c.bin_xy_m == 0.25
+    # the node gates updates itself (Nav2's update_min_d/a), the filter updates when asked
+    assert c.update_min_d == 0.0 and c.update_min_a == 0.0
+
+
+def test_settings_an_algorithm_lacks_are_warned_and_others_kept_aside() -> None:
+    p = parse({"recovery_alpha_fast": 0.1, "ceamcl.delta_per_m2": 40, "gmcl.cluster_cell_m": 0.3,
+               "do_beamskip": True})
+    assert p.config.delta_per_m2 == 40
+    assert "recovery_alpha_fast: ceamcl has no such setting; ignored" in p.warnings
+    assert "do_beamskip: not implemented by this node; ignored" in p.warnings
+    with pytest.raises(ConfigError, match=r"unknown parameter: ceamcl.no_such_field"):
+        parse({"ceamcl.no_such_field": 1})
+    with pytest.raises(ConfigError, match=r"ceamcl.delta_per_m2: expected a number"):
+        parse({"ceamcl.delta_per_m2": "many"})
+
+
+def test_yaml_file_sections_and_nesting(tmp_path: Path) -> None:
+    f = tmp_path / "nav2_params.yaml"
+    f.write_text(
+        "/**:\n  ros__parameters:\n    use_sim_time: true\n"
+        "amcl:\n  ros__parameters:\n    alpha1: 0.3\n    initial_pose:\n      x: 1.5\n"
+        "    ceamcl:\n      delta_per_m2: 20.0\n"
+        "bt_navigator:\n  ros__parameters:\n    whatever: 1\n"
+    )
+    values = load_yaml(f)
+    assert values == {"use_sim_time": True, "alpha1": 0.3, "initial_pose.x": 1.5,
+                      "ceamcl.delta_per_m2": 20.0}
+    p = parse(values)
+    assert p["initial_pose.x"] == 1.5 and p.config.delta_per_m2 == 20.0
+    assert flatten({"a": {"b": {"c": 1}}}) == {"a.b.c": 1}
+    assert set(NAV2_DEFAULTS) >= {"alpha5", "laser_max_range", "transform_tolerance"}
+
+
+@pytest.mark.parametrize(
+    ("text", "match"),
+    [("amcl: [1, 2]\n", "expected a mapping with ros__parameters"), ("- 1\n", "expected a mapping"),
+     ("a: [\n", "not a YAML file")],
+)
+def test_bad_yaml_files_are_named(tmp_path: Path, text: str, match: str) -> None:
+    f = tmp_path / "p.yaml"
+    f.write_text(text)
+    with pytest.raises(ConfigError, match=match) as err:
+        load_yaml(f)
+    assert str(f) in str(err.value)
+
+
+def test_the_example_parameter_file_is_valid() -> None:
+    example = Path(__file__).resolve().parents[2] / "ros" / "ceamcl_params.yaml"
+    p = parse(load_yaml(example))
+    assert p.algorithm == "ceamcl" and p["z_hit"] == 0.95 and p.warnings == ()
