@@ -8,16 +8,13 @@ import argparse
 from rich.console import Console
 
 from ceamcl import budget
-from ceamcl.checks import physical_warnings
 from ceamcl.cli.common import TrialsProgress, plain_table, plural, positive_float, positive_int
 from ceamcl.cli.experiment import RUN_BYTES
 from ceamcl.cli.run import (
     add_log_arguments,
     add_pace_arguments,
     add_truth_arguments,
-    log_path,
-    open_kwargs,
-    pace_of,
+    open_inputs,
     print_truth,
 )
 from ceamcl.errors import ConfigError
@@ -29,7 +26,7 @@ from ceamcl.experiments.metrics import DEFAULT_HOLD_M, HOLD_STEPS
 from ceamcl.experiments.tracking_log import DEFAULT_TRACKING_PARTICLES, track_log
 from ceamcl.filters import registry
 from ceamcl.maps.grid import OccupancyGrid
-from ceamcl.replay import PreparedLog, UpdatePace, obtain_map, prepare_log
+from ceamcl.replay import PreparedLog, UpdatePace
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -130,19 +127,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     if not algos:
         raise ConfigError("algorithms: none of the chosen algorithms can run here")
     budget.require("--starts x algorithms", args.starts * len(algos), RUN_BYTES, "runs")
-    prepared = prepare_log(
-        log_path(args),
-        seed=args.seed,
-        truth=args.truth,
-        repair_times=args.repair_times,
-        truth_from=args.truth_from,
-        **open_kwargs(args),
-    )
-    grid, map_source = obtain_map(
-        prepared.map_log, args.map, args.resolution, own=prepared.truth_log is None
-    )
-    physical_warnings(prepared.log, grid, args.map or f"the map built from {prepared.map_log.path}")
-    pace = pace_of(args, prepared)
+    prepared, grid, map_source, pace = open_inputs(args)
     if not args.quiet:
         console.print(f"map: {map_source}")
         print_truth(console, prepared)

@@ -27,6 +27,7 @@ from ceamcl.cli.common import (
 )
 from ceamcl.errors import ConfigError
 from ceamcl.filters import registry
+from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.outputs import OutputOptions
 from ceamcl.replay import (
     DEFAULT_UPDATE_MIN_A,
@@ -140,6 +141,27 @@ def add_pace_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--every-scan", action="store_true", help="update the filter at every scan (no pace)"
     )
+
+
+def open_inputs(
+    args: argparse.Namespace,
+) -> tuple[PreparedLog, OccupancyGrid, str, UpdatePace | None]:
+    """What ``ceamcl run`` and ``ceamcl evaluate-log`` start from: the log with its truth and
+    odometry decided, the map (and a sentence saying which), physical-sense warnings given,
+    and the update pace."""
+    prepared = prepare_log(
+        log_path(args),
+        seed=args.seed,
+        truth=args.truth,
+        repair_times=args.repair_times,
+        truth_from=args.truth_from,
+        **open_kwargs(args),
+    )
+    grid, map_source = obtain_map(
+        prepared.map_log, args.map, args.resolution, own=prepared.truth_log is None
+    )
+    physical_warnings(prepared.log, grid, args.map or f"the map built from {prepared.map_log.path}")
+    return prepared, grid, map_source, pace_of(args, prepared)
 
 
 def pace_of(args: argparse.Namespace, prepared: PreparedLog) -> UpdatePace | None:
@@ -260,19 +282,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 def run(args: argparse.Namespace, console: Console) -> int:
     outputs = OutputOptions.from_args(args)  # refuses --mp4 without ffmpeg before the run
     require_available(args.algorithm)
-    prepared = prepare_log(
-        log_path(args),
-        seed=args.seed,
-        truth=args.truth,
-        repair_times=args.repair_times,
-        truth_from=args.truth_from,
-        **open_kwargs(args),
-    )
-    grid, map_source = obtain_map(
-        prepared.map_log, args.map, args.resolution, own=prepared.truth_log is None
-    )
-    physical_warnings(prepared.log, grid, args.map or f"the map built from {prepared.map_log.path}")
-    pace = pace_of(args, prepared)
+    prepared, grid, map_source, pace = open_inputs(args)
     if not args.quiet:
         console.print(f"map: {map_source}")
         print_truth(console, prepared)
