@@ -14,10 +14,11 @@ import numpy as np
 from ceamcl.errors import CeamclError
 from ceamcl.filters import registry
 from ceamcl.filters.base import LocalisationFilter, PoseEstimate
+from ceamcl.filters.policies import Context, on_motion
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryNoise, increment_between
 from ceamcl.ros.params import NodeParams
-from ceamcl.ros.transforms import Pose2, wrap
+from ceamcl.ros.transforms import Pose2
 from ceamcl.sensors.base import SensorModel
 from ceamcl.sensors.beam_model import BeamModel, BeamModelConfig
 from ceamcl.sensors.likelihood_field import LikelihoodFieldConfig, LikelihoodFieldModel
@@ -29,26 +30,20 @@ DEFAULT_INIT_COV = np.diag([0.5**2, 0.5**2, (math.pi / 12.0) ** 2])
 
 class MotionGate:
     """Nav2's update trigger: update when the odometry moved more than ``update_min_d``
-    along x or y, or turned more than ``update_min_a``, since the last update, or when forced.
-
-    Kept here until the particle core offers this policy (``update_min_d/a`` there); then the
-    thresholds go to the filter instead.
-    """
+    along x or y, or turned more than ``update_min_a``, since the last update (the core's
+    :func:`~ceamcl.filters.policies.on_motion`, as ``ceamcl run`` paces real logs), or when
+    forced (a new map, an initial pose, ``request_nomotion_update``)."""
 
     def __init__(self, min_d: float, min_a: float) -> None:
-        self.min_d, self.min_a = min_d, min_a
+        self.policy = on_motion(min_d, min_a)
         self.reference: Pose2 | None = None
         self.force = False
 
     def due(self, odom: Pose2) -> bool:
         if self.reference is None or self.force:
             return True
-        r = self.reference
-        return (
-            abs(odom[0] - r[0]) > self.min_d
-            or abs(odom[1] - r[1]) > self.min_d
-            or abs(wrap(odom[2] - r[2])) > self.min_a
-        )
+        motion = np.subtract(odom, self.reference)
+        return self.policy(Context(motion=motion))
 
     def updated(self, odom: Pose2) -> None:
         self.reference = odom

@@ -206,7 +206,7 @@ def _nav2_to_config(algorithm: str, p: dict[str, Any], config: Any) -> tuple[Any
         "pf_err": ("kld_err", p["pf_err"]),
         # Nav2 uses pf_z as the normal quantile z itself (pf_resample_limit), so do we.
         "pf_z": ("kld_z", p["pf_z"]),
-        "update_min_d": ("update_min_d", 0.0),  # the node gates updates (see node.MotionGate)
+        "update_min_d": ("update_min_d", 0.0),  # the node gates updates (localiser.MotionGate)
         "update_min_a": ("update_min_a", 0.0),
     }
     changes: dict[str, Any] = {}

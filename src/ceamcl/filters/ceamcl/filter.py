@@ -299,10 +299,16 @@ class CEAMCL:
             return PoseEstimate(np.zeros(3), np.diag([1e6, 1e6, np.pi**2]))
         return PoseEstimate(best.mean.copy(), best.covariance.copy())
 
-    def hypotheses(self) -> list[Hypothesis]:
+    def _ranked_shares(self) -> tuple[list[SpeciesStats], NDArray[np.float64]]:
+        """The species fittest first, and each one's share of the probability mass: its size
+        times its fitness, normalised (equal shares when every mass is 0)."""
         stats = sorted(self.stats.values(), key=lambda s: -s.fitness)
         mass = np.array([s.n * s.fitness for s in stats], dtype=np.float64)
         share = mass / mass.sum() if mass.sum() > 0 else np.full(mass.size, 1.0 / max(mass.size, 1))
+        return stats, share
+
+    def hypotheses(self) -> list[Hypothesis]:
+        stats, share = self._ranked_shares()
         return [
             Hypothesis(
                 pose=s.mean.copy(),
@@ -316,12 +322,12 @@ class CEAMCL:
         ]
 
     def particle_weights(self) -> NDArray[np.float64]:
-        """Each particle's in-species weight times its species' share (:meth:`hypotheses`),
-        normalised."""
+        """Each particle's in-species weight times its species' share, normalised (measured
+        by the runner at every step, so no :class:`Hypothesis` is built for it)."""
         weights = np.zeros(self.particle_set.n)
-        hyps = {h.label: h.weight for h in self.hypotheses()}
-        for sid, s in self.stats.items():
-            weights[s.members] = s.weights * hyps.get(sid, 0.0)
+        stats, share = self._ranked_shares()
+        for s, w in zip(stats, share, strict=True):
+            weights[s.members] = s.weights * float(w)
         total = weights.sum()
         if total > 0:
             weights /= total
