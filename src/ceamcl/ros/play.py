@@ -18,6 +18,7 @@ import numpy as np
 import rclpy
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
+from rclpy.duration import Duration
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import LaserScan as LaserScanMsg
 from std_msgs.msg import Header
@@ -28,6 +29,7 @@ from ceamcl.io.logs import RecordedLog
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.ros import messages as m
 
+ACK_WAIT_S = 2.0  # at most, for the last reliable messages to be acknowledged
 LATCHED = QoSProfile(
     depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
 )
@@ -136,6 +138,10 @@ def play(
                 ))
             if on_scan is not None:
                 on_scan(k)
+        # a reliable message still in flight is lost when the node goes: let the last poses
+        # and transforms reach their subscribers first (bounded, a gone subscriber never acks)
+        for pub in (truth_pub, tf_pub):
+            pub.wait_for_all_acked(Duration(seconds=ACK_WAIT_S))
         return len(log)
     except KeyboardInterrupt:
         return 0
