@@ -179,6 +179,9 @@ class ConstantSensor:
     def log_likelihood(self, poses: ArrayLike, prepared: PreparedScan) -> NDArray[np.float64]:
         return np.full(np.asarray(poses).reshape(-1, 3).shape[0], self.value)
 
+    temper = 1.0
+
+
     def max_log_beam_likelihood(self, prepared: PreparedScan) -> float:
         return 0.0
 

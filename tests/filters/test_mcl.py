@@ -143,6 +143,9 @@ class NaNSensor:
     def log_likelihood(self, poses: ArrayLike, prepared: PreparedScan) -> NDArray[np.float64]:
         return np.full(np.asarray(poses).reshape(-1, 3).shape[0], np.nan)
 
+    temper = 1.0
+
+
     def max_log_beam_likelihood(self, prepared: PreparedScan) -> float:
         return self.inner.max_log_beam_likelihood(prepared)
 

@@ -42,6 +42,9 @@ class Constant:
             return np.full(poses.shape[0], self.value)
         return -np.abs(poses[:, 0] - TRUTH[0])
 
+    temper = 1.0
+
+
     def max_log_beam_likelihood(self, prepared: PreparedScan) -> float:
         return 0.0
 

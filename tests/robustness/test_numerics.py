@@ -54,6 +54,9 @@ class BrokenSensor:
             return np.full(p.shape[0], self.value)
         return self.inner.log_likelihood(p, prepared)
 
+    temper = 1.0
+
+
     def max_log_beam_likelihood(self, prepared: PreparedScan) -> float:
         return self.inner.max_log_beam_likelihood(prepared)
 

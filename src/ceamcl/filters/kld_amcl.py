@@ -198,7 +198,9 @@ def average_weight(
     if not math.isfinite(top):
         return 0.0
     log_marginal = top + math.log(float(np.sum(np.exp(x - top))))
-    per_beam = log_marginal / prepared.n_beams - sensor.max_log_beam_likelihood(prepared)
+    per_beam = log_marginal / (prepared.n_beams * sensor.temper) - sensor.max_log_beam_likelihood(
+        prepared
+    )
     return float(math.exp(min(per_beam, 0.0)))
 
 

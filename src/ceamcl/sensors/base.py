@@ -1,8 +1,9 @@
 """The sensor-model protocol and the fitness scale shared by every filter.
 
 A sensor model scores poses against a scan in log space: ``log_likelihood`` returns, per
-pose, the sum over the evaluated beams of ``log p(z_k | x)``. Filters use that sum as the
-importance weight (Bayes' rule, independent beams).
+pose, ``temper`` times the sum over the evaluated beams of ``log p(z_k | x)``
+(:mod:`ceamcl.sensors.tempering`: the beams are not independent). Filters use it as the
+importance weight.
 
 CEAMCL also needs a *fitness* ``w`` in (0, 1] that is comparable between species and between
 scans (NOTES.md, "the scale of the fitness"). :func:`fitness` is the geometric mean of the
@@ -23,12 +24,17 @@ from ceamcl.sensors.scan import LaserScan, PreparedScan
 class SensorModel(Protocol):
     """What a filter needs from a laser model."""
 
+    @property
+    def temper(self) -> float:
+        """The exponent in (0, 1] on the product of beam likelihoods."""
+        ...
+
     def prepare(self, scan: LaserScan) -> PreparedScan:
         """Select and classify the beams once per scan."""
         ...
 
     def log_likelihood(self, poses: ArrayLike, prepared: PreparedScan) -> NDArray[np.float64]:
-        """Per pose, ``sum_k log p(z_k | x)`` over the prepared beams; shape ``(N,)``."""
+        """Per pose, ``temper * sum_k log p(z_k | x)`` over the prepared beams; ``(N,)``."""
         ...
 
     def max_log_beam_likelihood(self, prepared: PreparedScan) -> float:
@@ -39,12 +45,13 @@ class SensorModel(Protocol):
 def fitness(
     log_likelihood: ArrayLike, prepared: PreparedScan, model: SensorModel
 ) -> NDArray[np.float64]:
-    """Fitness in (0, 1]: geometric mean of per-beam likelihoods over their maximum.
+    """Fitness in (0, 1]: geometric mean of per-beam likelihoods over their maximum (the
+    tempering undone, so fitness does not depend on it).
 
     With no usable beam the scan says nothing and every pose scores 1.
     """
     ll = np.asarray(log_likelihood, dtype=np.float64)
     if prepared.n_beams == 0:
         return np.ones_like(ll)
-    per_beam = ll / prepared.n_beams - model.max_log_beam_likelihood(prepared)
+    per_beam = ll / (prepared.n_beams * model.temper) - model.max_log_beam_likelihood(prepared)
     return np.exp(np.minimum(per_beam, 0.0))

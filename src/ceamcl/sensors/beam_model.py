@@ -28,6 +28,7 @@ from ceamcl.sensors._compile import serial_and_parallel
 from ceamcl.sensors.likelihood_field import PARALLEL_MIN_POSES
 from ceamcl.sensors.raycast import RangeTable, _march, _mounted_pose, _table_range, cast_fan
 from ceamcl.sensors.scan import LaserScan, PreparedScan, laser_poses, prepare_scan
+from ceamcl.sensors.tempering import DEFAULT_TEMPER, check_temper, tempered
 
 _SQRT_2PI = math.sqrt(2.0 * math.pi)
 
@@ -50,8 +51,10 @@ class BeamModelConfig:
     ray_casting: str = "table"
     table_angles: int = 360
     table_max_mb: float = 256.0
+    temper: float = DEFAULT_TEMPER
 
     def __post_init__(self) -> None:
+        check_temper(self.temper)
         if not self.z_hit > 0 or min(self.z_short, self.z_max, self.z_rand) < 0:
             raise ValueError("z_hit must be > 0 and z_short, z_max, z_rand >= 0")
         if not self.sigma_hit_m > 0:
@@ -205,6 +208,11 @@ class BeamModel:
             self._tables[range_max] = table
         return table
 
+    @property
+    def temper(self) -> float:
+        """The exponent on the product of beam likelihoods (docs/sensor-models.md)."""
+        return self.config.temper
+
     def prepare(self, scan: LaserScan) -> PreparedScan:
         return prepare_scan(scan, self.config.max_beams, keep_max_range=True)
 
@@ -244,11 +252,13 @@ class BeamModel:
             table = self.range_table(prepared.range_max)
             table.reserve(mp, (lx, ly))
             tkernel = _beam_table_parallel if parallel else _beam_table_serial
-            return tkernel(  # type: ignore[no-any-return,unused-ignore]
+            out: NDArray[np.float64] = tkernel(
                 *beams, table.slot, table.rows, table.cos_k, table.sin_k, *grid, *mixture
             )
-        kernel = _beam_kernel_parallel if parallel else _beam_kernel_serial
-        return kernel(*beams, *grid, *mixture)  # type: ignore[no-any-return,unused-ignore]
+        else:
+            kernel = _beam_kernel_parallel if parallel else _beam_kernel_serial
+            out = kernel(*beams, *grid, *mixture)
+        return tempered(out, cfg.temper)
 
     def expected_ranges(self, poses: ArrayLike, prepared: PreparedScan) -> NDArray[np.float64]:
         """Expected ranges ``(N, M)`` of the prepared beams, as :meth:`log_likelihood` uses
@@ -277,4 +287,4 @@ class BeamModel:
             z < 0, cfg.z_short * cfg.lambda_short * np.exp(-cfg.lambda_short * r), 0.0
         )
         prob = prob + np.where(prepared.is_max[None, :], cfg.z_max, cfg.z_rand / prepared.range_max)
-        return np.sum(np.log(prob), axis=1)
+        return tempered(np.sum(np.log(prob), axis=1), cfg.temper)

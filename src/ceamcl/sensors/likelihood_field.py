@@ -28,6 +28,7 @@ from numpy.typing import ArrayLike, NDArray
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.sensors._compile import serial_and_parallel
 from ceamcl.sensors.scan import LaserScan, PreparedScan, laser_poses, prepare_scan
+from ceamcl.sensors.tempering import DEFAULT_TEMPER, check_temper, tempered
 
 _SQRT_2PI = math.sqrt(2.0 * math.pi)
 
@@ -41,8 +42,10 @@ class LikelihoodFieldConfig:
     sigma_hit_m: float = 0.2
     max_occ_dist_m: float = 2.0
     max_beams: int = 60
+    temper: float = DEFAULT_TEMPER
 
     def __post_init__(self) -> None:
+        check_temper(self.temper)
         if not (self.z_hit > 0 and self.z_rand >= 0):
             raise ValueError("z_hit must be > 0 and z_rand >= 0")
         if not self.sigma_hit_m > 0:
@@ -124,6 +127,11 @@ class LikelihoodFieldModel:
             self._tables[range_max] = table
         return table
 
+    @property
+    def temper(self) -> float:
+        """The exponent on the product of beam likelihoods (docs/sensor-models.md)."""
+        return self.config.temper
+
     def prepare(self, scan: LaserScan) -> PreparedScan:
         return prepare_scan(scan, self.config.max_beams, keep_max_range=False)
 
@@ -160,7 +168,7 @@ class LikelihoodFieldModel:
             self.grid.resolution,
             log_p_off,
         )
-        return out
+        return tempered(out, self.config.temper)
 
     def log_likelihood_reference(
         self, poses: ArrayLike, prepared: PreparedScan
@@ -178,4 +186,6 @@ class LikelihoodFieldModel:
         inside = self.grid.in_bounds(ix, iy)
         d = np.full(ex.shape, self.config.max_occ_dist_m)
         d[inside] = self._dist[iy[inside], ix[inside]]
-        return np.sum(np.log(a_hit * np.exp(-d * d * k) + c_rand), axis=1)
+        return tempered(
+            np.sum(np.log(a_hit * np.exp(-d * d * k) + c_rand), axis=1), self.config.temper
+        )
