@@ -10,7 +10,7 @@ from ceamcl.filters import MCL, MCLConfig, make_filter
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel, increment_between
 from ceamcl.runner import run_filter, timed_step
-from ceamcl.sensors import LaserScan, LikelihoodFieldModel, PreparedScan
+from ceamcl.sensors import LaserScan, LikelihoodFieldConfig, LikelihoodFieldModel, PreparedScan
 from ceamcl.simulation import SimulatedLog, office_scenario, paper_scenario
 
 
@@ -59,14 +59,17 @@ def test_tracking_from_a_known_start_on_marked_hall() -> None:
 # near the truth, it can lock onto a look-alike place in the office corridor and stay there. With
 # this seeding (SeedSequence(seed).spawn(2)) about 7 of 60 seeds failed in a survey (final error
 # > 0.3 m), so a single run fails with probability ~0.1 and three runs all succeed with ~0.7.
-# The seeds below are simply the first three; the test is deterministic.
+# The seeds below are simply the first three; the test is deterministic. The survey used the
+# textbook product of beams (temper 1), so does this test: with the default tempering (0.2) a
+# survey of 12 seeds failed 2 (docs/sensor-models.md), against 0 of 12 untempered.
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_global_localisation_on_small_office(seed: int) -> None:
     sc = office_scenario()
     grid = sc.grid()
     sim_rng, filter_rng = generators(seed)
     log = sc.simulate(sim_rng, grid)
-    f = make_filter("mcl", grid, filter_rng, n_particles=5000)
+    sensor = LikelihoodFieldModel(grid, LikelihoodFieldConfig(temper=1.0))
+    f = make_filter("mcl", grid, filter_rng, n_particles=5000, sensor=sensor)
     result = run_filter(f, log)
     assert result.steps == len(log)
     errors = result.position_errors

@@ -165,7 +165,7 @@ def corridor_grid() -> OccupancyGrid:
 
 def test_beam_model_matches_the_mixture_by_hand() -> None:
     grid = corridor_grid()
-    cfg = BeamModelConfig(max_beams=10)
+    cfg = BeamModelConfig(max_beams=10, temper=1.0)  # the mixture itself, untempered
     model = BeamModel(grid, cfg)
     pose = np.array([[0.0, 0.025, 0.0]])  # expected range straight ahead: 2.0 m
     a_hit = cfg.z_hit / (cfg.sigma_hit_m * math.sqrt(2 * math.pi))
@@ -208,7 +208,7 @@ def test_beam_model_matches_the_mixture_by_hand() -> None:
 
 def test_likelihood_field_matches_the_mixture_by_hand() -> None:
     grid = corridor_grid()
-    cfg = LikelihoodFieldConfig(max_beams=10)
+    cfg = LikelihoodFieldConfig(max_beams=10, temper=1.0)  # the mixture itself, untempered
     model = LikelihoodFieldModel(grid, cfg)
     a_hit = cfg.z_hit / (cfg.sigma_hit_m * math.sqrt(2 * math.pi))
     c_rand = cfg.z_rand / 8.0

@@ -9,7 +9,14 @@ which orders poses exactly as the likelihood does.
 * Mutation (eq. 18, corrected as in NOTES.md: the child's weight is the child's likelihood):
   ``c = p + tau``, ``tau ~ N(0, Sigma)``; the better of parent and child stays.
 
-Both operators therefore never lower the best likelihood of the set they act on.
+With ``selection="best"`` (the paper's) both operators never lower the best likelihood of the
+set they act on, and they pull a species onto its likelihood peak, far tighter than the real
+error of the pose (docs/ceamcl.md, "calibration"). ``selection="metropolis"`` accepts children
+as a Metropolis-Hastings move on the (tempered) likelihood: a mutant replaces its parent with
+probability ``min(1, p(y | c) / p(y | p))``, a crossover pair replaces both parents with
+probability ``min(1, p(y | c1) p(y | c2) / (p(y | p1) p(y | p2)))``. Better children are always
+kept, worse ones sometimes, so the samples keep the posterior's spread (a resample-move step,
+Gilks and Berzuini 2001) instead of collapsing onto its mode.
 """
 
 from __future__ import annotations
@@ -24,6 +31,9 @@ from ceamcl.angles import interpolate, wrap
 
 Evaluator = Callable[[NDArray[np.float64]], NDArray[np.float64]]
 
+#: How children replace parents (``EvolutionConfig.selection``, module docstring).
+SELECTIONS: tuple[str, ...] = ("best", "metropolis")
+
 
 @dataclass(frozen=True)
 class EvolutionConfig:
@@ -35,8 +45,13 @@ class EvolutionConfig:
     p_mutation: float = 0.15
     mutation_sigma_xy_m: float = 0.05
     mutation_sigma_theta_rad: float = 0.03
+    selection: str = "best"
 
     def __post_init__(self) -> None:
+        if self.selection not in SELECTIONS:
+            raise ValueError(
+                f"selection: expected one of {', '.join(SELECTIONS)}, got {self.selection!r}"
+            )
         for name in ("p_crossover", "p_mutation"):
             v = getattr(self, name)
             if not 0.0 <= v <= 1.0:
@@ -53,6 +68,8 @@ def crossover(
     p_crossover: float,
     evaluate: Evaluator,
     rng: np.random.Generator,
+    selection: str = "best",
+    best_seen: NDArray[np.float64] | None = None,
 ) -> int:
     """Eq. 17 on the disjoint pairs ``(first[k], second[k])``, in place; returns how many poses
     were evaluated."""
@@ -73,7 +90,16 @@ def crossover(
     cand_poses = np.stack([pa, pb, c1, c2], axis=1)  # (m, 4, 3)
     cand_ll = np.column_stack([loglik[a], loglik[b], ll_children[:m], ll_children[m:]])
     cand_ll = np.where(np.isnan(cand_ll), -np.inf, cand_ll)
-    order = np.argsort(-cand_ll, axis=1, kind="stable")[:, :2]
+    if best_seen is not None:
+        top = cand_ll.max(axis=1)
+        np.maximum.at(best_seen, a, top)
+        np.maximum.at(best_seen, b, top)
+    if selection == "metropolis":
+        log_ratio = cand_ll[:, 2] + cand_ll[:, 3] - cand_ll[:, 0] - cand_ll[:, 1]
+        accept = _accepted(log_ratio, rng)
+        order = np.where(accept[:, None], np.array([[2, 3]]), np.array([[0, 1]]))
+    else:
+        order = np.argsort(-cand_ll, axis=1, kind="stable")[:, :2]
     rows = np.arange(m)
     poses[a] = cand_poses[rows, order[:, 0]]
     poses[b] = cand_poses[rows, order[:, 1]]
@@ -90,6 +116,8 @@ def mutation(
     sigma: NDArray[np.float64],
     evaluate: Evaluator,
     rng: np.random.Generator,
+    selection: str = "best",
+    best_seen: NDArray[np.float64] | None = None,
 ) -> int:
     """Eq. 18 (corrected) on each index of ``candidates`` with probability ``p_mutation``, in
     place; returns how many poses were evaluated."""
@@ -100,10 +128,22 @@ def mutation(
     child = poses[chosen] + noise
     child[:, 2] = wrap(child[:, 2])
     ll_child = evaluate(child)
-    better = ll_child > loglik[chosen]
+    if best_seen is not None:
+        np.maximum.at(best_seen, chosen, np.where(np.isnan(ll_child), -np.inf, ll_child))
+    if selection == "metropolis":
+        better = _accepted(ll_child - loglik[chosen], rng)
+    else:
+        better = ll_child > loglik[chosen]
     poses[chosen[better]] = child[better]
     loglik[chosen[better]] = ll_child[better]
     return int(chosen.size)
+
+
+def _accepted(log_ratio: NDArray[np.float64], rng: np.random.Generator) -> NDArray[np.bool_]:
+    """Metropolis acceptance: ``u < exp(log_ratio)`` for ``u ~ U[0, 1)`` (NaN: rejected)."""
+    u = rng.random(log_ratio.size)
+    with np.errstate(invalid="ignore"):
+        return np.log(u) < np.where(np.isnan(log_ratio), -np.inf, log_ratio)
 
 
 def random_pairs(
@@ -129,14 +169,22 @@ def evolve_groups(
     config: EvolutionConfig,
     evaluate: Evaluator,
     rng: np.random.Generator,
+    best_seen: NDArray[np.float64] | None = None,
 ) -> int:
     """Crossover then mutation inside each group of indices (a species, or everything for
-    GMCL); one likelihood call per operator for all groups together. Returns evaluations."""
+    GMCL); one likelihood call per operator for all groups together. ``best_seen``: see
+    :func:`ceamcl.filters.particles.evolve`. Returns evaluations."""
     first, second = random_pairs(groups, rng)
-    evals = crossover(poses, loglik, first, second, config.p_crossover, evaluate, rng)
+    evals = crossover(
+        poses, loglik, first, second, config.p_crossover, evaluate, rng, config.selection,
+        best_seen,
+    )
     everyone = np.concatenate(groups).astype(np.intp) if groups else np.zeros(0, np.intp)
     sigma = np.array(
         [config.mutation_sigma_xy_m, config.mutation_sigma_xy_m, config.mutation_sigma_theta_rad]
     )
-    evals += mutation(poses, loglik, everyone, config.p_mutation, sigma, evaluate, rng)
+    evals += mutation(
+        poses, loglik, everyone, config.p_mutation, sigma, evaluate, rng, config.selection,
+        best_seen,
+    )
     return evals

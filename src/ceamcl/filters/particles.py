@@ -225,16 +225,18 @@ def evolve(
     sensor: SensorModel,
     prepared: PreparedScan,
     rng: np.random.Generator,
+    best_seen: NDArray[np.float64] | None = None,
 ) -> int:
     """The genetic operators (paper section 3.4: crossover, eq. 17, then mutation, eq. 18)
     inside each group of particle indices (a species, or everyone for GMCL), in place; the
     log-likelihoods and fitness are those of the evolved poses afterwards. Weights are left
-    to the caller. Returns the likelihood evaluations spent."""
+    to the caller. ``best_seen`` (per particle, in place): raised to the best log-likelihood
+    of any child evaluated from that particle, kept or not. Returns the evaluations spent."""
 
     def evaluate(poses: NDArray[np.float64]) -> NDArray[np.float64]:
         return sensor.log_likelihood(poses, prepared)
 
-    evaluations = evolve_groups(ps.poses, ps.loglik, groups, config, evaluate, rng)
+    evaluations = evolve_groups(ps.poses, ps.loglik, groups, config, evaluate, rng, best_seen)
     ps.loglik = sanitise_log_likelihood(ps.loglik)
     ps.fitness = fitness(ps.loglik, prepared, sensor)
     return evaluations

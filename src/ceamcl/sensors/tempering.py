@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 #: The exponent every sensor model applies to the product of beam likelihoods by default.
-DEFAULT_TEMPER = 1.0
+DEFAULT_TEMPER = 0.2
 
 
 def check_temper(value: float) -> None:

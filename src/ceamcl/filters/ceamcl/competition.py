@@ -102,14 +102,13 @@ def simulate_competition(
     growth_rate: float,
     steps: int,
 ) -> NDArray[np.float64]:
-    """Iterate eq. 9 with ``dt = 1`` and fixed ``K``, ``alpha``: trajectories ``(steps + 1, S)``.
+    """Iterate eq. 9 with ``dt = 1`` and fixed ``K``, ``alpha`` as the filter does (its
+    :func:`step_increments`): trajectories ``(steps + 1, S)``.
 
     Sizes are clipped at 0, as the algorithm's ``N_t = max(N_{t-1} + dN, 0)``.
     """
     traj = [np.asarray(n0, dtype=np.float64)]
     for _ in range(steps):
         cur = traj[-1]
-        traj.append(
-            np.maximum(cur + lotka_volterra_increments(cur, capacity, alpha, growth_rate), 0.0)
-        )
+        traj.append(np.maximum(cur + step_increments(cur, capacity, alpha, growth_rate), 0.0))
     return np.asarray(traj)

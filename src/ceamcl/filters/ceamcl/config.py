@@ -11,6 +11,9 @@ from ceamcl.filters.ceamcl.initialisation import InitialisationConfig
 from ceamcl.filters.ceamcl.phases import CompetitionConfig, GrowthConfig, SplitMergeConfig
 from ceamcl.filters.evolution import EvolutionConfig
 
+#: What the ``w`` of eqs. 9 and 16 is (``CEAMCLConfig.competition_fitness``).
+COMPETITION_FITNESS: tuple[str, ...] = ("evidence", "scan")
+
 
 @dataclass(frozen=True)
 class CEAMCLConfig:
@@ -38,6 +41,15 @@ class CEAMCLConfig:
         tracking_samples: sample size of the single species of ``initialise_pose``.
         test_batch: test poses weighted per likelihood call (bounds memory).
 
+    Read differently from the paper (docs/ceamcl.md, "evidence"):
+        competition_fitness: the ``w`` of eqs. 9 and 16. "evidence" (default): each species'
+            accumulated evidence, its marginal likelihood multiplied over the steps and
+            divided by the leading species', so a mark once seen still decides after the
+            robot has left it; "scan": the paper's literal reading, the mean fitness of the
+            species' individuals under the current scan only.
+        evidence_memory: exponent on a species' past evidence at each step (1: every past scan
+            counts fully; below 1, old scans fade with that factor per step).
+
     Not in the paper (kidnapped robot, docs/ceamcl.md):
         recovery: re-run the initial species generation when the fitness collapses.
         recovery_ratio, recovery_alpha_fast, recovery_alpha_slow: collapse means the fast
@@ -53,7 +65,9 @@ class CEAMCLConfig:
     growth_rate: float = 0.2
     epsilon_m2: float = 0.5
     delta_per_m2: float = 80.0
-    evolution: EvolutionConfig = field(default_factory=EvolutionConfig)
+    evolution: EvolutionConfig = field(
+        default_factory=lambda: EvolutionConfig(selection="metropolis")
+    )
     cell_top_k: int = 3
     cell_fitness_exponent: float = 0.16
     cell_smoothing: int = 3
@@ -65,6 +79,8 @@ class CEAMCLConfig:
     max_samples: int = 20_000
     tracking_samples: int = 300
     test_batch: int = 250_000
+    competition_fitness: str = "evidence"
+    evidence_memory: float = 0.75
     recovery: bool = True
     recovery_ratio: float = 0.5
     recovery_alpha_fast: float = 0.3
@@ -91,6 +107,8 @@ class CEAMCLConfig:
             "max_samples": self.max_samples >= self.min_species_size,
             "tracking_samples": self.tracking_samples >= self.min_species_size,
             "test_batch": self.test_batch >= 1,
+            "competition_fitness": self.competition_fitness in COMPETITION_FITNESS,
+            "evidence_memory": 0 < self.evidence_memory <= 1,
             "recovery_ratio": 0 < self.recovery_ratio < 1,
             "recovery_alpha_fast": 0 < self.recovery_alpha_fast <= 1,
             "recovery_alpha_slow": 0 < self.recovery_alpha_slow < self.recovery_alpha_fast,

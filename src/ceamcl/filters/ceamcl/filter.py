@@ -15,10 +15,16 @@ acting on one :class:`~ceamcl.filters.particles.ParticleSet` whose labels are th
    two species whose living domains overlap with no fitness valley between them merge.
 7. ``compete``: living domains, resources, carrying capacities and the Lotka-Volterra
    increments ``dN`` for the next step (eqs. 9-16).
-8. Summary: the fittest species gives the pose; every species is a hypothesis.
+8. Summary: the leading species gives the pose; every species is a hypothesis.
 
 Importance factors are normalised inside each species (NOTES.md): resampling keeps a species'
-size, which changes only through ``dN``.
+size, which changes only through ``dN``. What a species has seen is kept in its *evidence*
+(docs/ceamcl.md): at each step with a scan, its log-weight grows by its marginal likelihood
+(the mean likelihood of its predicted samples, before evolution), as a mixture particle filter
+weighs its components. The weights, divided by the largest, are the fitness ``w`` in (0, 1] of
+the competition (eqs. 9 and 16), the species' share of the posterior in :meth:`hypotheses`,
+and choose the leading species. ``competition_fitness="scan"`` restores the paper's literal
+reading (the current scan's mean fitness).
 
 Safeguards (docs/robustness.md): a step without a scan, or whose scan has no usable beam, only
 resamples and predicts; weights are unchanged and every ``dN`` is set to 0, so sizes freeze
@@ -65,6 +71,10 @@ from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel
 from ceamcl.sensors.base import SensorModel
 from ceamcl.sensors.scan import LaserScan, PreparedScan
 
+#: A species' log-weight never falls below this (exp of it is still a positive number, so
+#: shares stay well defined; the competition has long ended such a species).
+LOG_WEIGHT_FLOOR = -700.0
+
 
 class CEAMCL:
     """Coevolution-based adaptive MCL (implements :class:`LocalisationFilter`).
@@ -102,6 +112,8 @@ class CEAMCL:
         self._fit_fast: float | None = None
         self._fit_slow: float | None = None
         self._steps_since_init = 0
+        #: log of each species' accumulated evidence, the largest 0 (docs/ceamcl.md)
+        self.log_weight: dict[int, float] = {}
 
     # ================================================================== initialisation
     def initialise_global(self, scan: LaserScan) -> CEAMCLRecord:
@@ -122,29 +134,63 @@ class CEAMCL:
         )
         self._evaluations += evaluations
         self.initial = init
-        self.particle_set = ParticleSet.from_poses(init.poses, init.labels.astype(np.int64))
+        # ids are never reused: after a restart the new species count on from the old ones
+        first = self._next_id
+        labels = init.labels.astype(np.int64) + first
+        self.particle_set = ParticleSet.from_poses(init.poses, labels)
         self.particle_set.loglik = init.loglik
         self.particle_set.fitness = init.fitness
-        self._next_id = init.n_species
+        self._next_id = first + init.n_species
         self._prepared = prepared
         # "for each species i, let dN_0 / dt = 0": competition starts after the first step.
-        self.competition = Competition({i: 0.0 for i in range(init.n_species)})
+        sids = range(first, self._next_id)
+        self.competition = Competition({sid: 0.0 for sid in sids})
+        # each species' evidence so far: the first scan's mean likelihood over its samples
+        self.log_weight = {}
+        self._accumulate_evidence(label_groups(labels), memory=0.0)
         # The paper clusters initial species in x-y only; one x-y region can hold a pose and
         # its mirror image (same place, other heading). Splitting now, before the first
         # resampling, keeps both as species instead of letting resampling pick one.
         self._split_and_merge()  # leaves self.stats fresh
-        allocate_resources(self.stats, self.config.competition, self.competition)
+        allocate_resources(
+            self.stats, self.config.competition, self.competition, self._competition_fitness()
+        )
         self.events.n0 += init.n0
         self.events.v_cells += init.v_size
 
     def initialise_pose(self, pose: ArrayLike, covariance: ArrayLike) -> None:
         """Pose tracking: one species of ``tracking_samples`` around a known pose."""
+        sid = self._next_id
         self.particle_set = gaussian(pose, covariance, self.config.tracking_samples, self.rng)
-        self._next_id = 1
+        self.particle_set.labels[:] = sid
+        self._next_id = sid + 1
         self._prepared = None
         self.t = 0
         self._refresh_stats()
-        self.competition = Competition({0: 0.0})
+        self.competition = Competition({sid: 0.0})
+        self.log_weight = {sid: 0.0}
+
+    def initialise_hypotheses(self, poses: ArrayLike, covariance: ArrayLike) -> None:
+        """Several hypotheses at once (e.g. the known symmetric images of a start pose): one
+        species of ``tracking_samples`` around each pose, with equal weights."""
+        centres = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
+        if centres.shape[0] == 0:
+            raise ValueError("poses: expected at least one pose")
+        parts = []
+        for pose in centres:
+            part = gaussian(pose, covariance, self.config.tracking_samples, self.rng)
+            part.labels[:] = self._next_id
+            self._next_id += 1
+            parts.append(part)
+        ps = parts[0]
+        for part in parts[1:]:
+            ps.extend(part)
+        self.particle_set = ps
+        self._prepared = None
+        self.t = 0
+        self._refresh_stats()
+        self.competition = Competition({sid: 0.0 for sid in self.stats})
+        self.log_weight = {sid: 0.0 for sid in self.stats}
 
     # ================================================================== one step
     def step(self, increment: OdometryIncrement, scan: LaserScan | None) -> CEAMCLRecord:
@@ -186,17 +232,62 @@ class CEAMCL:
         self._evaluations += ps.n
         if not weigh(ps, self.sensor, prepared):
             return self._restart(prepared)  # every particle impossible under this scan
+        best_seen = ps.loglik.copy()  # each sample's best, over its children too
         # 5. Evolution inside each species.
         groups = list(members.values())
-        self._evaluations += evolve(ps, groups, cfg.evolution, self.sensor, prepared, self.rng)
+        self._evaluations += evolve(
+            ps, groups, cfg.evolution, self.sensor, prepared, self.rng, best_seen
+        )
+        self._accumulate_evidence(members, cfg.evidence_memory, best_seen)
         # 6. Split and merge.
         self._split_and_merge(members)  # leaves self.stats fresh
         if self._fitness_collapsed():
             self.events.recoveries += 1
             return self._restart(prepared)  # kidnapped: no species explains the scans
         # 7. Competition: dN of every species for the next step.
-        self.competition = compete(self.stats, cfg.competition)
+        self.competition = compete(self.stats, cfg.competition, self._competition_fitness())
         return self._record(reinitialised=False)
+
+    # ------------------------------------------------------------------ evidence
+    def _accumulate_evidence(
+        self,
+        members: dict[int, NDArray[np.intp]],
+        memory: float,
+        best_seen: NDArray[np.float64] | None = None,
+    ) -> None:
+        """Each species' log-weight becomes ``memory`` times itself plus the scan's evidence
+        for it: the largest log-likelihood of any pose the step scored for it (its samples,
+        and with ``best_seen`` every child evolution tried, kept or not), i.e. how well the
+        species *can* explain the scan, not how well its cloud happens to sit this step
+        (docs/ceamcl.md, "evidence"); then the largest is set to 0."""
+        ll = self.particle_set.loglik if best_seen is None else best_seen
+        for sid, idx in members.items():
+            top = float(np.max(ll[idx])) if idx.size else -np.inf
+            evidence = top if np.isfinite(top) else -np.inf
+            self.log_weight[sid] = memory * self.log_weight.get(sid, 0.0) + evidence
+        self._normalise_weights()
+
+    def _normalise_weights(self, living: bool = False) -> None:
+        """The largest log-weight 0 (all 0 when none is finite); with ``living``, only the
+        species in ``stats`` keep one (a species new to them starts at the largest)."""
+        if living:
+            lw = {sid: self.log_weight.get(sid, -np.inf) for sid in self.stats}
+            top = max(lw.values(), default=0.0)
+            lw = {sid: (v if np.isfinite(v) else top) for sid, v in lw.items()}
+        else:
+            lw = dict(self.log_weight)
+        top = max(lw.values(), default=0.0)
+        if not np.isfinite(top):
+            self.log_weight = {sid: 0.0 for sid in lw}
+            return
+        self.log_weight = {sid: max(v - top, LOG_WEIGHT_FLOOR) for sid, v in lw.items()}
+
+    def _competition_fitness(self) -> dict[int, float] | None:
+        """The ``w`` of eqs. 9 and 16 by species: the accumulated evidence relative to the
+        leading species, or ``None`` for the current scan's mean fitness ("scan")."""
+        if self.config.competition_fitness == "scan":
+            return None
+        return {sid: float(np.exp(self.log_weight.get(sid, 0.0))) for sid in self.stats}
 
     def _fitness_collapsed(self) -> bool:
         """Kidnap detection (docs/ceamcl.md): fast and slow running averages of the fittest
@@ -234,11 +325,13 @@ class CEAMCL:
         if members is None:
             members = label_groups(ps.labels)
         new_ids = split(ps, members, self.config.split_merge, self._next_id, self.events)
-        for sid in new_ids:
+        for sid, parent in new_ids.items():
             self.competition.dn[sid] = 0.0
+            self.log_weight[sid] = self.log_weight.get(parent, 0.0)  # the parent's past
         self._next_id += len(new_ids)
         self._refresh_stats()
         self._merge()
+        self._normalise_weights(living=True)
 
     def _merge(self) -> None:
         if self._prepared is None:
@@ -251,6 +344,7 @@ class CEAMCL:
             self.sensor,
             self._prepared,
             self.events,
+            self.log_weight,
         )
         self._evaluations += evaluations
         if merged:
@@ -262,6 +356,8 @@ class CEAMCL:
 
     def _record(self, reinitialised: bool) -> CEAMCLRecord:
         comp = self.competition
+        ranked, shares = self._ranked_shares()
+        share = {s.species_id: float(w) for s, w in zip(ranked, shares, strict=True)}
         species = tuple(
             SpeciesRecord(
                 species_id=sid,
@@ -274,6 +370,7 @@ class CEAMCL:
                 x=float(s.mean[0]),
                 y=float(s.mean[1]),
                 theta=float(s.mean[2]),
+                weight=float(share.get(sid, 0.0)),
             )
             for sid, s in self.stats.items()
         )
@@ -289,9 +386,15 @@ class CEAMCL:
 
     # ================================================================== queries
     def fittest(self) -> SpeciesStats | None:
+        """The leading species: the largest accumulated evidence (ties: the fitter now)."""
         if not self.stats:
             return None
-        return max(self.stats.values(), key=lambda s: s.fitness)
+        return max(self.stats.values(), key=self._rank_key)
+
+    def _rank_key(self, s: SpeciesStats) -> tuple[float, float]:
+        if self.config.competition_fitness == "scan":
+            return (s.fitness, 0.0)
+        return (self.log_weight.get(s.species_id, 0.0), s.fitness)
 
     def estimate(self) -> PoseEstimate:
         best = self.fittest()
@@ -300,10 +403,14 @@ class CEAMCL:
         return PoseEstimate(best.mean.copy(), best.covariance.copy())
 
     def _ranked_shares(self) -> tuple[list[SpeciesStats], NDArray[np.float64]]:
-        """The species fittest first, and each one's share of the probability mass: its size
-        times its fitness, normalised (equal shares when every mass is 0)."""
-        stats = sorted(self.stats.values(), key=lambda s: -s.fitness)
-        mass = np.array([s.n * s.fitness for s in stats], dtype=np.float64)
+        """The species, leading first, and each one's share of the posterior: its accumulated
+        evidence normalised ("scan": its size times its current fitness; equal shares when
+        every mass is 0)."""
+        stats = sorted(self.stats.values(), key=self._rank_key, reverse=True)
+        if self.config.competition_fitness == "scan":
+            mass = np.array([s.n * s.fitness for s in stats], dtype=np.float64)
+        else:
+            mass = np.exp([self.log_weight.get(s.species_id, 0.0) for s in stats])
         share = mass / mass.sum() if mass.sum() > 0 else np.full(mass.size, 1.0 / max(mass.size, 1))
         return stats, share
 

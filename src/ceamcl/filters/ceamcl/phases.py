@@ -152,14 +152,14 @@ def split(
     config: SplitMergeConfig,
     next_id: int,
     events: Events,
-) -> list[int]:
+) -> dict[int, int]:
     """Phase 6a: a species whose particles occupy several connected regions of cells splits,
     one species per region (the first keeps the id, the others get ids from ``next_id``);
     fragments smaller than a viable species are dropped (resampling refills the parent next
-    step). ``members``: the particles of each species (:func:`label_groups`). Returns the new
-    ids."""
+    step). ``members``: the particles of each species (:func:`label_groups`). Returns each new
+    id's parent."""
     keep = np.ones(ps.n, dtype=bool)
-    new_ids: list[int] = []
+    new_ids: dict[int, int] = {}
     compact = compact_species(members, ps.poses, config.split_cell_m, config.split_cell_rad)
     for sid, idx in members.items():
         if idx.size < 2 * config.min_species_size or sid in compact:
@@ -168,7 +168,7 @@ def split(
         for part in parts[1:]:
             if part.size >= config.min_species_size:
                 ps.labels[part] = next_id
-                new_ids.append(next_id)
+                new_ids[next_id] = sid
                 next_id += 1
                 events.splits += 1
             else:
@@ -186,11 +186,12 @@ def merge(
     sensor: SensorModel,
     prepared: PreparedScan,
     events: Events,
+    log_weight: dict[int, float] | None = None,
 ) -> tuple[bool, int]:
     """Phase 6b: two species whose living domains overlap merge (the less fit joins the
-    fitter, adding its ``dN``) unless the fitness along the segment between their means dips
-    below ``merge_valley_ratio`` of the smaller end value. Returns whether any merged and the
-    evaluations spent on the probes."""
+    fitter, adding its ``dN`` and, when given, its weight to ``log_weight``) unless the
+    fitness along the segment between their means dips below ``merge_valley_ratio`` of the
+    smaller end value. Returns whether any merged and the evaluations spent on the probes."""
     ids = sorted(stats, key=lambda s: -stats[s].fitness)
     pairs = [(ids[i], ids[j]) for i, j in overlapping_pairs([stats[sid] for sid in ids])]
     if not pairs:
@@ -214,34 +215,53 @@ def merge(
             ps.labels[ps.labels == b] = a  # b (the less fit) joins a
             merged.add(b)
             dn[a] = dn.get(a, 0.0) + dn.get(b, 0.0)
+            if log_weight is not None and b in log_weight:
+                log_weight[a] = float(np.logaddexp(log_weight.get(a, -np.inf), log_weight.pop(b)))
             events.merges += 1
     return bool(merged), int(ll.size)
 
 
 def allocate_resources(
-    stats: dict[int, SpeciesStats], config: CompetitionConfig, competition: Competition
+    stats: dict[int, SpeciesStats],
+    config: CompetitionConfig,
+    competition: Competition,
+    fitness: dict[int, float] | None = None,
 ) -> None:
     """Eqs. 15-16: each species' resources from its living domain and its carrying capacity
-    from its fitness, into ``competition``."""
+    from its fitness (``fitness``, by species id; default: the species' mean fitness), into
+    ``competition``."""
     ids = list(stats)
     area = np.array([stats[s].area_m2 for s in ids])
     res = resources(area, config.delta_per_m2, config.epsilon_m2)
-    fit = np.array([stats[s].fitness for s in ids])
+    fit = np.array([_fitness_of(stats, fitness, s) for s in ids])
     cap = carrying_capacity(fit, float(res.sum()))
     competition.resources = dict(zip(ids, res.tolist(), strict=True))
     competition.capacity = dict(zip(ids, cap.tolist(), strict=True))
 
 
-def compete(stats: dict[int, SpeciesStats], config: CompetitionConfig) -> Competition:
+def _fitness_of(
+    stats: dict[int, SpeciesStats], fitness: dict[int, float] | None, sid: int
+) -> float:
+    if fitness is None or sid not in fitness:
+        return stats[sid].fitness
+    return fitness[sid]
+
+
+def compete(
+    stats: dict[int, SpeciesStats],
+    config: CompetitionConfig,
+    fitness: dict[int, float] | None = None,
+) -> Competition:
     """Phase 7, eqs. 9-16: resources, carrying capacities and every species' ``dN`` for the
-    next step (Lotka-Volterra competition, integrated exactly over a step)."""
+    next step (Lotka-Volterra competition, integrated exactly over a step). ``fitness`` is the
+    ``w`` of eqs. 9 and 16 by species id, in (0, 1] (default: each species' mean fitness)."""
     ids = list(stats)
     out = Competition()
     if not ids:
         return out
-    allocate_resources(stats, config, out)
+    allocate_resources(stats, config, out, fitness)
     n = np.array([stats[s].n for s in ids], dtype=np.float64)
-    fit = np.array([max(stats[s].fitness, 1e-12) for s in ids])
+    fit = np.array([max(_fitness_of(stats, fitness, s), 1e-12) for s in ids])
     cap = np.array([out.capacity[s] for s in ids])
     dn = step_increments(n, cap, competition_coefficients(fit), config.growth_rate)
     out.dn = dict(zip(ids, dn.tolist(), strict=True))

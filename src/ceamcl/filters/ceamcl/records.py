@@ -10,8 +10,9 @@ from ceamcl.filters.base import StepDiagnostics, StepRecord
 @dataclass(frozen=True)
 class SpeciesRecord:
     """One species at the end of a CEAMCL step (section 3.5): id, size ``n``, increment
-    ``dn`` for the next step, mean fitness, living-domain area, resources, carrying capacity
-    and mean pose."""
+    ``dn`` for the next step, mean fitness, living-domain area, resources, carrying capacity,
+    mean pose and ``weight``, the species' share of the posterior (the evidence it has
+    accumulated, docs/ceamcl.md)."""
 
     species_id: int
     n: int
@@ -23,6 +24,7 @@ class SpeciesRecord:
     x: float
     y: float
     theta: float
+    weight: float = float("nan")
 
 
 @dataclass
