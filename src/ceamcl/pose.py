@@ -53,3 +53,23 @@ def heading_error(a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
     return np.abs(
         diff(np.asarray(a, dtype=np.float64)[..., 2], np.asarray(b, dtype=np.float64)[..., 2])
     )
+
+
+def inside_ellipse(
+    estimates: ArrayLike, covariances: ArrayLike, truth: ArrayLike, n_sigma: float = 2.0
+) -> NDArray[np.bool_]:
+    """Per row: does the true position lie inside the ``n_sigma`` ellipse of the estimate's x-y
+    covariance (squared Mahalanobis distance <= ``n_sigma^2``)? A Gaussian puts 86.5 % of its
+    mass inside its 2-sigma ellipse, so a calibrated filter scores near that share of its
+    steps; far below is overconfident. A singular or non-finite covariance counts as outside
+    (unless the error is exactly 0)."""
+    est = np.asarray(estimates, dtype=np.float64)
+    e = np.asarray(truth, dtype=np.float64)[..., :2] - est[..., :2]
+    c = np.asarray(covariances, dtype=np.float64)[..., :2, :2]
+    a, b, d = c[..., 0, 0], c[..., 0, 1], c[..., 1, 1]
+    det = a * d - b * b
+    ex, ey = e[..., 0], e[..., 1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        m2 = (d * ex * ex - 2.0 * b * ex * ey + a * ey * ey) / det
+    m2 = np.where(np.isfinite(m2) & (det > 0), m2, np.where((ex == 0) & (ey == 0), 0.0, np.inf))
+    return np.asarray(m2 <= n_sigma * n_sigma, dtype=bool)

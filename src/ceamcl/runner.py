@@ -40,6 +40,9 @@ class RunResult:
     final_particles: ParticleSnapshot
     initial_particles: ParticleSnapshot
     snapshots: dict[int, ParticleSnapshot] = field(default_factory=dict)
+    #: ``(T, 3, 3)``: the covariance of each step's estimate (carried unchanged between paced
+    #: updates); NaN where the filter gave none
+    covariances: NDArray[np.float64] | None = None
 
     @property
     def steps(self) -> int:
@@ -118,6 +121,11 @@ def _carried(
     return out
 
 
+def _estimate(f: LocalisationFilter) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    e = f.estimate()
+    return np.asarray(e.pose, dtype=np.float64), np.asarray(e.covariance, dtype=np.float64)
+
+
 def _start_tracking(
     f: LocalisationFilter,
     initial: tuple[NDArray[np.float64], NDArray[np.float64]],
@@ -158,13 +166,14 @@ def run_filter(
     if n == 0:
         raise ValueError("run_filter: the log has no entries")
     estimates = np.zeros((n, 3))
+    covariances = np.full((n, 3, 3), np.nan)
     first = log.scan(0)
     if initial_pose is None:
         diagnostics = [measure(f, 0, lambda: f.initialise_global(first))]
     else:
         diagnostics = [measure(f, 0, lambda: _start_tracking(f, initial_pose, first))]
     initial = f.particles()
-    estimates[0] = f.estimate().pose
+    estimates[0], covariances[0] = _estimate(f)
     hypotheses = [_hypothesis_array(f)]
     snapshots: dict[int, ParticleSnapshot] = {0: initial} if snapshot_every > 0 else {}
     if on_step is not None:
@@ -182,13 +191,14 @@ def run_filter(
                 StepDiagnostics(k, last.n_particles, last.ess, 0.0, StepRecord(), False)
             )
             estimates[k] = _carried(estimates[k - 1][None, :], log.odometry[k - 1], odom)[0]
+            covariances[k] = covariances[k - 1]
             hypotheses.append(_carried(hypotheses[-1], log.odometry[k - 1], odom))
             if on_step is not None:
                 on_step(k)
             continue
         odom_at_update = odom
         diagnostics.append(timed_step(f, k, inc, log.scan(k)))
-        estimates[k] = f.estimate().pose
+        estimates[k], covariances[k] = _estimate(f)
         hypotheses.append(_hypothesis_array(f))
         if snapshot_every > 0 and k % snapshot_every == 0:
             snapshots[k] = f.particles()
@@ -205,4 +215,5 @@ def run_filter(
         final_particles=f.particles(),
         initial_particles=initial,
         snapshots=snapshots,
+        covariances=covariances,
     )

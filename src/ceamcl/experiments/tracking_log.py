@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ceamcl.errors import ConfigError
-from ceamcl.experiments.common import fmt, write_csv, write_text
+from ceamcl.experiments.common import fmt, pct, write_csv, write_text
 from ceamcl.experiments.executors import Batch
 from ceamcl.filters.base import LocalisationFilter
 from ceamcl.filters.registry import get, with_config
@@ -36,7 +36,7 @@ from ceamcl.io.recorded import RecordedLog
 from ceamcl.io.results import ensure_output_dir
 from ceamcl.io.tum import write_tum
 from ceamcl.maps.grid import OccupancyGrid
-from ceamcl.pose import heading_error, position_error
+from ceamcl.pose import heading_error, inside_ellipse, position_error
 from ceamcl.replay import PreparedLog, UpdatePace, filter_rng, make_paced_filter, truth_source
 from ceamcl.runner import run_filter
 
@@ -101,6 +101,7 @@ class TrackingResult:
     ape_median_m: float
     ape_max_m: float
     heading_rmse_rad: float
+    within_2sigma: float  # share of scored scans with the truth inside the 2-sigma ellipse
     mean_particles: float
     median_update_ms: float
     times: NDArray[np.float64] = field(repr=False)
@@ -137,12 +138,26 @@ def run_tracking_trial(trial: TrackingTrial) -> TrackingResult:
         ape_median_m=float(np.median(pos)),
         ape_max_m=float(np.max(pos)),
         heading_rmse_rad=float(np.sqrt(np.mean(head**2))),
+        within_2sigma=_within_2sigma(result.covariances, known, est, truth),
         mean_particles=float(np.mean([d.n_particles for d in result.diagnostics])),
         median_update_ms=float(np.median(result.update_ms)),
         times=result.times[known],
         estimates=est,
         truth=truth,
     )
+
+
+def _within_2sigma(
+    covariances: NDArray[np.float64] | None,
+    known: NDArray[np.bool_],
+    estimates: NDArray[np.float64],
+    truth: NDArray[np.float64],
+) -> float:
+    """Calibration: the share of scored scans whose true position lies inside the 2-sigma
+    ellipse of the estimate's covariance (86.5 % for a calibrated Gaussian)."""
+    if covariances is None:
+        return math.nan
+    return float(np.mean(inside_ellipse(estimates, covariances[known], truth)))
 
 
 @dataclass
@@ -213,6 +228,7 @@ _ROW_FIELDS = (
     "ape_median_m",
     "ape_max_m",
     "heading_rmse_rad",
+    "within_2sigma",
     "mean_particles",
     "median_update_ms",
 )
@@ -238,16 +254,20 @@ def tracking_markdown(tracking: Tracking, prepared: PreparedLog) -> str:
         f"- particle budget: {tracking.particles} for every algorithm",
         f"- filter updates (every algorithm): {tracking.update_policy}",
         "- APE: position error of the estimate at the scans with truth, no alignment",
+        "- within 2 sigma: share of scored scans whose true position lies inside the 2-sigma "
+        "ellipse of the estimate's covariance (86.5 % if the covariance is calibrated; much "
+        "lower: overconfident)",
         "",
         "| algorithm | scans | scored | updates | APE RMSE [m] | APE median [m] | APE max [m] | "
-        "heading RMSE [rad] | mean particles | median update [ms] |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "heading RMSE [rad] | within 2 sigma | mean particles | median update [ms] |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for r in tracking.results:
         lines.append(
             f"| {r.algorithm} | {r.scans} | {r.scored_scans} | {r.updates} | "
             f"{fmt(r.ape_rmse_m, 3)} | {fmt(r.ape_median_m, 3)} | {fmt(r.ape_max_m, 3)} | "
-            f"{fmt(r.heading_rmse_rad, 3)} | {fmt(r.mean_particles, 0)} | "
+            f"{fmt(r.heading_rmse_rad, 3)} | {pct(r.within_2sigma)} | "
+            f"{fmt(r.mean_particles, 0)} | "
             f"{fmt(r.median_update_ms, 1)} |"
         )
     for algo, why in tracking.skipped.items():
