@@ -1,6 +1,8 @@
 """Genetic operators of GMCL and CEAMCL (paper section 3.4, eqs. 17 and 18 as corrected in
-NOTES.md): they never lower the best likelihood of a set, crossover keeps the best two of
-four, children lie between their parents, mutation keeps a child only when it is better."""
+NOTES.md). With the paper's greedy selection they never lower the best likelihood of a set,
+crossover keeps the best two of four, children lie between their parents, mutation keeps a
+child only when it is better; with CEAMCL's Metropolis selection children are accepted by the
+likelihood ratio."""
 
 from __future__ import annotations
 
@@ -331,3 +333,59 @@ def test_random_pairs_are_disjoint_and_inside_their_groups() -> None:
         for g, idx in enumerate(groups):
             assert np.sum(group_of[first] == g) == idx.size // 2
     assert random_pairs([], rng)[0].size == 0
+
+
+# ---------------------------------------------------------------- Metropolis selection (CEAMCL)
+def test_metropolis_mutation_accepts_by_the_likelihood_ratio() -> None:
+    """A child ``log 2`` better is always kept, one ``log 2`` worse half of the time, one
+    ``20`` worse almost never (``selection="metropolis"``, docs/ceamcl.md)."""
+    n = 4000
+    rng = np.random.default_rng(5)
+    sigma = np.array([0.1, 0.1, 0.0])
+    for delta, expected in ((np.log(2.0), 1.0), (-np.log(2.0), 0.5), (-20.0, 0.0)):
+        poses = np.zeros((n, 3))
+        loglik = np.zeros(n)
+        # every child scores ``delta`` relative to its parent (parents all score 0)
+        mutation(
+            poses, loglik, np.arange(n), 1.0, sigma, lambda p, d=delta: np.full(p.shape[0], d), rng,
+            "metropolis",
+        )
+        accepted = np.mean(loglik == delta)
+        assert abs(accepted - expected) < 0.03, (delta, accepted)
+        assert np.all(poses[loglik == 0.0] == 0.0)  # a rejected child leaves its parent
+
+
+def test_metropolis_crossover_accepts_pairs_by_the_product_ratio() -> None:
+    n = 4000
+    rng = np.random.default_rng(6)
+    poses = np.column_stack([rng.uniform(0, 1, n), rng.uniform(0, 1, n), np.zeros(n)])
+    loglik = np.zeros(n)
+    first, second = np.arange(0, n, 2), np.arange(1, n, 2)
+    # each child scores -log(2) / 2: the pair's product is half its parents'
+    crossover(
+        poses, loglik, first, second, 1.0, lambda p: np.full(p.shape[0], -np.log(2.0) / 2), rng,
+        "metropolis",
+    )
+    accepted = np.mean(loglik[first] < 0)
+    assert abs(accepted - 0.5) < 0.04
+    assert np.array_equal(loglik[first] < 0, loglik[second] < 0)  # pairs move together
+
+
+def test_best_seen_records_every_child_kept_or_not() -> None:
+    poses = np.zeros((2, 3))
+    loglik = np.zeros(2)
+    best = loglik.copy()
+    rng = np.random.default_rng(7)
+    # children far better but rejected cannot happen with Metropolis; use greedy-rejected
+    # worse children and check best_seen keeps the parents' own best
+    mutation(poses, loglik, np.arange(2), 1.0, np.ones(3), lambda p: np.full(2, -5.0), rng,
+             "best", best)
+    assert best.tolist() == [0.0, 0.0]
+    mutation(poses, loglik, np.arange(2), 1.0, np.ones(3), lambda p: np.full(2, 3.0), rng,
+             "metropolis", best)
+    assert best.tolist() == [3.0, 3.0]
+
+
+def test_unknown_selection_is_refused_naming_the_field() -> None:
+    with pytest.raises(ValueError, match="selection"):
+        EvolutionConfig(selection="tournament")
