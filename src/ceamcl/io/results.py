@@ -70,7 +70,9 @@ def write_json(path: str | os.PathLike[str], data: Mapping[str, Any]) -> Path:
     return Path(path)
 
 
-SPECIES_FIELDS = ("n", "dn", "fitness", "area_m2", "resources", "capacity", "x", "y", "theta")
+SPECIES_FIELDS = (
+    "n", "dn", "fitness", "weight", "area_m2", "resources", "capacity", "x", "y", "theta"
+)
 
 
 def write_diagnostics_csv(

@@ -28,8 +28,8 @@ MAX_SPECIES_DRAWN = 40
 @dataclass(frozen=True)
 class SpeciesLife:
     """One species from birth to death: its id, the steps it lived and its records there.
-    Ids start again at 0 after a restart of global localisation, so a life ends at a restart
-    (and at any step it is missing)."""
+    CEAMCL never reuses an id; a life still ends at a restart of global localisation (and at
+    any step it is missing), which keeps this safe for filters that do reuse ids."""
 
     species_id: int
     steps: NDArray[np.int64]
