@@ -108,9 +108,12 @@ def scan_from_msg(
 ) -> LaserScan:
     """A ``sensor_msgs/LaserScan`` as ceamcl's scan, the laser at ``mount`` in the base frame.
 
-    ``range_min`` / ``range_max`` > 0 replace the scan's own (Nav2's ``laser_min_range`` and
-    ``laser_max_range``). NaN and out-of-range readings are kept: the sensor models discard them.
-    An upside-down laser sees the world mirrored: its bearings are negated.
+    ``range_min`` / ``range_max`` > 0 narrow the scan's own limits, never widen them, as Nav2's
+    ``laser_min_range`` and ``laser_max_range`` do (``max`` of the minima, ``min`` of the
+    maxima): with the default ``laser_max_range`` of 100 m, a reading at the scan's own
+    ``range_max`` stays a max-range reading. NaN and out-of-range readings are kept: the sensor
+    models discard them. An upside-down laser sees the world mirrored: its bearings are
+    negated.
     """
     n = len(msg.ranges)
     if n > MAX_BEAMS:
@@ -118,6 +121,7 @@ def scan_from_msg(
     if n == 0:
         raise LogFormatError("scan: ranges: empty")
     ranges = np.asarray(msg.ranges, dtype=np.float64)
+    own_min, own_max = max(float(msg.range_min), 0.0), float(msg.range_max)
     angle_min, increment = float(msg.angle_min), float(msg.angle_increment)
     if upside_down:
         angle_min, increment = -angle_min, -increment
@@ -125,8 +129,8 @@ def scan_from_msg(
         ranges=ranges,
         angle_min=angle_min,
         angle_increment=increment,
-        range_min=range_min if range_min > 0 else max(float(msg.range_min), 0.0),
-        range_max=range_max if range_max > 0 else float(msg.range_max),
+        range_min=max(own_min, range_min) if range_min > 0 else own_min,
+        range_max=min(own_max, range_max) if range_max > 0 else own_max,
         pose=mount,
         stamp=seconds(msg.header.stamp),
     )

@@ -49,6 +49,9 @@ class CEAMCLConfig:
             species' individuals under the current scan only.
         evidence_memory: exponent on a species' past evidence at each step (1: every past scan
             counts fully; below 1, old scans fade with that factor per step).
+        evidence_probes, evidence_rounds: a greedy climb from each species' best sample
+            (rounds of probes with the mutation's Sigma) that finds how well the species can
+            explain the scan, for its evidence only.
 
     Not in the paper (kidnapped robot, docs/ceamcl.md):
         recovery: re-run the initial species generation when the fitness collapses.
@@ -81,6 +84,8 @@ class CEAMCLConfig:
     test_batch: int = 250_000
     competition_fitness: str = "evidence"
     evidence_memory: float = 0.75
+    evidence_probes: int = 6
+    evidence_rounds: int = 2
     recovery: bool = True
     recovery_ratio: float = 0.5
     recovery_alpha_fast: float = 0.3
@@ -109,6 +114,8 @@ class CEAMCLConfig:
             "test_batch": self.test_batch >= 1,
             "competition_fitness": self.competition_fitness in COMPETITION_FITNESS,
             "evidence_memory": 0 < self.evidence_memory <= 1,
+            "evidence_probes": self.evidence_probes >= 0,
+            "evidence_rounds": self.evidence_rounds >= 0,
             "recovery_ratio": 0 < self.recovery_ratio < 1,
             "recovery_alpha_fast": 0 < self.recovery_alpha_fast <= 1,
             "recovery_alpha_slow": 0 < self.recovery_alpha_slow < self.recovery_alpha_fast,
