@@ -107,8 +107,8 @@ def grow(
     """Phase 1, sample-size determination: ``N_t = max(N_{t-1} + dN, 0)`` per species, ``dN``
     rounded stochastically and positive ones scaled down to stay within ``max_samples``. A
     species with ``dN > 0`` receives that many samples from its living domain, scored with
-    the last scan (``prepared``; none yet: as likely as the rest); one below
-    ``min_species_size`` dies out. Returns the target size of every surviving species and
+    the last scan (``prepared``; none yet: as likely as the rest); one whose size, rounded or
+    real-valued, falls below ``min_species_size`` dies out. Returns the target size of every surviving species and
     the evaluations spent."""
     new_poses, new_species, dead = [], [], []
     targets: dict[int, int] = {}
@@ -124,7 +124,9 @@ def grow(
             change = min(change, room)
             room -= change
         target = max(s.n + change, 0)
-        if target < config.min_species_size:
+        # the real-valued size decides extinction: a species at the floor that keeps shrinking
+        # (dN < 0) dies now, instead of lingering until stochastic rounding lets it go
+        if target < config.min_species_size or s.n + d < config.min_species_size:
             dead.append(sid)
             events.extinctions += 1
             continue
