@@ -108,8 +108,8 @@ def grow(
     rounded stochastically and positive ones scaled down to stay within ``max_samples``. A
     species with ``dN > 0`` receives that many samples from its living domain, scored with
     the last scan (``prepared``; none yet: as likely as the rest); one whose size, rounded or
-    real-valued, falls below ``min_species_size`` dies out. Returns the target size of every surviving species and
-    the evaluations spent."""
+    real-valued, falls below ``min_species_size`` dies out. Returns the target size of every
+    surviving species and the evaluations spent."""
     new_poses, new_species, dead = [], [], []
     targets: dict[int, int] = {}
     positive = sum(max(d, 0.0) for d in dn.values())
