@@ -15,6 +15,7 @@ from ceamcl.experiments.common import ExperimentSettings, trial_rows
 from ceamcl.experiments.routes import paper_course
 from ceamcl.experiments.table1 import run_table1
 from ceamcl.experiments.trials import Trial, run_trial, simulate_trial_log
+from ceamcl.filters import registry
 from ceamcl.filters.registry import names as all_algorithms
 from ceamcl.filters.registry import resolve as resolve_algorithms
 
@@ -94,6 +95,24 @@ def test_table1_smoke(tmp_path: Path) -> None:
         assert (out / name).stat().st_size > 0
     assert "| ceamcl |" in (out / "table1.md").read_text()
     assert not list(out.glob("*.tmp*"))
+    # The precision side, in both files; the initialisation's evaluations count: CEAMCL's
+    # N_test test poses are in its step 0, and so in the run's total.
+    n_test = registry.get("ceamcl").default().initialisation.n_test
+    trials = {t["algorithm"]: t for t in _read_csv(out / "trials.csv")}
+    summary_columns = ("spurious_weight", "confidently_wrong_rate", "likelihood_evaluations")
+    for row in rows:
+        for column in (*summary_columns, "nearest_position_error_mean_m"):
+            assert row[column] != "", (row["algorithm"], column)
+    for row in trials.values():
+        for column in ("spurious_weight", "confidently_wrong", "nearest_position_error_m"):
+            assert row[column] != "", (row["algorithm"], column)
+    ce = trials["ceamcl"]
+    assert int(ce["initialisation_likelihood_evaluations"]) >= n_test
+    assert int(ce["likelihood_evaluations"]) > int(ce["initialisation_likelihood_evaluations"])
+    assert float(rows[0]["likelihood_evaluations"]) == int(ce["likelihood_evaluations"])
+    assert 0.0 <= float(ce["true_image_weight"]) + float(ce["spurious_weight"]) <= 1.0 + 1e-9
+    assert ce["confidently_wrong"] in ("0", "1")
+    assert "likelihood evaluations per run" in (out / "table1.md").read_text()
 
 
 def test_delta_smoke(tmp_path: Path) -> None:
@@ -113,7 +132,9 @@ def test_marked_smoke(tmp_path: Path) -> None:
     assert main([*args, "--out", str(out)]) == 0
     rows = _read_csv(out / "marked.csv")
     assert {(r["algorithm"], r["route"]) for r in rows} == {("mcl", "room0"), ("mcl", "all")}
-    assert "marked-hall" in (out / "marked.md").read_text()
+    assert all(r["confidently_wrong_rate"] != "" and r["likelihood_evaluations"] for r in rows)
+    text = (out / "marked.md").read_text()
+    assert "marked-hall" in text and "| mcl | room0 | 1 |" in text
 
 
 def test_kidnapped_smoke(tmp_path: Path) -> None:
@@ -123,6 +144,9 @@ def test_kidnapped_smoke(tmp_path: Path) -> None:
     assert main([*args, "--out", str(out)]) == 0
     trials = _read_csv(out / "trials.csv")
     assert len(trials) == 1 and float(trials[0]["kidnap_s"]) == pytest.approx(25.0)
+    summary = _read_csv(out / "kidnapped.csv")[0]
+    assert summary["confidently_wrong_rate"] in ("0", "1")
+    assert float(summary["likelihood_evaluations"]) == int(trials[0]["likelihood_evaluations"])
     assert (out / "kidnapped.png").stat().st_size > 0
 
 

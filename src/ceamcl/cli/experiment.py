@@ -30,6 +30,7 @@ from ceamcl.experiments import delta, kidnapped, marked, table1
 from ceamcl.experiments.common import (
     ExperimentSettings,
     TrialOutputs,
+    compact_count,
     first_records,
     fmt,
     pct,
@@ -40,6 +41,7 @@ from ceamcl.experiments.delta import DeltaResult
 from ceamcl.experiments.executors import ProgressCallback
 from ceamcl.experiments.kidnapped import KidnapResult
 from ceamcl.experiments.marked import MarkedResult
+from ceamcl.experiments.metrics import PrecisionSummary
 from ceamcl.experiments.routes import resolve_course
 from ceamcl.experiments.table1 import Table1Result
 from ceamcl.experiments.trials import TrialRecord
@@ -69,6 +71,19 @@ class Experiment:
 
 
 # ---------------------------------------------------------------- the tables printed
+#: The precision side's columns of the console tables (:func:`precision_row`).
+PRECISION_COLUMNS = ("weight true/spur.", "conf. wrong", "nearest [m]", "evals/run")
+
+
+def precision_row(p: PrecisionSummary) -> tuple[str, ...]:
+    return (
+        f"{pct(p.true_image_weight)}/{pct(p.spurious_weight)}",
+        pct(p.confidently_wrong_rate),
+        fmt(p.nearest_position_error_mean_m, 2, "-"),
+        compact_count(p.likelihood_evaluations, "not counted"),
+    )
+
+
 def table1_rich(result: Table1Result) -> Table:
     n_images = result.settings.course.n_images
     header = (
@@ -80,6 +95,7 @@ def table1_rich(result: Table1Result) -> Table:
         "err [m]",
         "N",
         "step [ms]",
+        *PRECISION_COLUMNS,
     )
     rows = []
     for s in result.summaries:
@@ -98,6 +114,7 @@ def table1_rich(result: Table1Result) -> Table:
                 fmt(s.final_error_mean_m, 2, "-"),
                 fmt(s.mean_particles, 0, "-"),
                 fmt(s.median_step_ms, 1, "-"),
+                *precision_row(s.precision),
             )
         )
     return plain_table(
@@ -115,18 +132,38 @@ def delta_rich(result: DeltaResult) -> Table:
 
 
 def marked_rich(result: MarkedResult) -> Table:
-    t = Table(title=f"final estimate right on {result.settings.course.name}")
-    t.add_column("algorithm")
+    """One row per algorithm and start route (and over all routes)."""
     cols = marked.route_columns(result)
-    for c in cols:
-        t.add_column(c, justify="right")
-    for alg, by_route in result.shares.items():
-        t.add_row(alg, *(pct(by_route.get(c)) for c in cols))
-    return t
+    rows = [
+        (
+            alg,
+            c,
+            str(result.runs[alg][c]),
+            pct(by_route[c]),
+            pct(result.precision[alg][c].truth_weight),
+            *precision_row(result.precision[alg][c]),
+        )
+        for alg, by_route in result.shares.items()
+        for c in cols
+        if c in by_route
+    ]
+    return plain_table(
+        f"marked-hall: final estimate right, per start route ({result.settings.course.name})",
+        ("algorithm", "route", "runs", "final right", "wt at truth", *PRECISION_COLUMNS),
+        rows,
+        left=2,
+    )
 
 
 def kidnapped_rich(result: KidnapResult) -> Table:
-    header = ("algorithm", "runs", "localised before", "recovered", "recovery [s]")
+    header = (
+        "algorithm",
+        "runs",
+        "localised before",
+        "recovered",
+        "recovery [s]",
+        *PRECISION_COLUMNS,
+    )
     rows = [
         (
             s.algorithm,
@@ -134,6 +171,7 @@ def kidnapped_rich(result: KidnapResult) -> Table:
             pct(s.localised_before_rate),
             pct(s.recovery_rate),
             fmt(s.mean_recovery_s, 1, "-"),
+            *precision_row(s.precision),
         )
         for s in result.summaries
     ]
