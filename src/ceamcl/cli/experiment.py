@@ -5,12 +5,12 @@ from __future__ import annotations
 
 import argparse
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from rich.console import Console
+from rich.console import Console, Group, RenderableType
 from rich.table import Table
 
 from ceamcl import budget
@@ -63,7 +63,7 @@ class Experiment:
     help: str
     default_trials: int
     run: Callable[[ExperimentSettings, argparse.Namespace, ProgressCallback], Any]
-    table: Callable[[Any], Table]
+    table: Callable[[Any], RenderableType]
     write: Callable[[Any, str, dict[str, Any]], list[Path]]
     repeats: Callable[[argparse.Namespace], int] = lambda args: 1
     add_arguments: Callable[[argparse.ArgumentParser], None] = lambda p: None
@@ -71,20 +71,37 @@ class Experiment:
 
 
 # ---------------------------------------------------------------- the tables printed
-#: The precision side's columns of the console tables (:func:`precision_row`).
-PRECISION_COLUMNS = ("weight true/spur.", "conf. wrong", "nearest [m]", "evals/run")
+#: The precision side's columns of the console tables (:func:`precision_row`); the weights
+#: are shares at the goal, the nearest hypothesis' error its position and heading error.
+PRECISION_COLUMNS = ("at truth", "spurious", "conf. wrong", "nearest [m, rad]", "evals/run")
 
 
 def precision_row(p: PrecisionSummary) -> tuple[str, ...]:
     return (
-        f"{pct(p.true_image_weight)}/{pct(p.spurious_weight)}",
+        pct(p.truth_weight),
+        pct(p.spurious_weight),
         pct(p.confidently_wrong_rate),
-        fmt(p.nearest_position_error_mean_m, 2, "-"),
+        f"{fmt(p.nearest_position_error_mean_m, 2, '-')}, "
+        f"{fmt(p.nearest_heading_error_mean_rad, 2, '-')}",
         compact_count(p.likelihood_evaluations, "not counted"),
     )
 
 
-def table1_rich(result: Table1Result) -> Table:
+def precision_table(
+    title: str,
+    labels: tuple[str, ...],
+    rows: Sequence[tuple[tuple[str, ...], PrecisionSummary]],
+) -> Table:
+    """The precision side (docs/experiments.md) as its own plain table: one row per label."""
+    return plain_table(
+        f"{title}: precision side (docs/experiments.md)",
+        (*labels, *PRECISION_COLUMNS),
+        [(*label, *precision_row(p)) for label, p in rows],
+        left=len(labels),
+    )
+
+
+def table1_rich(result: Table1Result) -> Group:
     n_images = result.settings.course.n_images
     header = (
         "algorithm",
@@ -95,7 +112,6 @@ def table1_rich(result: Table1Result) -> Table:
         "err [m]",
         "N",
         "step [ms]",
-        *PRECISION_COLUMNS,
     )
     rows = []
     for s in result.summaries:
@@ -114,11 +130,16 @@ def table1_rich(result: Table1Result) -> Table:
                 fmt(s.final_error_mean_m, 2, "-"),
                 fmt(s.mean_particles, 0, "-"),
                 fmt(s.median_step_ms, 1, "-"),
-                *precision_row(s.precision),
             )
         )
-    return plain_table(
-        f"Table 1 on {result.settings.course.name} (docs/experiments.md)", header, rows
+    name = result.settings.course.name
+    return Group(
+        plain_table(f"Table 1 on {name} (docs/experiments.md)", header, rows),
+        precision_table(
+            f"At the goal on {name}",
+            ("algorithm",),
+            [((s.algorithm,), s.precision) for s in result.summaries],
+        ),
     )
 
 
@@ -131,39 +152,28 @@ def delta_rich(result: DeltaResult) -> Table:
     return t
 
 
-def marked_rich(result: MarkedResult) -> Table:
-    """One row per algorithm and start route (and over all routes)."""
+def marked_rich(result: MarkedResult) -> Group:
+    """The final estimate right per start route, then the precision side per start route."""
+    name = result.settings.course.name
     cols = marked.route_columns(result)
-    rows = [
-        (
-            alg,
-            c,
-            str(result.runs[alg][c]),
-            pct(by_route[c]),
-            pct(result.precision[alg][c].truth_weight),
-            *precision_row(result.precision[alg][c]),
-        )
-        for alg, by_route in result.shares.items()
+    right = plain_table(
+        f"final estimate right on {name}, per start route",
+        ("algorithm", *cols),
+        [(alg, *(pct(by_route.get(c)) for c in cols)) for alg, by_route in result.shares.items()],
+    )
+    per_route = [
+        ((alg, c), result.precision[alg][c])
+        for alg in result.shares
         for c in cols
-        if c in by_route
+        if c in result.precision[alg]
     ]
-    return plain_table(
-        f"marked-hall: final estimate right, per start route ({result.settings.course.name})",
-        ("algorithm", "route", "runs", "final right", "wt at truth", *PRECISION_COLUMNS),
-        rows,
-        left=2,
+    return Group(
+        right, precision_table(f"At the goal on {name}", ("algorithm", "route"), per_route)
     )
 
 
-def kidnapped_rich(result: KidnapResult) -> Table:
-    header = (
-        "algorithm",
-        "runs",
-        "localised before",
-        "recovered",
-        "recovery [s]",
-        *PRECISION_COLUMNS,
-    )
+def kidnapped_rich(result: KidnapResult) -> Group:
+    header = ("algorithm", "runs", "localised before", "recovered", "recovery [s]")
     rows = [
         (
             s.algorithm,
@@ -171,11 +181,18 @@ def kidnapped_rich(result: KidnapResult) -> Table:
             pct(s.localised_before_rate),
             pct(s.recovery_rate),
             fmt(s.mean_recovery_s, 1, "-"),
-            *precision_row(s.precision),
         )
         for s in result.summaries
     ]
-    return plain_table(f"kidnapped robot on {result.settings.course.name}", header, rows)
+    name = result.settings.course.name
+    return Group(
+        plain_table(f"kidnapped robot on {name}", header, rows),
+        precision_table(
+            f"At the end on {name}",
+            ("algorithm",),
+            [((s.algorithm,), s.precision) for s in result.summaries],
+        ),
+    )
 
 
 def _delta_arguments(p: argparse.ArgumentParser) -> None:
