@@ -13,6 +13,7 @@ from ceamcl.experiments.metrics import (
     converged_step,
     covers,
     expired_step,
+    image_index,
     likelihood_evaluations,
     nearest_error,
     precision_summary,
@@ -329,3 +330,11 @@ def test_precision_summary_means_rates_and_uncounted_evaluations() -> None:
     assert precision_summary([*runs, uncounted]).likelihood_evaluations is None
     with pytest.raises(ValueError, match="no runs"):
         precision_summary([])
+
+
+def test_image_index_names_the_image_each_hypothesis_sits_at() -> None:
+    images = symmetric_images(HALL_TRUTH)
+    hyps = hall_hypotheses([(2, 0.3), (0, 0.2), (None, 0.4), (3, 0.1)])
+    assert image_index(hyps, images).tolist() == [2, 0, -1, 3]
+    assert image_index(hyps, images[:1]).tolist() == [-1, 0, -1, -1]
+    assert image_index(np.zeros((0, 5)), images).size == 0

@@ -138,6 +138,23 @@ def weight_shares(
     )
 
 
+def image_index(
+    hypotheses: NDArray[np.float64],
+    images: NDArray[np.float64],
+    position_tol: float = POSITION_TOL_M,
+    heading_tol: float = HEADING_TOL_RAD,
+) -> NDArray[np.int64]:
+    """Per hypothesis ``(H,)``: the index of the image (``images[0]`` is the truth) it lies
+    within the tolerances of, the nearest in position if several; -1 for a spurious one."""
+    h = np.asarray(hypotheses, dtype=np.float64)
+    if h.shape[0] == 0:
+        return np.zeros(0, dtype=np.int64)
+    imgs = np.asarray(images, dtype=np.float64).reshape(-1, 3)
+    c = covers(h[:, :3], imgs, position_tol, heading_tol)
+    d = np.where(c, position_error(h[:, None, :3], imgs[None, :, :]), np.inf)
+    return np.where(c.any(axis=1), np.argmin(d, axis=1), -1).astype(np.int64)
+
+
 def nearest_error(
     hypotheses: NDArray[np.float64], truth: NDArray[np.float64]
 ) -> tuple[float, float]:
