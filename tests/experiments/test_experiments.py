@@ -37,6 +37,27 @@ def test_a_trial_is_reproducible_bit_for_bit() -> None:
     assert np.array_equal(r1.covered, r2.covered)
 
 
+@pytest.mark.parametrize("algorithm", all_algorithms())
+def test_every_algorithm_counts_its_initialisation_evaluations(algorithm: str) -> None:
+    """trials.csv's likelihood_evaluations include the global initialisation: step 0's record
+    scores at least every particle the filter starts with (CEAMCL: its N_test test poses),
+    and the run's total is the sum of the steps'. A filter that cannot count says so (None),
+    never 0."""
+    reason = registry.unavailable_reason(algorithm)
+    if reason is not None:
+        pytest.skip(reason)
+    record = run_trial(Trial("t", algorithm, paper_course(), 0, 0, 5, max_time_s=0.5))
+    m, evals = record.metrics, record.precision.likelihood_evaluations
+    if registry.get(algorithm).reports == "estimate":  # the Nav2 peer's wheel hides them
+        assert evals is None and m.likelihood_evaluations is None
+        return
+    assert evals is not None and evals.shape == record.times.shape
+    assert m.initialisation_likelihood_evaluations == evals[0] >= record.n_particles[0] > 0
+    assert m.likelihood_evaluations == int(evals.sum()) >= evals[0]
+    if algorithm == "ceamcl":
+        assert evals[0] >= registry.get("ceamcl").default().initialisation.n_test
+
+
 def test_unknown_algorithm_is_a_config_error() -> None:
     with pytest.raises(ConfigError, match="algorithms"):
         resolve_algorithms(["ceamcl", "ekf"])
