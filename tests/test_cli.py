@@ -241,3 +241,121 @@ def test_experiment_console_one_run_units_and_width(
     assert "1 run " in text and "1 runs" not in text and "nan" not in text
     assert "conv. [s]" in text and "err [m]" in text and "step [ms]" in text
     assert max(len(line) for line in text.splitlines()) <= 100
+
+
+# ---------------------------------------------------------------- the demo's console tables
+def test_demo_summary_places_every_hypothesis_and_counts_the_initialisation(
+    demo_dir: Path,
+) -> None:
+    s = json.loads((demo_dir / "summary.json").read_text())
+    hyps = s["hypotheses_final"]
+    assert s["hypotheses_count"] == len(hyps)  # MCL seed 3 ends with few clusters: all listed
+    at_images = sum(h["weight"] for h in hyps if h["image"] is not None)
+    assert at_images == pytest.approx(s["true_image_weight"])
+    assert s["true_image_weight"] + s["spurious_weight"] == pytest.approx(1.0)
+    at_truth = sum(h["weight"] for h in hyps if h["image"] == 0)
+    assert at_truth == pytest.approx(s["truth_weight"])
+    assert min(h["position_error_m"] for h in hyps) == pytest.approx(
+        s["closest_hypothesis_error_m"]
+    )
+    # Likelihood evaluations: the run's total is the sum of diagnostics.csv's column, whose
+    # step 0 (the global initialisation: every one of MCL's particles weighted) counts.
+    with (demo_dir / "diagnostics.csv").open(newline="") as fh:
+        per_step = [int(r["likelihood_evaluations"]) for r in csv.DictReader(fh)]
+    assert s["likelihood_evaluations"] == sum(per_step)
+    assert s["initialisation_likelihood_evaluations"] == per_step[0] == s["samples_initial"]
+
+
+def _demo_summary(weights: list[float], images: list[int | None], estimate: int) -> dict:
+    """A summary.json of a run ending with one hypothesis per weight, at those images."""
+    hyps = [
+        {
+            "x": 1.0 + i,
+            "y": 2.0,
+            "theta": 0.5,
+            "weight": w,
+            "fitness": 0.9,
+            "image": k,
+            "position_error_m": 0.05 if k == 0 else 9.4,
+            "heading_error_rad": 0.01 if k == 0 else 1.57,
+        }
+        for i, (w, k) in enumerate(zip(weights, images, strict=True))
+    ]
+    est = hyps[estimate]
+    return {
+        "algorithm": "ceamcl",
+        "hypotheses_final": hyps,
+        "hypotheses_count": len(hyps),
+        "species_final": len(hyps),
+        "symmetric_images": 4,
+        "estimate_hypothesis": estimate,
+        "estimate_image": est["image"],
+        "final_position_error_m": est["position_error_m"],
+        "final_heading_error_rad": est["heading_error_rad"],
+        "closest_hypothesis_error_m": 0.05,
+        "closest_hypothesis_heading_error_rad": 0.01,
+        "images_kept": len({k for k in images if k is not None}),
+        "truth_weight": sum(w for w, k in zip(weights, images, strict=True) if k == 0),
+        "true_image_weight": sum(w for w, k in zip(weights, images, strict=True) if k is not None),
+        "spurious_weight": sum(w for w, k in zip(weights, images, strict=True) if k is None),
+        "confidently_wrong": est["image"] != 0 and max(weights) >= 0.9,
+        "samples_initial": 900,
+        "samples_final": 300,
+        "likelihood_evaluations": 1_234_567,
+        "initialisation_likelihood_evaluations": 1_000_000,
+        "restarts": 0,
+        "steps": 425,
+        "mean_step_ms": 2.0,
+        "median_step_ms": 1.5,
+    }
+
+
+def _render(*tables: object) -> str:
+    from rich.console import Console
+
+    console = Console(record=True, width=100)
+    for t in tables:
+        console.print(t)
+    return console.export_text()
+
+
+def test_demo_table_reads_an_equal_symmetric_image_as_an_image_not_a_failure() -> None:
+    from ceamcl.cli.demo import hypotheses_table, state_table
+
+    s = _demo_summary([0.25, 0.25, 0.25, 0.24, 0.01], [3, 0, 1, 2, None], estimate=0)
+    text = _render(hypotheses_table("demo", s), state_table("demo", s))
+    lines = text.splitlines()
+    # The hypotheses lead: the first table lists them, the estimate marked, weights shown.
+    assert "5 species at the end" in lines[0]
+    first_row = next(line for line in lines if line.startswith("│ 1 "))
+    assert "image 3 of 4, estimate" in first_row and "25%" in first_row
+    assert text.index("the truth") < text.index("the filter at the end")
+    assert "image 3 of 4 alike (off truth 9.40 m, 1.57 rad)" in text
+    assert "wrong" not in text.split("the filter at the end")[1].split("confidently")[0]
+    assert "0.050, 0.010" in text  # the nearest hypothesis
+    assert "25% / 99% / 1%" in text
+    assert "1,234,567 (1,000,000)" in text
+    assert max(len(line) for line in lines) <= 100
+
+
+def test_demo_table_says_wrong_and_confidently_wrong_when_it_is() -> None:
+    from ceamcl.cli.demo import state_table
+
+    spurious = _demo_summary([0.95, 0.05], [None, 0], estimate=0)
+    text = _render(state_table("demo", spurious))
+    assert "wrong: at no image of the truth" in text
+    assert "confidently wrong (>= 90 % on one pose) │ yes" in text
+    right = _demo_summary([0.95, 0.05], [0, 2], estimate=0)
+    text = _render(state_table("demo", right))
+    assert "at the truth (off 0.05 m, 0.01 rad)" in text and "│ no" in text
+
+
+def test_demo_prints_the_hypotheses_before_the_filter_state(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    argv = ["demo", "--algorithm", "mcl", "--seed", "3", "--no-animation"]
+    assert main([*argv, "--out", str(tmp_path / "d")]) == 0
+    out = capsys.readouterr().out
+    assert "at the end" in out and "off truth [m, rad]" in out
+    assert out.index("pose [m, m, rad]") < out.index("the filter at the end")
+    assert "likelihood evaluations (initialisation)" in out

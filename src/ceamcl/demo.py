@@ -15,14 +15,23 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import NDArray
 
-from ceamcl.experiments.metrics import covers, restarts
+from ceamcl.experiments.metrics import (
+    confidently_wrong,
+    covers,
+    image_index,
+    likelihood_evaluations,
+    nearest_error,
+    restarts,
+    weight_shares,
+)
 from ceamcl.filters import make_filter
 from ceamcl.filters.ceamcl.records import species_of
 from ceamcl.io.results import ensure_output_dir
 from ceamcl.maps.worlds import symmetric_images
 from ceamcl.outputs import write_run_files
-from ceamcl.pose import position_error
+from ceamcl.pose import heading_error, position_error
 from ceamcl.runner import RunResult, run_filter
 from ceamcl.simulation.scenarios import HALL_WORLDS, get_scenario
 from ceamcl.simulation.simulator import SimulatedLog
@@ -45,12 +54,35 @@ def seeded_generators(seed: int, count: int) -> list[np.random.Generator]:
     return [np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(count)]
 
 
+#: Final hypotheses listed in ``summary.json`` (the filter's order: CEAMCL's fittest first).
+SUMMARY_HYPOTHESES = 16
+
+
+def truth_images(world: str, truth: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The poses that look the same as ``truth`` in ``world`` (the truth first): the hall's
+    four 90 degree images in the hall worlds, the truth alone elsewhere."""
+    if world in HALL_WORLDS:
+        return symmetric_images(truth)
+    return np.asarray(truth, dtype=np.float64).reshape(1, 3)
+
+
 def summarise(result: RunResult, log: SimulatedLog, **context: Any) -> dict[str, Any]:
-    """The fields of ``summary.json``."""
+    """The fields of ``summary.json``.
+
+    With a truth, each final hypothesis says where it is (``image``: 0 at the truth, ``k`` at
+    the truth's symmetric image ``k``, ``None`` spurious; docs/experiments.md) and how far from
+    the truth; the precision side at the end follows (``truth_weight``, ``true_image_weight``,
+    ``spurious_weight``, ``confidently_wrong``, the nearest hypothesis' errors), and
+    ``estimate_image`` says which image the estimate is at."""
     step_ms = result.step_ms
     pos_err = result.position_errors
     head_err = result.heading_errors
     final_h = result.hypotheses[-1]
+    hyps: list[dict[str, Any]] = [
+        {"x": h[0], "y": h[1], "theta": h[2], "weight": h[3], "fitness": h[4]}
+        for h in final_h[:SUMMARY_HYPOTHESES]
+    ]
+    evaluations = likelihood_evaluations(result.diagnostics)
     summary: dict[str, Any] = {
         **context,
         "algorithm": result.algorithm,
@@ -67,17 +99,45 @@ def summarise(result: RunResult, log: SimulatedLog, **context: Any) -> dict[str,
         "particles_final": int(result.diagnostics[-1].n_particles),
         "samples_initial": int(result.diagnostics[0].n_particles),
         "samples_final": int(result.diagnostics[-1].n_particles),
+        "hypotheses_count": int(final_h.shape[0]),
+        "likelihood_evaluations": None if evaluations is None else int(evaluations.sum()),
+        "initialisation_likelihood_evaluations": (
+            None if evaluations is None else int(evaluations[0])
+        ),
         **restarts(result.diagnostics),
-        "hypotheses_final": [
-            {"x": h[0], "y": h[1], "theta": h[2], "weight": h[3], "fitness": h[4]}
-            for h in final_h[:16]
-        ],
+        "hypotheses_final": hyps,
     }
     if result.truth is not None and final_h.shape[0]:
+        truth = result.truth[-1]
+        images = truth_images(log.world, truth)
+        where = image_index(final_h, images)
+        for h, row, k in zip(hyps, final_h, where, strict=False):
+            h["image"] = None if k < 0 else int(k)
+            h["position_error_m"] = float(position_error(row[:3], truth))
+            h["heading_error_rad"] = float(heading_error(row[:3], truth))
         # In a symmetric world the estimate is one of several equally fit hypotheses; the
-        # distance of the closest hypothesis tells whether the truth is still tracked.
-        d_truth = position_error(final_h[:, :3], result.truth[-1])
-        summary["closest_hypothesis_error_m"] = float(d_truth.min())
+        # closest hypothesis tells whether the truth is still tracked.
+        near_m, near_rad = nearest_error(final_h, truth)
+        shares = weight_shares(final_h, images)
+        estimate_at = image_index(result.estimates[-1:], images)[0]
+        # the hypothesis the estimate is (CEAMCL: the fittest species), if any
+        on = covers(final_h[:SUMMARY_HYPOTHESES, :3], result.estimates[-1:], 1e-6, 1e-6)[:, 0]
+        estimate_ok = bool(estimate_at == 0)
+        summary.update(
+            {
+                "closest_hypothesis_error_m": near_m,
+                "closest_hypothesis_heading_error_rad": near_rad,
+                "symmetric_images": int(images.shape[0]),
+                "images_kept": int(np.unique(where[where >= 0]).size),
+                "estimate_image": None if estimate_at < 0 else int(estimate_at),
+                "estimate_hypothesis": int(np.argmax(on)) if on.any() else None,
+                "truth_weight": shares.truth,
+                "true_image_weight": shares.true_images,
+                "spurious_weight": shares.spurious,
+                "heaviest_weight": shares.heaviest,
+                "confidently_wrong": bool(confidently_wrong(estimate_ok, shares.heaviest)),
+            }
+        )
     first, last = species_of(result.diagnostics[0]), species_of(result.diagnostics[-1])
     if first or last:
         summary["species_initial"] = len(first)

@@ -1,5 +1,6 @@
-"""Whole runs of the paper's experiment (section 4) in simulation: CEAMCL against MCL and GMCL
-on symmetric-hall, and CEAMCL on marked-hall, where the symmetry breaks at the goal.
+"""Whole runs of the paper's experiment (section 4) in simulation: CEAMCL on symmetric-hall,
+and on marked-hall, where the symmetry breaks at the goal. What the baselines do is measured by
+the experiments (docs/experiments.md), not asserted here.
 
 Each run is computed once per module (the cache below) and shared by the tests that check
 different claims on it. Seeding: ``SeedSequence(seed).spawn(2)`` gives independent simulator
@@ -14,6 +15,7 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
+from ceamcl.experiments.metrics import CONFIDENT_SHARE, image_index, weight_shares
 from ceamcl.filters import CEAMCLConfig, make_filter, species_of
 from ceamcl.maps.worlds import symmetric_images
 from ceamcl.runner import RunResult, run_filter
@@ -24,7 +26,6 @@ from ceamcl.simulation import SimulatedLog, paper_scenario
 # (seed, start room): three runs, three different start rooms.
 SYMMETRIC_RUNS = ((0, 0), (1, 1), (2, 2))
 MARKED_SEEDS = (0, 1, 2)
-BASELINE_PARTICLES = 5000  # the paper's reference MCL uses 5000 samples (Fig. 4)
 
 Runner = Callable[[str, str, int, int], tuple[SimulatedLog, RunResult]]
 
@@ -49,8 +50,7 @@ def run() -> Runner:
             if (world, seed, room) not in logs:
                 logs[(world, seed, room)] = sc.simulate(sim_rng, grid)
             log = logs[(world, seed, room)]
-            n = None if algorithm == "ceamcl" else BASELINE_PARTICLES
-            f = make_filter(algorithm, grid, filter_rng, n_particles=n)
+            f = make_filter(algorithm, grid, filter_rng)
             results[key] = (log, run_filter(f, log))
         return results[key]
 
@@ -107,38 +107,27 @@ def test_ceamcl_sample_size_falls_as_the_pose_becomes_certain(
     assert final <= 0.6 * initial
 
 
-# ---------------------------------------------------------------- claim 2 against baselines
+# ---------------------------------------------------------- claim 2: weight, not just presence
 @pytest.mark.parametrize(("seed", "room"), SYMMETRIC_RUNS)
-def test_baselines_keep_no_more_images_than_ceamcl(run: Runner, seed: int, room: int) -> None:
-    log, ce = run("ceamcl", "symmetric-hall", seed, room)
-    truth = log.true_poses[-1]
-    counts = {"ceamcl": images_covered(ce.hypotheses[-1], truth)}
-    for alg in ("mcl", "gmcl"):
-        _, r = run(alg, "symmetric-hall", seed, room)
-        counts[alg] = images_covered(r.hypotheses[-1], truth)
-    print(f"seed {seed} room {room}: images covered at the goal {counts}")
-    assert counts["ceamcl"] == 4
-    assert counts["mcl"] <= counts["ceamcl"] and counts["gmcl"] <= counts["ceamcl"]
-
-
-def test_mcl_loses_symmetric_hypotheses_in_most_runs(run: Runner) -> None:
-    """The paper's claim 2 (Table 1: MCL and GMCL lose a hypothesis, CEAMCL never does).
-
-    In a survey of seeds 0-15 (5000 particles) MCL and GMCL each kept at most one of the four
-    images at the goal in every run, CEAMCL all four in every run."""
-    mcl, gmcl = [], []
-    for seed, room in SYMMETRIC_RUNS:
-        log, _ = run("ceamcl", "symmetric-hall", seed, room)
-        truth = log.true_poses[-1]
-        mcl.append(
-            images_covered(run("mcl", "symmetric-hall", seed, room)[1].hypotheses[-1], truth)
-        )
-        gmcl.append(
-            images_covered(run("gmcl", "symmetric-hall", seed, room)[1].hypotheses[-1], truth)
-        )
-    print(f"images covered at the goal: MCL {mcl}, GMCL {gmcl}")
-    assert sum(c < 4 for c in mcl) > len(mcl) / 2
-    assert sum(c < 4 for c in gmcl) > len(gmcl) / 2
+def test_ceamcl_holds_weight_at_every_image_and_commits_to_none(
+    run: Runner, seed: int, room: int
+) -> None:
+    """Keeping the four images means holding weight at each, not a token species: at the goal
+    every image's hypotheses hold at least 5 % of the weight (an even split is 25 %), and no
+    hypothesis holds 90 % (the filter does not commit to one of four poses it cannot tell
+    apart). Measured on these runs: 15-33 % at each image, the heaviest 27-33 %."""
+    log, r = run("ceamcl", "symmetric-hall", seed, room)
+    h = r.hypotheses[-1]
+    images = symmetric_images(log.true_poses[-1])
+    where = image_index(h, images)
+    per_image = [float(h[where == k, 3].sum() / h[:, 3].sum()) for k in range(4)]
+    shares = weight_shares(h, images)
+    print(
+        f"seed {seed} room {room}: weight per image {np.round(per_image, 3)}, spurious "
+        f"{shares.spurious:.3f}, heaviest {shares.heaviest:.3f}"
+    )
+    assert min(per_image) >= 0.05
+    assert shares.heaviest < CONFIDENT_SHARE
 
 
 # ---------------------------------------------------------------- marked-hall

@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Mapping
+from typing import Any
 
 from rich.console import Console
+from rich.table import Table
 
 from ceamcl.cli.common import (
     RunProgress,
@@ -12,12 +15,14 @@ from ceamcl.cli.common import (
     check_particles,
     make_progress,
     non_negative_int,
+    number,
+    plain_table,
     positive_int,
     print_written,
     require_available,
-    summary_table,
 )
 from ceamcl.demo import run_demo
+from ceamcl.experiments.common import pct
 from ceamcl.filters import registry
 from ceamcl.outputs import OutputOptions
 
@@ -85,25 +90,112 @@ def run(args: argparse.Namespace, console: Console) -> int:
             on_frame=bar.frame,
         )
     if not args.quiet:
-        s = outcome.summary
-        table = summary_table(
-            f"ceamcl demo ({args.algorithm}, seed {args.seed})",
-            s,
-            (
-                "steps",
-                "final_position_error_m",
-                "final_heading_error_rad",
-                "closest_hypothesis_error_m",
-                "mean_step_ms",
-                "median_step_ms",
-                "samples_initial",
-                "samples_final",
-                "restarts",
-                "species_final",
-                "symmetric_images_covered",
-            ),
-        )
-        table.add_row("hypotheses at the end", str(len(s["hypotheses_final"])))
-        console.print(table)
+        title = f"ceamcl demo ({args.algorithm} on {args.world}, seed {args.seed})"
+        console.print(hypotheses_table(title, outcome.summary))
+        console.print(state_table(title, outcome.summary))
         print_written(console, outcome.out_dir, outcome.files)
     return 0
+
+
+#: Hypotheses the console lists (the rest are summed up in one line).
+SHOWN_HYPOTHESES = 8
+
+
+def _where(image: int | None, images: int) -> str:
+    if image is None:
+        return "spurious"
+    if image == 0:
+        return "the truth"
+    return f"image {image} of {images}"
+
+
+def _hypotheses_count(s: Mapping[str, Any]) -> str:
+    n = s["hypotheses_count"]
+    if "species_final" in s:
+        return f"{n} species"
+    return f"{n} hypothesis" if n == 1 else f"{n} hypotheses"
+
+
+def hypotheses_table(title: str, s: Mapping[str, Any]) -> Table:
+    """What a user should read first: the hypotheses at the end, their weights, where each
+    is (at the truth, at one of its symmetric images, spurious) and how far from the truth."""
+    hyps = s["hypotheses_final"][:SHOWN_HYPOTHESES]
+    with_truth = "image" in (hyps[0] if hyps else {})
+    header = ["#", "is", "weight", "fitness", "pose [m, m, rad]"]
+    if with_truth:
+        header.append("off truth [m, rad]")
+    rows = []
+    for i, h in enumerate(hyps):
+        estimate = i == s.get("estimate_hypothesis")
+        where = _where(h["image"], s["symmetric_images"]) if with_truth else ""
+        if estimate:
+            where = f"{where}, estimate" if where else "estimate"
+        row = [
+            str(i + 1),
+            where,
+            pct(h["weight"]),
+            number(h["fitness"], 2),
+            f"{h['x']:.2f}, {h['y']:.2f}, {h['theta']:.2f}",
+        ]
+        if with_truth:
+            row.append(f"{h['position_error_m']:.2f}, {h['heading_error_rad']:.2f}")
+        rows.append(row)
+    rest = s["hypotheses_count"] - len(hyps)
+    if rest > 0:
+        held = max(1.0 - sum(h["weight"] for h in hyps), 0.0)
+        more = [f"+{rest}", "more", pct(held)]
+        rows.append(more + [""] * (len(header) - len(more)))
+    return plain_table(f"{title}: {_hypotheses_count(s)} at the end", header, rows, left=2)
+
+
+def _estimate_text(s: Mapping[str, Any]) -> str:
+    off = f"{s['final_position_error_m']:.2f} m, {s['final_heading_error_rad']:.2f} rad"
+    image = s.get("estimate_image")
+    if image == 0:
+        return f"at the truth (off {off})"
+    if image is None:
+        return f"wrong: at no image of the truth (off {off})"
+    return f"image {image} of {s['symmetric_images']} alike (off truth {off})"
+
+
+def state_table(title: str, s: Mapping[str, Any]) -> Table:
+    """The state of the filter at the end and what the run cost."""
+    rows: list[tuple[str, str]] = []
+    if "truth_weight" in s:
+        rows += [
+            (
+                "nearest hypothesis, off truth [m, rad]",
+                f"{s['closest_hypothesis_error_m']:.3f}, "
+                f"{s['closest_hypothesis_heading_error_rad']:.3f}",
+            ),
+            ("estimate", _estimate_text(s)),
+            ("images of the truth held", f"{s['images_kept']} of {s['symmetric_images']}"),
+            (
+                "weight at truth / its images / spurious",
+                f"{pct(s['truth_weight'])} / {pct(s['true_image_weight'])} / "
+                f"{pct(s['spurious_weight'])}",
+            ),
+            (
+                "confidently wrong (>= 90 % on one pose)",
+                "yes" if s["confidently_wrong"] else "no",
+            ),
+        ]
+    state = _hypotheses_count(s)
+    evals = s["likelihood_evaluations"]
+    rows += [
+        ("filter state", state),
+        ("sample size initial -> final", f"{s['samples_initial']} -> {s['samples_final']}"),
+        (
+            "likelihood evaluations (initialisation)",
+            "not counted"
+            if evals is None
+            else f"{evals:,} ({s['initialisation_likelihood_evaluations']:,})",
+        ),
+        ("restarts of global localisation", str(s["restarts"])),
+        ("steps", str(s["steps"])),
+        (
+            "step time mean / median [ms]",
+            f"{number(s['mean_step_ms'], 1)} / {number(s['median_step_ms'], 1)}",
+        ),
+    ]
+    return plain_table(f"{title}: the filter at the end", ("measure", "value"), rows, left=2)

@@ -5,12 +5,12 @@ from __future__ import annotations
 
 import argparse
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from rich.console import Console
+from rich.console import Console, Group, RenderableType
 from rich.table import Table
 
 from ceamcl import budget
@@ -30,6 +30,7 @@ from ceamcl.experiments import delta, kidnapped, marked, table1
 from ceamcl.experiments.common import (
     ExperimentSettings,
     TrialOutputs,
+    compact_count,
     first_records,
     fmt,
     pct,
@@ -40,6 +41,7 @@ from ceamcl.experiments.delta import DeltaResult
 from ceamcl.experiments.executors import ProgressCallback
 from ceamcl.experiments.kidnapped import KidnapResult
 from ceamcl.experiments.marked import MarkedResult
+from ceamcl.experiments.metrics import PrecisionSummary
 from ceamcl.experiments.routes import resolve_course
 from ceamcl.experiments.table1 import Table1Result
 from ceamcl.experiments.trials import TrialRecord
@@ -61,7 +63,7 @@ class Experiment:
     help: str
     default_trials: int
     run: Callable[[ExperimentSettings, argparse.Namespace, ProgressCallback], Any]
-    table: Callable[[Any], Table]
+    table: Callable[[Any], RenderableType]
     write: Callable[[Any, str, dict[str, Any]], list[Path]]
     repeats: Callable[[argparse.Namespace], int] = lambda args: 1
     add_arguments: Callable[[argparse.ArgumentParser], None] = lambda p: None
@@ -69,7 +71,37 @@ class Experiment:
 
 
 # ---------------------------------------------------------------- the tables printed
-def table1_rich(result: Table1Result) -> Table:
+#: The precision side's columns of the console tables (:func:`precision_row`); the weights
+#: are shares at the goal, the nearest hypothesis' error its position and heading error.
+PRECISION_COLUMNS = ("at truth", "spurious", "conf. wrong", "nearest [m, rad]", "evals/run")
+
+
+def precision_row(p: PrecisionSummary) -> tuple[str, ...]:
+    return (
+        pct(p.truth_weight),
+        pct(p.spurious_weight),
+        pct(p.confidently_wrong_rate),
+        f"{fmt(p.nearest_position_error_mean_m, 2, '-')}, "
+        f"{fmt(p.nearest_heading_error_mean_rad, 2, '-')}",
+        compact_count(p.likelihood_evaluations, "not counted"),
+    )
+
+
+def precision_table(
+    title: str,
+    labels: tuple[str, ...],
+    rows: Sequence[tuple[tuple[str, ...], PrecisionSummary]],
+) -> Table:
+    """The precision side (docs/experiments.md) as its own plain table: one row per label."""
+    return plain_table(
+        f"{title}: precision side (docs/experiments.md)",
+        (*labels, *PRECISION_COLUMNS),
+        [(*label, *precision_row(p)) for label, p in rows],
+        left=len(labels),
+    )
+
+
+def table1_rich(result: Table1Result) -> Group:
     n_images = result.settings.course.n_images
     header = (
         "algorithm",
@@ -100,8 +132,14 @@ def table1_rich(result: Table1Result) -> Table:
                 fmt(s.median_step_ms, 1, "-"),
             )
         )
-    return plain_table(
-        f"Table 1 on {result.settings.course.name} (docs/experiments.md)", header, rows
+    name = result.settings.course.name
+    return Group(
+        plain_table(f"Table 1 on {name} (docs/experiments.md)", header, rows),
+        precision_table(
+            f"At the goal on {name}",
+            ("algorithm",),
+            [((s.algorithm,), s.precision) for s in result.summaries],
+        ),
     )
 
 
@@ -114,18 +152,27 @@ def delta_rich(result: DeltaResult) -> Table:
     return t
 
 
-def marked_rich(result: MarkedResult) -> Table:
-    t = Table(title=f"final estimate right on {result.settings.course.name}")
-    t.add_column("algorithm")
+def marked_rich(result: MarkedResult) -> Group:
+    """The final estimate right per start route, then the precision side per start route."""
+    name = result.settings.course.name
     cols = marked.route_columns(result)
-    for c in cols:
-        t.add_column(c, justify="right")
-    for alg, by_route in result.shares.items():
-        t.add_row(alg, *(pct(by_route.get(c)) for c in cols))
-    return t
+    right = plain_table(
+        f"final estimate right on {name}, per start route",
+        ("algorithm", *cols),
+        [(alg, *(pct(by_route.get(c)) for c in cols)) for alg, by_route in result.shares.items()],
+    )
+    per_route = [
+        ((alg, c), result.precision[alg][c])
+        for alg in result.shares
+        for c in cols
+        if c in result.precision[alg]
+    ]
+    return Group(
+        right, precision_table(f"At the goal on {name}", ("algorithm", "route"), per_route)
+    )
 
 
-def kidnapped_rich(result: KidnapResult) -> Table:
+def kidnapped_rich(result: KidnapResult) -> Group:
     header = ("algorithm", "runs", "localised before", "recovered", "recovery [s]")
     rows = [
         (
@@ -137,7 +184,15 @@ def kidnapped_rich(result: KidnapResult) -> Table:
         )
         for s in result.summaries
     ]
-    return plain_table(f"kidnapped robot on {result.settings.course.name}", header, rows)
+    name = result.settings.course.name
+    return Group(
+        plain_table(f"kidnapped robot on {name}", header, rows),
+        precision_table(
+            f"At the end on {name}",
+            ("algorithm",),
+            [((s.algorithm,), s.precision) for s in result.summaries],
+        ),
+    )
 
 
 def _delta_arguments(p: argparse.ArgumentParser) -> None:

@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ceamcl.experiments.executors import ProgressCallback, map_trials, open_executor
+from ceamcl.experiments.metrics import CONFIDENT_SHARE, PrecisionSummary
 from ceamcl.experiments.routes import Course
 from ceamcl.experiments.trials import Trial, TrialRecord, localise_trial, run_trial
 from ceamcl.io.results import ensure_output_dir, write_json
@@ -309,6 +310,16 @@ def trial_rows(records: Sequence[TrialRecord]) -> list[dict[str, Any]]:
                 "final_estimate_ok": int(m.final_estimate_ok),
                 "final_position_error_m": m.final_position_error_m,
                 "final_heading_error_rad": m.final_heading_error_rad,
+                "true_image_weight": m.true_image_weight,
+                "spurious_weight": m.spurious_weight,
+                "truth_weight": m.truth_weight,
+                "heaviest_weight": m.heaviest_weight,
+                "confidently_wrong": int(m.confidently_wrong),
+                "confidently_wrong_share": m.confidently_wrong_share,
+                "nearest_position_error_m": m.nearest_position_error_m,
+                "nearest_heading_error_rad": m.nearest_heading_error_rad,
+                "likelihood_evaluations": m.likelihood_evaluations,
+                "initialisation_likelihood_evaluations": m.initialisation_likelihood_evaluations,
                 "mean_particles": m.mean_particles,
                 "final_particles": m.final_particles,
                 "mean_step_ms": m.mean_step_ms,
@@ -327,6 +338,63 @@ def fmt(value: float | None, digits: int = 2, never: str = "never") -> str:
 
 def pct(value: float | None) -> str:
     return "n/a" if value is None or not np.isfinite(value) else f"{100 * value:.0f}%"
+
+
+def evaluations(value: float | None) -> str:
+    """Likelihood evaluations for a table: ``1,012,345``, or ``not counted``."""
+    return "not counted" if value is None else f"{value:,.0f}"
+
+
+def precision_columns(p: PrecisionSummary) -> dict[str, Any]:
+    """The precision side as flat CSV columns (evaluations per run as whole numbers)."""
+    row = asdict(p)
+    for key in ("likelihood_evaluations", "initialisation_likelihood_evaluations"):
+        if row[key] is not None:
+            row[key] = round(row[key])
+    return row
+
+
+def compact_count(value: float | None, missing: str = "-") -> str:
+    """A large count for a narrow column: ``1.14M``, ``505k``, ``840``; ``missing`` for none."""
+    if value is None or not np.isfinite(value):
+        return missing
+    if value >= 1e6:
+        return f"{value / 1e6:.2f}M"
+    if value >= 1e4:
+        return f"{value / 1e3:.0f}k"
+    return f"{value:.0f}"
+
+
+#: The precision side's columns of the Markdown tables (:func:`precision_cells`).
+PRECISION_HEADER = (
+    "weight true images / spurious",
+    "confidently wrong",
+    "nearest hypothesis error (m) mean / median, (rad) mean",
+    "likelihood evaluations per run",
+)
+
+
+def precision_cells(p: PrecisionSummary) -> list[str]:
+    """The cells of :data:`PRECISION_HEADER` for one row."""
+    return [
+        f"{pct(p.true_image_weight)} / {pct(p.spurious_weight)}",
+        pct(p.confidently_wrong_rate),
+        f"{fmt(p.nearest_position_error_mean_m, never='-')} / "
+        f"{fmt(p.nearest_position_error_median_m, never='-')}, "
+        f"{fmt(p.nearest_heading_error_mean_rad, never='-')}",
+        evaluations(p.likelihood_evaluations),
+    ]
+
+
+PRECISION_DEFINITIONS = (
+    "Precision side (docs/experiments.md), at the goal: the *true images* are the hypotheses "
+    "within the tolerances of the truth or one of its symmetric images, the others are "
+    "*spurious*; the columns give their shares of the weight (mean over runs). *Confidently "
+    f"wrong*: the estimate misses the truth while one hypothesis holds >= {CONFIDENT_SHARE:.0%} "
+    "of the weight (share of runs). *Nearest hypothesis*: the one nearest the truth. "
+    "*Likelihood evaluations*: poses scored against a scan over the run, the global "
+    "initialisation included (mean per run)."
+)
 
 
 def markdown_table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:

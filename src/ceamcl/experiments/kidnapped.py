@@ -20,6 +20,8 @@ import numpy as np
 
 from ceamcl.errors import ConfigError
 from ceamcl.experiments.common import (
+    PRECISION_DEFINITIONS,
+    PRECISION_HEADER,
     Curve,
     ExperimentSettings,
     curve,
@@ -29,13 +31,22 @@ from ceamcl.experiments.common import (
     markdown_table,
     metadata_markdown,
     pct,
+    precision_cells,
+    precision_columns,
     run_trials,
     trial_rows,
     write_csv,
     write_text,
 )
 from ceamcl.experiments.executors import ProgressCallback
-from ceamcl.experiments.metrics import HEADING_TOL_RAD, POSITION_TOL_M, recovery_step, within
+from ceamcl.experiments.metrics import (
+    HEADING_TOL_RAD,
+    POSITION_TOL_M,
+    PrecisionSummary,
+    precision_summary,
+    recovery_step,
+    within,
+)
 from ceamcl.experiments.trials import TrialRecord
 from ceamcl.io.results import ensure_output_dir
 
@@ -82,6 +93,7 @@ class KidnapSummary:
     median_recovery_s: float | None
     mean_particles: float
     mean_step_ms: float
+    precision: PrecisionSummary  # at the end of the runs
 
 
 @dataclass
@@ -106,6 +118,7 @@ def summarise(
         median_recovery_s=float(np.median(times)) if times else None,
         mean_particles=float(np.mean([r.metrics.mean_particles for r in records])),
         mean_step_ms=float(np.mean([r.metrics.mean_step_ms for r in records])),
+        precision=precision_summary([r.metrics for r in records]),
     )
 
 
@@ -149,6 +162,7 @@ def kidnapped_markdown(result: KidnapResult, meta: dict[str, Any]) -> str:
         "recovery time (s) mean / median",
         "mean particles",
         "step ms",
+        *PRECISION_HEADER,
     ]
     rows = [
         [
@@ -159,6 +173,7 @@ def kidnapped_markdown(result: KidnapResult, meta: dict[str, Any]) -> str:
             f"{fmt(s.mean_recovery_s, 1, '-')} / {fmt(s.median_recovery_s, 1, '-')}",
             f"{s.mean_particles:.0f}",
             f"{s.mean_step_ms:.1f}",
+            *precision_cells(s.precision),
         ]
         for s in result.summaries
     ]
@@ -171,9 +186,19 @@ def kidnapped_markdown(result: KidnapResult, meta: dict[str, Any]) -> str:
             "end of the run. Recovery time: from the kidnap to that moment (recovered runs).",
             "",
             markdown_table(header, rows),
+            PRECISION_DEFINITIONS.replace("at the goal", "at the end of the run"),
+            "",
             metadata_markdown(meta, result.settings.skipped),
         ]
     )
+
+
+def summary_row(s: KidnapSummary) -> dict[str, Any]:
+    """One row of ``kidnapped.csv`` (the precision side as flat columns)."""
+    row = asdict(s)
+    del row["precision"]
+    row.update(precision_columns(s.precision))
+    return row
 
 
 def write_kidnapped(
@@ -187,7 +212,7 @@ def write_kidnapped(
         row.update(asdict(o))
     kidnap_s = float(np.mean([o.kidnap_s for o in result.outcomes]))
     return [
-        write_csv(out_dir / "kidnapped.csv", [asdict(s) for s in result.summaries]),
+        write_csv(out_dir / "kidnapped.csv", [summary_row(s) for s in result.summaries]),
         write_csv(out_dir / "trials.csv", rows),
         plot_kidnapped(
             error_curves(result),

@@ -14,6 +14,20 @@ Definitions (docs/experiments.md gives the reasons):
 * *Success*: the true pose is covered at the last step (the goal).
 * *Kept all*: every image is covered at the last step (hypothesis algorithms only).
 
+The precision side (:func:`weight_shares`, :func:`nearest_error`, :func:`confidently_wrong`),
+at every step and reported at the goal:
+
+* The *true image set*: the hypotheses that cover the truth or one of its symmetric images;
+  every other hypothesis is *spurious*. Their weight shares are over the hypotheses' total
+  weight (0 and 0 when there is none); the *weight at the truth* is the part of the true
+  image set's that covers the truth itself.
+* *Confidently wrong*: the estimate does not cover the truth while one hypothesis holds at
+  least :data:`CONFIDENT_SHARE` = 90 % of the weight.
+* The *nearest hypothesis*: the one nearest the truth in position; its position and heading
+  errors.
+* *Likelihood evaluations*: the poses scored against a scan over the whole run, the global
+  initialisation (step 0) included (:func:`likelihood_evaluations`).
+
 Real logs (``ceamcl run``, ``ceamcl evaluate-log``), as :func:`score_errors` computes it. A
 step is *inside* when the estimate is within ``pos_tol_m`` (0.5 m) and ``head_tol_rad``
 (0.3 rad) of the truth. The run *converges* at the first step ``c`` from which every later step
@@ -39,6 +53,8 @@ from ceamcl.pose import heading_error, position_error
 POSITION_TOL_M = 0.5
 HEADING_TOL_RAD = 0.3
 GATHERED_SHARE = 0.9
+#: A filter is *confident* when one hypothesis holds at least this share of the weight.
+CONFIDENT_SHARE = 0.9
 HOLD_S = 1.0
 #: Steps a real-log run must stay inside the tolerances at the end to count as a success
 #: (``--hold N``), ...
@@ -82,6 +98,94 @@ def step_coverage(
     gathered = float(w[c.any(axis=1)].sum() / total) if total > 0 else 0.0
     any_cover: NDArray[np.bool_] = np.asarray(c.any(axis=0), dtype=bool)
     return any_cover, gathered
+
+
+@dataclass(frozen=True)
+class WeightShares:
+    """Weight shares of one step's hypotheses (:func:`weight_shares`)."""
+
+    true_images: float  # held by hypotheses that cover the truth or one of its images
+    spurious: float  # held by the others
+    heaviest: float  # held by the heaviest single hypothesis
+    truth: float  # held by hypotheses that cover the truth itself (part of true_images)
+
+
+def weight_shares(
+    hypotheses: NDArray[np.float64],
+    images: NDArray[np.float64],
+    position_tol: float = POSITION_TOL_M,
+    heading_tol: float = HEADING_TOL_RAD,
+) -> WeightShares:
+    """Shares of the hypotheses' total weight held by the true image set (the hypotheses
+    within the tolerances of one of ``images``, the truth first), by the spurious rest, and by
+    the heaviest hypothesis, and the share of those at the truth itself (``images[0]``).
+    ``hypotheses`` is ``(H, >=4)``: x, y, theta, weight. No hypothesis or no weight: every
+    share is 0 (there is nothing to hold)."""
+    h = np.asarray(hypotheses, dtype=np.float64)
+    if h.shape[0] == 0:
+        return WeightShares(0.0, 0.0, 0.0, 0.0)
+    w = h[:, 3]
+    total = float(w.sum())
+    if not total > 0:
+        return WeightShares(0.0, 0.0, 0.0, 0.0)
+    c = covers(h[:, :3], images, position_tol, heading_tol)
+    at_image = c.any(axis=1)
+    return WeightShares(
+        true_images=float(w[at_image].sum() / total),
+        spurious=float(w[~at_image].sum() / total),
+        heaviest=float(w.max() / total),
+        truth=float(w[c[:, 0]].sum() / total),
+    )
+
+
+def image_index(
+    hypotheses: NDArray[np.float64],
+    images: NDArray[np.float64],
+    position_tol: float = POSITION_TOL_M,
+    heading_tol: float = HEADING_TOL_RAD,
+) -> NDArray[np.int64]:
+    """Per hypothesis ``(H,)``: the index of the image (``images[0]`` is the truth) it lies
+    within the tolerances of, the nearest in position if several; -1 for a spurious one."""
+    h = np.asarray(hypotheses, dtype=np.float64)
+    if h.shape[0] == 0:
+        return np.zeros(0, dtype=np.int64)
+    imgs = np.asarray(images, dtype=np.float64).reshape(-1, 3)
+    c = covers(h[:, :3], imgs, position_tol, heading_tol)
+    d = np.where(c, position_error(h[:, None, :3], imgs[None, :, :]), np.inf)
+    return np.where(c.any(axis=1), np.argmin(d, axis=1), -1).astype(np.int64)
+
+
+def nearest_error(
+    hypotheses: NDArray[np.float64], truth: NDArray[np.float64]
+) -> tuple[float, float]:
+    """Position (m) and heading (rad) error of the hypothesis nearest ``truth`` in position
+    (the first of equals); NaN, NaN without hypotheses."""
+    h = np.asarray(hypotheses, dtype=np.float64).reshape(-1, hypotheses.shape[-1])
+    if h.shape[0] == 0:
+        return math.nan, math.nan
+    d = position_error(h[:, :3], truth)
+    i = int(np.argmin(d))
+    return float(d[i]), float(heading_error(h[i, :3], truth))
+
+
+def confidently_wrong(
+    estimate_ok: NDArray[np.bool_] | bool,
+    heaviest: NDArray[np.float64] | float,
+    share: float = CONFIDENT_SHARE,
+) -> NDArray[np.bool_]:
+    """Element-wise: the estimate is wrong (does not cover the truth) while one hypothesis
+    holds at least ``share`` of the weight."""
+    return np.asarray(~np.asarray(estimate_ok, dtype=bool) & (np.asarray(heaviest) >= share))
+
+
+def likelihood_evaluations(diagnostics: Sequence[StepDiagnostics]) -> NDArray[np.int64] | None:
+    """Per step ``(T,)``: the poses scored against a scan, step 0 being the global
+    initialisation (its test poses count there); their sum is the run's. ``None`` when a
+    step's record says its filter does not count them (``likelihood_evaluations_counted``
+    False: the Nav2 peer, whose wheel hides them)."""
+    if any(not getattr(d.record, "likelihood_evaluations_counted", True) for d in diagnostics):
+        return None
+    return np.array([d.likelihood_evaluations for d in diagnostics], dtype=np.int64)
 
 
 def converged_step(
@@ -153,6 +257,30 @@ class TrialMetrics:
     final_particles: int
     mean_step_ms: float
     median_step_ms: float
+    # the precision side, at the goal (module docstring)
+    true_image_weight: float
+    spurious_weight: float
+    truth_weight: float
+    heaviest_weight: float
+    confidently_wrong: bool
+    confidently_wrong_share: float  # of the run's steps
+    nearest_position_error_m: float
+    nearest_heading_error_rad: float
+    likelihood_evaluations: int | None  # whole run, initialisation included; None: not counted
+    initialisation_likelihood_evaluations: int | None
+
+
+@dataclass(frozen=True)
+class StepPrecision:
+    """The precision side of a run, one entry per step (``T`` steps)."""
+
+    true_image_weight: NDArray[np.float64]  # (T,)
+    spurious_weight: NDArray[np.float64]  # (T,)
+    truth_weight: NDArray[np.float64]  # (T,)
+    heaviest_weight: NDArray[np.float64]  # (T,)
+    nearest_position_error: NDArray[np.float64]  # (T,) m
+    nearest_heading_error: NDArray[np.float64]  # (T,) rad
+    likelihood_evaluations: NDArray[np.int64] | None  # (T,); None: the filter does not count
 
 
 def trial_metrics(
@@ -163,6 +291,7 @@ def trial_metrics(
     gathered: NDArray[np.float64],
     n_particles: NDArray[np.int64],
     step_ms: NDArray[np.float64],
+    precision: StepPrecision,
     *,
     single_estimate: bool,
     hold_s: float = HOLD_S,
@@ -173,6 +302,9 @@ def trial_metrics(
     conv = converged_step(covered, gathered, single_estimate=single_estimate)
     exp = expired_step(covered, conv, hold_steps, single_estimate=single_estimate)
     steps = step_ms[1:] if step_ms.size > 1 else step_ms
+    ok = within(estimates, truth)
+    wrong = confidently_wrong(ok, precision.heaviest_weight)
+    evals = precision.likelihood_evaluations
     return TrialMetrics(
         converged_s=None if conv is None else float(times[conv] - times[0]),
         expired_s=None if exp is None else float(times[exp] - times[0]),
@@ -180,11 +312,68 @@ def trial_metrics(
         kept_all=None if single_estimate else bool(covered[-1].all()),
         final_position_error_m=float(position_error(estimates[-1], truth[-1])),
         final_heading_error_rad=float(heading_error(estimates[-1], truth[-1])),
-        final_estimate_ok=bool(within(estimates[-1], truth[-1])),
+        final_estimate_ok=bool(ok[-1]),
         mean_particles=float(np.mean(n_particles)),
         final_particles=int(n_particles[-1]),
         mean_step_ms=float(np.mean(steps)),
         median_step_ms=float(np.median(steps)),
+        true_image_weight=float(precision.true_image_weight[-1]),
+        spurious_weight=float(precision.spurious_weight[-1]),
+        truth_weight=float(precision.truth_weight[-1]),
+        heaviest_weight=float(precision.heaviest_weight[-1]),
+        confidently_wrong=bool(wrong[-1]),
+        confidently_wrong_share=float(np.mean(wrong)),
+        nearest_position_error_m=float(precision.nearest_position_error[-1]),
+        nearest_heading_error_rad=float(precision.nearest_heading_error[-1]),
+        likelihood_evaluations=None if evals is None else int(evals.sum()),
+        initialisation_likelihood_evaluations=None if evals is None else int(evals[0]),
+    )
+
+
+@dataclass(frozen=True)
+class PrecisionSummary:
+    """The precision side over runs (means over runs; ``None`` where no run has the number).
+
+    likelihood_evaluations: mean per run, the initialisation included (``None``: the filter
+    does not count them); initialisation_likelihood_evaluations: the initialisation's share.
+    """
+
+    true_image_weight: float
+    spurious_weight: float
+    truth_weight: float
+    confidently_wrong_rate: float
+    nearest_position_error_mean_m: float
+    nearest_position_error_median_m: float
+    nearest_heading_error_mean_rad: float
+    likelihood_evaluations: float | None
+    initialisation_likelihood_evaluations: float | None
+
+
+def _mean_or_none(values: Sequence[int | None]) -> float | None:
+    if not values or any(v is None for v in values):
+        return None
+    return float(np.mean(np.asarray(values, dtype=np.float64)))
+
+
+def precision_summary(metrics: Sequence[TrialMetrics]) -> PrecisionSummary:
+    """:class:`PrecisionSummary` of the runs ``metrics`` (at least one)."""
+    if not metrics:
+        raise ValueError("precision_summary: no runs")
+    near = np.array([m.nearest_position_error_m for m in metrics])
+    return PrecisionSummary(
+        true_image_weight=float(np.mean([m.true_image_weight for m in metrics])),
+        spurious_weight=float(np.mean([m.spurious_weight for m in metrics])),
+        truth_weight=float(np.mean([m.truth_weight for m in metrics])),
+        confidently_wrong_rate=float(np.mean([m.confidently_wrong for m in metrics])),
+        nearest_position_error_mean_m=float(np.mean(near)),
+        nearest_position_error_median_m=float(np.median(near)),
+        nearest_heading_error_mean_rad=float(
+            np.mean([m.nearest_heading_error_rad for m in metrics])
+        ),
+        likelihood_evaluations=_mean_or_none([m.likelihood_evaluations for m in metrics]),
+        initialisation_likelihood_evaluations=_mean_or_none(
+            [m.initialisation_likelihood_evaluations for m in metrics]
+        ),
     )
 
 

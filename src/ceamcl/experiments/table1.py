@@ -18,6 +18,8 @@ from typing import Any
 import numpy as np
 
 from ceamcl.experiments.common import (
+    PRECISION_DEFINITIONS,
+    PRECISION_HEADER,
     Curve,
     ExperimentSettings,
     curve,
@@ -27,13 +29,22 @@ from ceamcl.experiments.common import (
     markdown_table,
     metadata_markdown,
     pct,
+    precision_cells,
+    precision_columns,
     run_trials,
     trial_rows,
     write_csv,
     write_text,
 )
 from ceamcl.experiments.executors import ProgressCallback
-from ceamcl.experiments.metrics import GATHERED_SHARE, HEADING_TOL_RAD, HOLD_S, POSITION_TOL_M
+from ceamcl.experiments.metrics import (
+    GATHERED_SHARE,
+    HEADING_TOL_RAD,
+    HOLD_S,
+    POSITION_TOL_M,
+    PrecisionSummary,
+    precision_summary,
+)
 from ceamcl.experiments.trials import TrialRecord
 from ceamcl.io.results import ensure_output_dir
 
@@ -62,6 +73,7 @@ class AlgorithmSummary:
     mean_particles: float
     mean_step_ms: float
     median_step_ms: float
+    precision: PrecisionSummary
 
 
 def summarise(algorithm: str, records: Sequence[TrialRecord]) -> AlgorithmSummary:
@@ -86,6 +98,7 @@ def summarise(algorithm: str, records: Sequence[TrialRecord]) -> AlgorithmSummar
         mean_particles=float(np.mean([m.mean_particles for m in ms])),
         mean_step_ms=float(np.mean([m.mean_step_ms for m in ms])),
         median_step_ms=float(np.median(steps)),
+        precision=precision_summary(ms),
     )
 
 
@@ -140,6 +153,8 @@ def summary_rows(result: Table1Result) -> list[dict[str, Any]]:
     for s in result.summaries:
         paper = PAPER_TABLE1.get(s.algorithm)
         row = asdict(s)
+        del row["precision"]
+        row.update(precision_columns(s.precision))  # likelihood_evaluations among them
         row["paper_converged_s"] = None if paper is None else paper[0]
         row["paper_expired_s"] = None if paper is None else (paper[1] if paper[1] else "never")
         row["paper_success_rate"] = None if paper is None else paper[2]
@@ -171,6 +186,7 @@ def table1_markdown(result: Table1Result, meta: dict[str, Any]) -> str:
         "final error (m) mean / median",
         "mean particles",
         "step ms mean / median",
+        *PRECISION_HEADER,
     ]
     rows = []
     for s in result.summaries:
@@ -188,6 +204,7 @@ def table1_markdown(result: Table1Result, meta: dict[str, Any]) -> str:
                 f"{s.final_error_mean_m:.2f} / {s.final_error_median_m:.2f}",
                 f"{s.mean_particles:.0f}",
                 f"{s.mean_step_ms:.1f} / {s.median_step_ms:.1f}",
+                *precision_cells(s.precision),
             ]
         )
     routes = ", ".join(r.name for r in result.settings.course.routes)
@@ -205,6 +222,8 @@ def table1_markdown(result: Table1Result, meta: dict[str, Any]) -> str:
         f"{GATHERED_SHARE:.0%} of the weight. *Expired*: after convergence, an image uncovered "
         f"for {HOLD_S:g} s or more. *Success*: the true pose covered at the goal. "
         "Single-estimate algorithms (nav2-amcl) are measured by their estimate alone.",
+        "",
+        PRECISION_DEFINITIONS,
         "",
         "The paper's numbers are 5 runs per start on a real Pioneer II in its hall (its Table "
         "1); ours are simulated runs of the same protocol.",

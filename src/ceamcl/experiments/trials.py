@@ -15,7 +15,15 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ceamcl.experiments.metrics import TrialMetrics, step_coverage, trial_metrics
+from ceamcl.experiments.metrics import (
+    StepPrecision,
+    TrialMetrics,
+    likelihood_evaluations,
+    nearest_error,
+    step_coverage,
+    trial_metrics,
+    weight_shares,
+)
 from ceamcl.experiments.routes import Course
 from ceamcl.filters import registry
 from ceamcl.filters.ceamcl.records import species_of
@@ -72,6 +80,7 @@ class TrialRecord:
     resources: NDArray[np.float64]  # (T,): CEAMCL's total resources; NaN for the others
     n_hypotheses: NDArray[np.int64]  # (T,)
     tracking_error: NDArray[np.float64]  # (T,): position error of the hypothesis nearest the truth
+    precision: StepPrecision  # weight shares, nearest hypothesis, likelihood evaluations
     kidnapped_at: tuple[int, ...]
     metrics: TrialMetrics
 
@@ -143,6 +152,8 @@ def record_trial(trial: Trial, log: SimulatedLog, result: RunResult) -> TrialRec
     covered = np.zeros((n, k_images), dtype=bool)
     gathered = np.zeros(n)
     tracking = np.zeros(n)
+    shares = np.zeros((n, 4))  # true image set, spurious, heaviest, at the truth
+    nearest_heading = np.zeros(n)
     truth = np.asarray(log.true_poses, dtype=np.float64)
     for k in range(n):
         images = trial.course.images(truth[k])
@@ -152,7 +163,9 @@ def record_trial(trial: Trial, log: SimulatedLog, result: RunResult) -> TrialRec
             hyps = result.hypotheses[k]
         covered[k], gathered[k] = step_coverage(hyps, images)
         near = hyps if hyps.shape[0] else result.estimates[k : k + 1]
-        tracking[k] = float(np.min(position_error(near, truth[k])))
+        tracking[k], nearest_heading[k] = nearest_error(near, truth[k])
+        w = weight_shares(hyps, images)
+        shares[k] = w.true_images, w.spurious, w.heaviest, w.truth
     diags = result.diagnostics
     n_particles = np.array([d.n_particles for d in diags], dtype=np.int64)
     step_ms = np.array([d.step_ms for d in diags], dtype=np.float64)
@@ -160,6 +173,15 @@ def record_trial(trial: Trial, log: SimulatedLog, result: RunResult) -> TrialRec
         [sum(s.resources for s in species_of(d)) if species_of(d) else np.nan for d in diags]
     )
     n_hyp = np.array([h.shape[0] for h in result.hypotheses], dtype=np.int64)
+    precision = StepPrecision(
+        true_image_weight=shares[:, 0],
+        spurious_weight=shares[:, 1],
+        heaviest_weight=shares[:, 2],
+        truth_weight=shares[:, 3],
+        nearest_position_error=tracking,
+        nearest_heading_error=nearest_heading,
+        likelihood_evaluations=likelihood_evaluations(diags),
+    )
     metrics = trial_metrics(
         result.times,
         truth,
@@ -168,6 +190,7 @@ def record_trial(trial: Trial, log: SimulatedLog, result: RunResult) -> TrialRec
         gathered,
         n_particles,
         step_ms,
+        precision,
         single_estimate=single,
     )
     return TrialRecord(
@@ -189,6 +212,7 @@ def record_trial(trial: Trial, log: SimulatedLog, result: RunResult) -> TrialRec
         resources=resources,
         n_hypotheses=n_hyp,
         tracking_error=tracking,
+        precision=precision,
         kidnapped_at=tuple(log.kidnapped_at),
         metrics=metrics,
     )

@@ -218,6 +218,7 @@ class Nav2AMCLRecord(StepRecord):
 
     updated: bool = False
     n_particles_is_upper_bound: bool = True
+    likelihood_evaluations_counted: bool = False  # the wheel does not say how many it scores
 
 
 @dataclass(frozen=True)
