@@ -180,6 +180,7 @@ class ConstantSensor:
         return np.full(np.asarray(poses).reshape(-1, 3).shape[0], self.value)
 
     temper = 1.0
+    scoring = "product"
 
 
     def max_log_beam_likelihood(self, prepared: PreparedScan) -> float:
