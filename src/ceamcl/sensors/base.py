@@ -14,11 +14,14 @@ per-beam likelihoods divided by the largest value one beam can take, so a perfec
 
 from __future__ import annotations
 
-from typing import Protocol
+import dataclasses
+from collections.abc import Mapping
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ceamcl.errors import ConfigError
 from ceamcl.sensors.scan import LaserScan, PreparedScan
 from ceamcl.sensors.scoring import ros_fitness
 
@@ -67,3 +70,42 @@ def fitness(
         return ros_fitness(ll, prepared.n_beams, model.max_log_beam_likelihood(prepared))
     per_beam = ll / (prepared.n_beams * model.temper) - model.max_log_beam_likelihood(prepared)
     return np.exp(np.minimum(per_beam, 0.0))
+
+
+_MISSING = object()
+
+
+def with_settings(model: SensorModel, settings: Mapping[str, Any]) -> SensorModel:
+    """``model`` with fields of its config changed (e.g. ``{"max_beams": 30, "temper": 0.1}``
+    or ``{"scoring": "ros"}``), on the same map; ``model`` itself when nothing changes.
+
+    This is how an algorithm brings its own sensor settings to whichever sensor model it is
+    given (``Algorithm.sensor_settings``, KLD-AMCL's ``scoring``). A model must have a frozen
+    dataclass ``config`` and be built as ``type(model)(model.grid, config)``, as the beam model
+    and the likelihood field are. A setting the model does not have, or a bad value, is a
+    :class:`ConfigError` naming it.
+    """
+    if not settings:
+        return model
+    config = getattr(model, "config", None)
+    if config is None and all(getattr(model, k, _MISSING) == v for k, v in settings.items()):
+        return model  # a model without a config that already has these values (a test double)
+    name = type(model).__name__
+    if config is None or not dataclasses.is_dataclass(config) or isinstance(config, type):
+        raise ConfigError(
+            f"sensor: a {name} has no config to take the settings {', '.join(settings)}"
+        )
+    known = {f.name for f in dataclasses.fields(config)}
+    unknown = [k for k in settings if k not in known]
+    if unknown:
+        raise ConfigError(
+            f"sensor: {name} has no setting {unknown[0]!r}; expected some of {', '.join(known)}"
+        )
+    if all(getattr(config, k) == v for k, v in settings.items()):
+        return model
+    try:
+        changed = dataclasses.replace(config, **settings)
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"sensor: {name}: {exc}") from None
+    built: SensorModel = type(model)(model.grid, changed)  # type: ignore[call-arg, attr-defined]
+    return built

@@ -133,9 +133,7 @@ def _beam_kernel_py(
         acc = 0.0
         for j in range(m):
             expected = _march(lx, ly, lth + bearings[j], blocking, dist, res, range_max)
-            acc += _beam_value(
-                ranges[j], expected, a_hit, inv_two_sigma2, short[j], extra[j], cube
-            )
+            acc += _beam_value(ranges[j], expected, a_hit, inv_two_sigma2, short[j], extra[j], cube)
         out[i] = acc
     return out
 
@@ -188,9 +186,7 @@ def _beam_table_kernel_py(
                 res,
                 range_max,
             )
-            acc += _beam_value(
-                ranges[j], expected, a_hit, inv_two_sigma2, short[j], extra[j], cube
-            )
+            acc += _beam_value(ranges[j], expected, a_hit, inv_two_sigma2, short[j], extra[j], cube)
         out[i] = acc
     return out
 
