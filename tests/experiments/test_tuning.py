@@ -133,4 +133,10 @@ def test_cli_tune(tmp_path: Path) -> None:
     with (out / "tuning.csv").open() as fh:
         rows = list(csv.DictReader(fh))
     assert [(r["algorithm"], r["max_beams"], r["temper"]) for r in rows] == [("mcl", "30", "0.1")]
+    # Each finished configuration is kept; the same sweep again resumes instead of re-running.
+    partial = out / "tuning-partial-seed10000-trials1.csv"
+    assert len(read_tuning_csv(partial)) == 1
+    assert main([*args, "--tempers", "0.1,0.03", "--out", str(out)]) == 0
+    assert [r.temper for r in read_tuning_csv(partial)] == [0.1, 0.03]
+    assert len(read_tuning_csv(out / "tuning.csv")) == 2
     assert main(["experiment", "tune", "--algorithms", "ceamcl", "--out", str(out)]) == 2

@@ -239,6 +239,23 @@ def _tuning_grid(args: argparse.Namespace) -> tuning.TuningGrid:
     )
 
 
+def _run_tuning(
+    settings: ExperimentSettings, args: argparse.Namespace, progress: ProgressCallback
+) -> tuning.TuningResult:
+    """The sweep, each finished configuration appended to OUT/tuning-partial-*.csv; a sweep
+    run again with the same --out, --seed and --trials goes on where it stopped."""
+    partial = tuning.partial_path(args.out, settings)
+    done = tuning.read_tuning_csv(partial) if partial.exists() else []
+    result = tuning.run_tuning(
+        settings,
+        _tuning_grid(args),
+        progress=progress,
+        done=done,
+        on_row=lambda row: tuning.append_row(partial, row),
+    )
+    return result
+
+
 def _tuning_runs(settings: ExperimentSettings, args: argparse.Namespace) -> int:
     """Runs of the sweep: configurations x routes x trials."""
     cands = tuning.candidates(
@@ -290,9 +307,7 @@ EXPERIMENTS: dict[str, Experiment] = {
         "the tuning sweep behind mcl-tuned, gmcl-tuned, kld-amcl-tuned (docs/tuning.md): "
         "Table 1's protocol for each baseline over a grid of beams, temper, N and N_test",
         3,
-        lambda settings, args, progress: tuning.run_tuning(
-            settings, _tuning_grid(args), progress=progress
-        ),
+        lambda settings, args, progress: _run_tuning(settings, args, progress),
         tuning_rich,
         tuning.write_tuning,
         count=_tuning_runs,

@@ -25,8 +25,8 @@ from __future__ import annotations
 import csv
 import math
 import os
-from collections.abc import Iterable, Sequence
-from dataclasses import asdict, dataclass, replace
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -214,22 +214,50 @@ def run_tuning(
     *,
     progress: ProgressCallback | None = None,
     quiet: bool = False,
+    done: Sequence[TuningRow] = (),
+    on_row: Callable[[TuningRow], None] | None = None,
 ) -> TuningResult:
-    """Run the sweep over the baselines among ``settings.algorithms`` and score it."""
+    """Run the sweep over the baselines among ``settings.algorithms`` and score it.
+
+    Configurations run one after another (their runs in parallel on the settings' executor);
+    ``on_row(row)`` is called as each finishes (the CLI appends it to a file), and rows in
+    ``done`` (from an interrupted sweep with the same seed and trials) are not run again.
+    """
     algorithms = [a for a in settings.algorithms if a in BASELINES]
     if not algorithms:
         raise ConfigError(f"algorithms: the tuning sweep tunes {', '.join(BASELINES)}")
-    cands = candidates(algorithms, grid)
-    trials = tuning_trials(settings, cands)
     per = len(settings.course.routes) * settings.trials
-    items = [(i // per, t) for i, t in enumerate(trials)]
+    finished = {r.candidate: r for r in done if r.runs == per}
+    cands = candidates(algorithms, grid)
+    todo = [c for c in cands if c not in finished]
+    total = len(todo) * per
+    report = None if quiet else progress
+
+    def chunk_progress(offset: int) -> ProgressCallback:
+        def inner(label: str, k: int, _n: int) -> None:
+            if report is not None:
+                report(label, offset + k, total)
+
+        return inner
+
+    rows = dict(finished)
     with open_executor(settings.executor, settings.workers) as ex:
-        outcomes = map_trials(
-            ex, run_tuning_trial, items, label="tuning runs", progress=progress, quiet=quiet
-        )
-    rows = [summarise(c, [o for o in outcomes if o.candidate == i]) for i, c in enumerate(cands)]
-    rows.sort(key=lambda r: (algorithms.index(r.algorithm), score_key(r)))
-    return TuningResult(settings, grid, rows)
+        for n, c in enumerate(todo):
+            items = [(0, t) for t in tuning_trials(settings, [c])]
+            outcomes = map_trials(
+                ex,
+                run_tuning_trial,
+                items,
+                label="tuning runs",
+                progress=chunk_progress(n * per),
+                quiet=quiet,
+            )
+            rows[c] = summarise(c, outcomes)
+            if on_row is not None:
+                on_row(rows[c])
+    ordered = [rows[c] for c in cands]
+    ordered.sort(key=lambda r: (algorithms.index(r.algorithm), score_key(r)))
+    return TuningResult(settings, grid, ordered)
 
 
 def summarise(c: Candidate, outcomes: Sequence[TuningOutcome]) -> TuningRow:
@@ -310,8 +338,23 @@ def write_tuning(
     ]
 
 
+def partial_path(out: str | os.PathLike[str], settings: ExperimentSettings) -> Path:
+    """Where the CLI keeps the rows of a sweep in progress (resumed when run again)."""
+    return Path(out) / f"tuning-partial-seed{settings.seed}-trials{settings.trials}.csv"
+
+
+def append_row(path: Path, row: TuningRow) -> None:
+    """Append one row to a partial ``tuning.csv`` (its header first)."""
+    new = not path.exists()
+    with path.open("a", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=[f.name for f in fields(TuningRow)])
+        if new:
+            writer.writeheader()
+        writer.writerow({k: "" if v is None else v for k, v in asdict(row).items()})
+
+
 def read_tuning_csv(path: str | os.PathLike[str]) -> list[TuningRow]:
-    """The rows of a ``tuning.csv`` written by :func:`write_tuning`."""
+    """The rows of a ``tuning.csv`` written by :func:`write_tuning` (or :func:`append_row`)."""
     rows = []
     with Path(path).open(newline="") as fh:
         for i, r in enumerate(csv.DictReader(fh), start=2):
@@ -346,8 +389,10 @@ __all__ = [
     "TuningOutcome",
     "TuningResult",
     "TuningRow",
+    "append_row",
     "best_rows",
     "candidates",
+    "partial_path",
     "read_tuning_csv",
     "run_tuning",
     "run_tuning_trial",
