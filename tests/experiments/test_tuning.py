@@ -13,6 +13,8 @@ from ceamcl.errors import ConfigError
 from ceamcl.experiments.common import ExperimentSettings
 from ceamcl.experiments.routes import paper_course
 from ceamcl.experiments.tuning import (
+    BASELINES,
+    PRESETS,
     TUNING_SEED,
     Candidate,
     TuningGrid,
@@ -140,3 +142,53 @@ def test_cli_tune(tmp_path: Path) -> None:
     assert [r.temper for r in read_tuning_csv(partial)] == [0.1, 0.03]
     assert len(read_tuning_csv(out / "tuning.csv")) == 2
     assert main(["experiment", "tune", "--algorithms", "ceamcl", "--out", str(out)]) == 2
+
+
+# ---------------------------------------------------------------------- the presets
+DOCS_CSV = Path(__file__).resolve().parents[2] / "docs" / "tuning.csv"
+
+
+@pytest.mark.parametrize("algorithm", BASELINES)
+def test_each_preset_is_the_best_row_of_the_committed_sweep(algorithm: str) -> None:
+    """The presets cannot drift from the evidence: each equals its algorithm's best row of
+    docs/tuning.csv (config and sensor settings)."""
+    best = best_rows(read_tuning_csv(DOCS_CSV))[algorithm]
+    preset = registry.get(PRESETS[algorithm])
+    want = best.candidate
+    assert preset.default() == want.config()
+    assert dict(preset.sensor_settings) == want.sensor_settings()
+    assert preset.config_type is registry.get(algorithm).config_type
+
+
+def test_the_committed_sweep_ran_on_seeds_disjoint_from_the_reported_ones() -> None:
+    rows = read_tuning_csv(DOCS_CSV)
+    assert {r.algorithm for r in rows} == set(BASELINES)
+    assert all(r.runs == 12 for r in rows)  # 3 per room, four rooms
+    assert f"--seed {TUNING_SEED}" in (DOCS_CSV.parent / "tuning.md").read_text()
+
+
+@pytest.mark.parametrize("sensor", ["likelihood-field", "beam"])
+def test_make_filter_applies_a_presets_sensor_settings_to_either_model(sensor: str) -> None:
+    grid = get_world("small-office")
+    for name in PRESETS.values():
+        spec = registry.get(name)
+        f = registry.make_filter(name, grid, np.random.default_rng(0), sensor=sensor)
+        assert f.name == name
+        cfg = f.sensor.config  # type: ignore[attr-defined]
+        for key, value in spec.sensor_settings.items():
+            assert getattr(cfg, key) == value
+        assert f.config == spec.default()  # type: ignore[attr-defined]
+
+
+def test_table1_runs_a_preset(tmp_path: Path) -> None:
+    out = tmp_path / "t1"
+    args = ["experiment", "table1", "--trials", "1", "--starts", "0", "--executor", "serial"]
+    args += ["--quiet", "--algorithms", "mcl-tuned", "--max-time", "2"]
+    assert main([*args, "--out", str(out)]) == 0
+    with (out / "table1.csv").open() as fh:
+        assert [r["algorithm"] for r in csv.DictReader(fh)] == ["mcl-tuned"]
+
+
+def test_every_algorithm_includes_the_presets() -> None:
+    chosen, _ = registry.resolve(None)
+    assert set(PRESETS.values()) <= set(chosen)

@@ -578,12 +578,24 @@ RECOVERY_ALGORITHM = Algorithm(
     with_particles=_with_particles,
     summary="KLD-AMCL with augmented-MCL recovery (alpha_slow 0.001, alpha_fast 0.1)",
 )
+#: KLD-AMCL (amcl's scoring, recovery off) as the tuning sweep found it best on the symmetric
+#: hall (docs/tuning.md; a test holds it to the best row of docs/tuning.csv).
+TUNED_ALGORITHM = Algorithm(
+    "kld-amcl-tuned",
+    KLDAMCLConfig,
+    KLDAMCL,
+    default_config=lambda: _with_particles(KLDAMCLConfig(init_test_poses=100_000), 5000),
+    with_particles=_with_particles,
+    sensor_settings={"max_beams": 30},
+    summary="KLD-AMCL with the tuning sweep's best max_particles, start and beams (docs/tuning.md)",
+)
 
 
 __all__ = [
     "ALGORITHM",
     "KLDAMCL",
     "RECOVERY_ALGORITHM",
+    "TUNED_ALGORITHM",
     "Z_099",
     "KLDAMCLConfig",
     "KLDAMCLRecord",

@@ -196,3 +196,15 @@ ALGORITHM = Algorithm(
     with_particles=lambda cfg, n: replace(cfg, n_particles=n),
     summary="Monte Carlo localisation with a fixed sample size (the paper's first baseline)",
 )
+#: MCL as the tuning sweep found it best on the symmetric hall (docs/tuning.md; a test holds
+#: it to the best row of docs/tuning.csv).
+TUNED_ALGORITHM = Algorithm(
+    "mcl-tuned",
+    MCLConfig,
+    MCL,
+    default_config=lambda: MCLConfig(n_particles=5000, init_test_poses=1_000_000),
+    with_particles=lambda cfg, n: replace(cfg, n_particles=n),
+    sensor_settings={"max_beams": 30, "temper": 0.1},
+    summary="MCL with the tuning sweep's best particles, start and sensor settings "
+    "(docs/tuning.md)",
+)

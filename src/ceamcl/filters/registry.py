@@ -40,7 +40,11 @@ _BUILT_IN: tuple[Algorithm, ...] = (
 )
 #: Presets: the baselines as the tuning sweep found them best (docs/tuning.md); the filters of
 #: :data:`_BUILT_IN` with other configs and sensor settings. Experiments run them too.
-_PRESETS: tuple[Algorithm, ...] = ()
+_PRESETS: tuple[Algorithm, ...] = (
+    gmcl.TUNED_ALGORITHM,
+    mcl.TUNED_ALGORITHM,
+    kld_amcl.TUNED_ALGORITHM,
+)
 #: Algorithms outside the core: name -> module whose ``ALGORITHM`` declares it.
 _LAZY: dict[str, str] = {"nav2-amcl": "ceamcl.peers.nav2_amcl"}
 
