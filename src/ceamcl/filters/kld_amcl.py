@@ -586,7 +586,7 @@ TUNED_ALGORITHM = Algorithm(
     KLDAMCL,
     default_config=lambda: _with_particles(KLDAMCLConfig(init_test_poses=100_000), 5000),
     with_particles=_with_particles,
-    sensor_settings={"max_beams": 30},
+    sensor_settings={"max_beams": 60},
     summary="KLD-AMCL with the tuning sweep's best max_particles, start and beams (docs/tuning.md)",
 )
 
