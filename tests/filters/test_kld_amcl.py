@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -25,6 +26,7 @@ from ceamcl.filters.kld_amcl import (
 from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel, increment_between
 from ceamcl.runner import run_filter
 from ceamcl.sensors import LaserScan, PreparedScan
+from ceamcl.sensors.base import with_settings
 from ceamcl.sensors.scan import prepare_scan
 from ceamcl.simulation import SimulatedLog, get_scenario
 
@@ -180,7 +182,7 @@ class ConstantSensor:
         return np.full(np.asarray(poses).reshape(-1, 3).shape[0], self.value)
 
     temper = 1.0
-
+    scoring = "product"
 
     def max_log_beam_likelihood(self, prepared: PreparedScan) -> float:
         return 0.0
@@ -240,6 +242,7 @@ def _collapse_run(recovery: bool) -> tuple[KLDAMCL, ConstantSensor, list[dict[st
         alpha_fast=0.1 if recovery else 0.0,
         update_min_d=0.0,
         update_min_a=0.0,
+        scoring="product",  # the test's sensor scores a product of one beam
     )
     f = KLDAMCL(grid, OdometryMotionModel(), sensor, cfg, rng=rng)
     f.initialise_pose([1.5, 4.25, 0.0], np.diag([0.05**2, 0.05**2, 0.02**2]))
@@ -313,7 +316,9 @@ def test_every_particle_impossible_reinitialises_globally(value: float) -> None:
     log, rng = office_log(3)
     grid = get_scenario("office").grid()
     sensor = ConstantSensor(0.0)
-    cfg = KLDAMCLConfig(alpha_slow=0.001, alpha_fast=0.1, update_min_d=0.0, update_min_a=0.0)
+    cfg = KLDAMCLConfig(
+        alpha_slow=0.001, alpha_fast=0.1, update_min_d=0.0, update_min_a=0.0, scoring="product"
+    )
     f = KLDAMCL(grid, OdometryMotionModel(), sensor, cfg, rng=rng)
     f.initialise_pose([1.5, 4.25, 0.0], np.diag([0.05**2, 0.05**2, 0.02**2]))
     assert not f.step(MOVE, log.scan(0)).reinitialised
@@ -370,23 +375,26 @@ def kidnapped_run(algorithm: str, seed: int) -> tuple[int | None, float]:
 
 def test_recovery_relocalises_a_kidnapped_robot_and_plain_kld_amcl_does_not() -> None:
     """Seeds 0-5, tracked from the true start: with recovery the filter relocalises within the
-    kidnapped experiment's window (30 s) in most runs (when written: 5 of 6, 3.8-9.6 s; seed 2
-    first locks onto a heading-flipped pose and relocalises 30.5 s after the kidnap); without
-    recovery it never does (the cloud has no particle near the new pose)."""
+    kidnapped experiment's window (30 s) in most runs (with amcl's scoring: 5 of 6, seed 4 does
+    not); without recovery it never does (the cloud has no particle near the new pose). While
+    tracking, a few percent of the resampled particles are random (3.5-4.3 % on these seeds:
+    amcl's average weight, the mean of ``1 + sum pz^3`` over the cloud, moves with the cloud's
+    spread; docs/baselines.md)."""
     recovered = []
     for seed in range(6):
         r, before = kidnapped_run("kld-amcl-recovery", seed)
-        assert before < 0.01  # while tracking, (almost) no random particles
+        assert before < 0.06  # while tracking, few random particles
         recovered.append(r is not None)
         assert kidnapped_run("kld-amcl", seed)[0] is None
     assert sum(recovered) >= 5, recovered
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
-def test_recovery_injects_almost_nothing_while_tracking(seed: int) -> None:
-    """A normal office run from the true pose: fewer than 1 % of the resampled particles are
-    random (augmented MCL injects a little whenever w_fast dips below w_slow), and tracking is as
-    good as without recovery."""
+def test_recovery_injects_little_while_tracking(seed: int) -> None:
+    """A normal office run from the true pose: fewer than 6 % of the resampled particles are
+    random (augmented MCL injects a little whenever w_fast dips below w_slow; with amcl's
+    scoring 3.6-4.0 % on these seeds, under 1 % with the product's per-beam marginal
+    likelihood), and tracking is as good as without recovery."""
     log, rng = office_log(seed)
     grid = get_scenario("office").grid()
     f = make_filter("kld-amcl-recovery", grid, rng)
@@ -399,7 +407,7 @@ def test_recovery_injects_almost_nothing_while_tracking(seed: int) -> None:
         if d.resampled:
             injected += d.injected
             drawn += f.particle_set.n
-    assert drawn > 0 and injected / drawn < 0.01
+    assert drawn > 0 and injected / drawn < 0.06
     assert errors[log.times >= 5.0].max() < 0.15  # the bound of test_tracking_from_a_known_start
 
 
@@ -444,7 +452,10 @@ def test_sample_size_falls_from_max_towards_min(scenario: str) -> None:
     grid = sc.grid()
     sim_rng, rng = generators(11)
     log = sc.simulate(sim_rng, grid)
-    f = make_filter("kld-amcl", grid, rng)
+    # KLD-sampling's adaptation on a sharp likelihood (the textbook product). With amcl's
+    # flat 1 + sum pz^3 the cloud stays wider and the count falls more slowly (office seed 11:
+    # median 946 over the second half; paper hall: 1378).
+    f = make_filter("kld-amcl", grid, rng, config=KLDAMCLConfig(scoring="product"))
     assert isinstance(f, KLDAMCL)
     first = f.initialise_global(log.scan(0))
     # Global initialisation draws max_particles (all weighted by the first scan).
@@ -504,3 +515,43 @@ def test_initialise_pose_rejects_a_non_finite_pose() -> None:
     f = make_filter("kld-amcl", get_scenario("office").grid(), np.random.default_rng(0))
     with pytest.raises(ConfigError, match="pose"):
         f.initialise_pose([1.0, float("nan"), 0.0], np.eye(3) * 0.01)
+
+
+# ---------------------------------------------------------------------------------- scoring
+@pytest.mark.parametrize("sensor", ["likelihood-field", "beam"])
+def test_kld_amcl_scores_scans_as_ros_amcl_on_either_model(sensor: str) -> None:
+    grid = get_scenario("office").grid()
+    given = make_sensor(sensor, grid)
+    f = make_filter("kld-amcl", grid, np.random.default_rng(0), sensor=given)
+    assert isinstance(f, KLDAMCL)
+    assert given.scoring == "product" and f.sensor.scoring == "ros"
+    assert type(f.sensor) is type(given) and f.sensor.grid is grid  # type: ignore[attr-defined]
+    # Same model, same settings, only the scoring differs.
+    assert f.sensor.config == replace(given.config, scoring="ros")  # type: ignore[attr-defined]
+    # The textbook product on request: the model given is used as it is.
+    g = make_filter(
+        "kld-amcl",
+        grid,
+        np.random.default_rng(0),
+        sensor=given,
+        config=KLDAMCLConfig(scoring="product"),
+    )
+    assert isinstance(g, KLDAMCL) and g.sensor is given
+    with pytest.raises(ConfigError, match="scoring: expected one of product, ros"):
+        KLDAMCLConfig(scoring="sum")
+
+
+def test_average_weight_with_ros_scoring_is_the_mean_of_the_updated_weights() -> None:
+    """amcl's w_avg: sum_i w_i p_i with p = 1 + sum pz^3 (prior weights w_i summing to 1)."""
+    log, _ = office_log(0)
+    grid = get_scenario("office").grid()
+    sensor = make_sensor("likelihood-field", grid)
+    ros = with_settings(sensor, {"scoring": "ros"})
+    prepared = ros.prepare(log.scan(0))
+    poses = np.vstack([log.true_poses[0], grid.sample_free_poses(99, np.random.default_rng(1))])
+    ll = ros.log_likelihood(poses, prepared)
+    prior = np.log(np.random.default_rng(2).dirichlet(np.ones(100)))
+    want = float(np.sum(np.exp(prior) * np.exp(ll)))
+    assert average_weight(prior, ll, prepared, ros) == pytest.approx(want, rel=1e-12)
+    assert 1.0 <= want <= 1.0 + prepared.n_beams
+    assert average_weight(prior, np.full(100, -np.inf), prepared, ros) == 0.0

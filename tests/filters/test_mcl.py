@@ -147,6 +147,7 @@ class NaNSensor:
         return np.full(np.asarray(poses).reshape(-1, 3).shape[0], np.nan)
 
     temper = 1.0
+    scoring = "product"
 
 
     def max_log_beam_likelihood(self, prepared: PreparedScan) -> float:

@@ -43,6 +43,7 @@ class Constant:
         return -np.abs(poses[:, 0] - TRUTH[0])
 
     temper = 1.0
+    scoring = "product"
 
 
     def max_log_beam_likelihood(self, prepared: PreparedScan) -> float:

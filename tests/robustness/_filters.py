@@ -39,6 +39,10 @@ def small_filter(
         config = ceamcl_config or registry.with_config("ceamcl", **SMALL_CEAMCL)
     elif algorithm in ("mcl", "gmcl"):
         config = registry.with_config(algorithm, resample_ess_fraction=resample_ess_fraction)
+    elif getattr(sensor, "config", None) is None:
+        # KLD-AMCL rebuilds a model with amcl's scoring; a test double without a config cannot
+        # be rebuilt, so the filter takes the double's own scoring.
+        config = registry.with_config(algorithm, scoring=sensor.scoring)
     return registry.make_filter(
         algorithm, grid, rng, sensor=sensor, n_particles=SMALL_N, config=config
     )

@@ -55,6 +55,7 @@ class BrokenSensor:
         return self.inner.log_likelihood(p, prepared)
 
     temper = 1.0
+    scoring = "product"
 
 
     def max_log_beam_likelihood(self, prepared: PreparedScan) -> float:

@@ -26,7 +26,7 @@ from ceamcl.cli.common import (
     positive_int,
 )
 from ceamcl.errors import ConfigError
-from ceamcl.experiments import delta, kidnapped, marked, table1
+from ceamcl.experiments import delta, kidnapped, marked, table1, tuning
 from ceamcl.experiments.common import (
     ExperimentSettings,
     TrialOutputs,
@@ -56,8 +56,11 @@ class Experiment:
 
     ``run(settings, args, progress)`` returns the experiment's result (with ``.records``);
     ``table(result)`` is the table printed; ``write(result, out, meta)`` writes its files.
-    ``repeats(args)``: runs per trial (the delta experiment runs every trial once per delta);
+    ``repeats(args)``: runs per trial (the delta experiment runs every trial once per delta;
+    the tuning sweep once per configuration, ``count`` gives its exact number of runs);
     ``algorithms``: a fixed set of algorithms, or ``None`` for the registry's.
+    ``default_algorithms``: what runs without ``--algorithms`` (``None``: every algorithm).
+    ``default_seed``: the base seed without ``--seed``.
     """
 
     help: str
@@ -68,6 +71,9 @@ class Experiment:
     repeats: Callable[[argparse.Namespace], int] = lambda args: 1
     add_arguments: Callable[[argparse.ArgumentParser], None] = lambda p: None
     algorithms: tuple[str, ...] | None = None
+    default_algorithms: tuple[str, ...] | None = None
+    default_seed: int = 0
+    count: Callable[[ExperimentSettings, argparse.Namespace], int] | None = None
 
 
 # ---------------------------------------------------------------- the tables printed
@@ -215,6 +221,104 @@ def _kidnapped_arguments(p: argparse.ArgumentParser) -> None:
     )
 
 
+def tuning_rich(result: tuning.TuningResult) -> Table:
+    header = ("algorithm", "beams", "temper", "N", "N_test", "kept all", "success", "conv. [s]")
+    rows = [
+        (
+            f"{tuning.PRESETS[r.algorithm]} = {r.algorithm}",
+            str(r.max_beams),
+            f"{r.temper:g}",
+            str(r.n_particles),
+            f"{r.init_test_poses:,}",
+            pct(r.kept_all_rate),
+            pct(r.success_rate),
+            f"{fmt(r.converged_s)} {r.converged_runs}/{r.runs}",
+        )
+        for r in result.best().values()
+    ]
+    return plain_table("tuning sweep: the best row of each baseline", header, rows)
+
+
+def _ints(text: str) -> list[int]:
+    try:
+        return [int(float(t)) for t in _names(text)]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated counts, got {text!r}") from None
+
+
+def _tuning_arguments(p: argparse.ArgumentParser) -> None:
+    g = tuning.DEFAULT_GRID
+
+    def listed(values: tuple[Any, ...]) -> str:
+        return ",".join(f"{v:g}" for v in values)
+
+    p.add_argument(
+        "--max-beams",
+        type=_ints,
+        default=None,
+        metavar="B1,B2",
+        help=f"max_beams values (default {listed(g.max_beams)})",
+    )
+    p.add_argument(
+        "--tempers",
+        type=_floats,
+        default=None,
+        metavar="T1,T2",
+        help=f"temper values, product scoring only (default {listed(g.temper)})",
+    )
+    p.add_argument(
+        "--particle-counts",
+        type=_ints,
+        default=None,
+        metavar="N1,N2",
+        help=f"particle counts (default {listed(g.n_particles)})",
+    )
+    p.add_argument(
+        "--init-test-poses",
+        type=_ints,
+        default=None,
+        metavar="M1,M2",
+        help=f"initialisation budgets (default {listed(g.init_test_poses)})",
+    )
+
+
+def _tuning_grid(args: argparse.Namespace) -> tuning.TuningGrid:
+    g = tuning.DEFAULT_GRID
+    return tuning.TuningGrid(
+        max_beams=tuple(args.max_beams or g.max_beams),
+        temper=tuple(args.tempers or g.temper),
+        n_particles=tuple(args.particle_counts or g.n_particles),
+        init_test_poses=tuple(
+            args.init_test_poses if args.init_test_poses is not None else g.init_test_poses
+        ),
+    )
+
+
+def _run_tuning(
+    settings: ExperimentSettings, args: argparse.Namespace, progress: ProgressCallback
+) -> tuning.TuningResult:
+    """The sweep, each finished configuration appended to OUT/tuning-partial-*.csv; a sweep
+    run again with the same --out, --seed and --trials goes on where it stopped."""
+    partial = tuning.partial_path(args.out, settings)
+    done = tuning.read_tuning_csv(partial) if partial.exists() else []
+    result = tuning.run_tuning(
+        settings,
+        _tuning_grid(args),
+        progress=progress,
+        done=done,
+        on_row=lambda row: tuning.append_row(partial, row),
+    )
+    return result
+
+
+def _tuning_runs(settings: ExperimentSettings, args: argparse.Namespace) -> int:
+    """Runs of the sweep: configurations x routes x trials."""
+    cands = tuning.candidates(
+        [a for a in settings.algorithms if a in tuning.BASELINES], _tuning_grid(args)
+    )
+    return len(cands) * len(settings.course.routes) * settings.trials
+
+
 #: The experiments, in the order ``--help`` lists them. Adding one: its module under
 #: ``experiments/`` and one entry here.
 EXPERIMENTS: dict[str, Experiment] = {
@@ -254,6 +358,18 @@ EXPERIMENTS: dict[str, Experiment] = {
         kidnapped.write_kidnapped,
         add_arguments=_kidnapped_arguments,
     ),
+    "tune": Experiment(
+        "the tuning sweep behind mcl-tuned, gmcl-tuned, kld-amcl-tuned (docs/tuning.md): "
+        "Table 1's protocol for each baseline over a grid of beams, temper, N and N_test",
+        3,
+        lambda settings, args, progress: _run_tuning(settings, args, progress),
+        tuning_rich,
+        tuning.write_tuning,
+        count=_tuning_runs,
+        add_arguments=_tuning_arguments,
+        default_algorithms=tuning.BASELINES,
+        default_seed=tuning.TUNING_SEED,
+    ),
 }
 
 
@@ -279,6 +395,7 @@ def _add_common(
     name: str,
     default_trials: int,
     fixed: tuple[str, ...] | None = None,
+    default_seed: int = 0,
 ) -> None:
     p.add_argument(
         "--trials",
@@ -312,7 +429,12 @@ def _add_common(
         metavar="I,J",
         help="only these start routes (0-based; default all)",
     )
-    p.add_argument("--seed", type=non_negative_int, default=0, help="base seed (default 0)")
+    p.add_argument(
+        "--seed",
+        type=non_negative_int,
+        default=default_seed,
+        help=f"base seed (default {default_seed})",
+    )
     p.add_argument(
         "--executor",
         default="local",
@@ -352,7 +474,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     which = exp.add_subparsers(dest="experiment", required=True)
     for name, experiment in EXPERIMENTS.items():
         p = which.add_parser(name, help=experiment.help, description=experiment.help)
-        _add_common(p, name, experiment.default_trials, experiment.algorithms)
+        _add_common(
+            p, name, experiment.default_trials, experiment.algorithms, experiment.default_seed
+        )
         experiment.add_arguments(p)
         p.set_defaults(run=run)
 
@@ -377,7 +501,8 @@ def _settings(args: argparse.Namespace, console: Console) -> ExperimentSettings:
                 f"got {', '.join(names)}"
             )
     else:
-        algorithms, skipped = registry.resolve(names)
+        wanted = names if names is not None else EXPERIMENTS[args.experiment].default_algorithms
+        algorithms, skipped = registry.resolve(wanted)
     for alg, reason in skipped.items():
         console.print(f"[yellow]skipping {alg}[/]: {reason}")
     if not algorithms:
@@ -404,6 +529,8 @@ def run(args: argparse.Namespace, console: Console) -> int:
     outputs = _output_options(args)  # refuses --mp4 without ffmpeg before the trials
     runs = len(settings.algorithms) * len(settings.course.routes) * settings.trials
     runs *= experiment.repeats(args)
+    if experiment.count is not None:
+        runs = experiment.count(settings, args)
     budget.require("--trials x routes x algorithms", runs, RUN_BYTES, "runs")
     ensure_output_dir(args.out)  # fail on an unwritable folder before hours of trials
     if not args.quiet:

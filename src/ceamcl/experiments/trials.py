@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -44,6 +45,10 @@ class Trial:
     seed: int
     delta_per_m2: float | None = None
     max_time_s: float | None = None
+    #: The algorithm's config instead of its default, and sensor settings on top of the
+    #: algorithm's own (the tuning sweep, experiments/tuning.py); a picklable frozen dataclass.
+    config: Any = None
+    sensor_settings: tuple[tuple[str, Any], ...] = ()
 
     @property
     def route(self) -> str:
@@ -130,10 +135,16 @@ def localise_trial(
         on_start(len(log))
     _, filter_rng = trial_generators(trial.seed, trial.route_index, trial.repetition)
     grid = trial.course.grid()
-    config = None
+    config = trial.config
     if trial.delta_per_m2 is not None:
         config = registry.with_config(trial.algorithm, delta_per_m2=trial.delta_per_m2)
-    f = registry.make_filter(trial.algorithm, grid, filter_rng, config=config)
+    f = registry.make_filter(
+        trial.algorithm,
+        grid,
+        filter_rng,
+        config=config,
+        sensor_settings=dict(trial.sensor_settings),
+    )
     return log, run_filter(f, log, on_step=on_step, snapshot_every=snapshot_every)
 
 

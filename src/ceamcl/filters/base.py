@@ -15,8 +15,8 @@ to ``initialise_global`` and ``step`` returns the filter's :class:`StepRecord`; 
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass, fields
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field, fields
 from typing import TYPE_CHECKING, Any, Literal, Protocol
 
 import numpy as np
@@ -179,6 +179,9 @@ class Algorithm:
         entertains, ``"estimate"`` when it can only report one pose (the Nav2 peer).
     unavailable: why it cannot run here (an optional peer not installed), or ``None``.
     summary: one line for ``--help`` and the docs.
+    sensor_settings: fields of the sensor model's config this algorithm sets on whichever
+        model it is given (``{"max_beams": 30, "temper": 0.1}``; a tuned preset's), applied by
+        ``registry.make_filter`` through :func:`ceamcl.sensors.base.with_settings`.
     """
 
     name: str
@@ -189,6 +192,7 @@ class Algorithm:
     reports: Literal["hypotheses", "estimate"] = "hypotheses"
     unavailable: Callable[[], str | None] = _available
     summary: str = ""
+    sensor_settings: Mapping[str, Any] = field(default_factory=dict)
 
     def default(self) -> Any:
         """The default config."""
@@ -202,4 +206,7 @@ class Algorithm:
         config: Any,
         rng: np.random.Generator,
     ) -> LocalisationFilter:
-        return self.factory(grid, motion, sensor, config, rng=rng)
+        built = self.factory(grid, motion, sensor, config, rng=rng)
+        if built.name != self.name:  # a preset runs its base filter under its own name
+            built.name = self.name
+        return built

@@ -60,3 +60,15 @@ ALGORITHM = Algorithm(
     with_particles=lambda cfg, n: replace(cfg, n_particles=n),
     summary="MCL plus CEAMCL's genetic operators, no species (the paper's second baseline)",
 )
+#: GMCL as the tuning sweep found it best on the symmetric hall (docs/tuning.md; a test holds
+#: it to the best row of docs/tuning.csv).
+TUNED_ALGORITHM = Algorithm(
+    "gmcl-tuned",
+    GMCLConfig,
+    GMCL,
+    default_config=lambda: GMCLConfig(n_particles=5000, init_test_poses=1_000_000),
+    with_particles=lambda cfg, n: replace(cfg, n_particles=n),
+    sensor_settings={"max_beams": 30, "temper": 0.1},
+    summary="GMCL with the tuning sweep's best particles, start and sensor settings "
+    "(docs/tuning.md)",
+)

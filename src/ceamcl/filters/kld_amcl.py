@@ -8,6 +8,9 @@ sensor models:
   turned more than ``update_min_a``, since the last update (amcl tests each axis of the
   odometry frame). The first scan after an initialisation always updates. An update moves
   the particles by the whole accumulated motion, then weights them.
+* **Scoring as amcl**: the sensor model (likelihood field or beam) is built with
+  ``scoring="ros"``, amcl's ``p = 1 + sum_k pz_k^3`` (:mod:`ceamcl.sensors.scoring`), unless
+  the config asks for the textbook product (``scoring="product"``).
 * **Sensor update** in log space. NaN and +inf likelihoods count as impossible; a scan with no
   usable beam changes nothing. If every particle is impossible the filter re-initialises
   globally (``max_particles`` poses uniform over free space, the next scan updates at once)
@@ -15,8 +18,10 @@ sensor models:
   only makes the weights uniform, which keeps a cloud no pose of which explains the scan.)
 * **Augmented MCL** (Probabilistic Robotics Table 8.3): running averages ``w_slow`` and
   ``w_fast`` of the average weight, and at resampling each new particle is drawn uniformly
-  over free space with probability ``max(0, 1 - w_fast / w_slow)``. Three deviations from
-  amcl, all needed for recovery to fire after a kidnap (docs/baselines.md): the average
+  over free space with probability ``max(0, 1 - w_fast / w_slow)``. The average weight is,
+  with amcl's scoring, amcl's: the mean of the updated weights ``sum_i w_i p(z | x_i)``
+  (:func:`average_weight`). Two deviations from amcl, both needed for recovery to fire after
+  a kidnap (docs/baselines.md), and with the textbook product a third: there the average
   weight is the per-beam marginal likelihood (:func:`average_weight`); the averages are
   bias-corrected running means (:func:`running_average`) rather than started at the first
   value; and they are *not* reset to 0 after an injection (the book's algorithm; amcl's reset
@@ -29,7 +34,9 @@ sensor models:
   and the estimate is the weighted mean of the heaviest cluster. Between updates it is carried
   along by the odometry since the last update, as amcl's map -> odom transform carries the
   robot. (Unlike amcl's kd-tree, our bins join across the +-pi heading seam.)
-* **Global localisation**: ``max_particles`` poses uniform over free space.
+* **Global localisation**: ``max_particles`` poses uniform over free space; with
+  ``init_test_poses`` > 0, ``max_particles`` resampled from that many test poses weighted by the
+  first scan (:func:`~ceamcl.filters.particles.importance_start`, CEAMCL's start).
 """
 
 from __future__ import annotations
@@ -50,9 +57,11 @@ from ceamcl.filters.base import (
 )
 from ceamcl.filters.clustering import cluster_hypotheses, pose_cluster_labels
 from ceamcl.filters.particles import (
+    INIT_BATCH,
     ParticleSet,
     check_increment,
     gaussian,
+    importance_start,
     propagate,
     reweight,
     uniform,
@@ -69,8 +78,9 @@ from ceamcl.motion.odometry import (
     apply_increment,
     increment_between,
 )
-from ceamcl.sensors.base import SensorModel, fitness
+from ceamcl.sensors.base import SensorModel, fitness, with_settings
 from ceamcl.sensors.scan import LaserScan, PreparedScan
+from ceamcl.sensors.scoring import SCORINGS
 
 #: Upper standard-normal quantile for 1 - delta = 0.99 (amcl's ``kld_z`` default is 0.99 in the
 #: ROS 1 wiki and Nav2's ``pf_z`` passes 0.99 itself, where the formula needs this quantile).
@@ -126,6 +136,12 @@ class KLDAMCLConfig:
     alpha_slow, alpha_fast: augmented-MCL decay rates; 0 and 0 (Nav2's default) turns it off.
     resample_interval: resample at every k-th filter update.
     update_min_d, update_min_a: odometry motion (per axis, m; rad) that triggers an update.
+    scoring: how the sensor model combines beams: ``"ros"`` (amcl's ``1 + sum pz^3``, the
+        default) or ``"product"`` (the textbook product, tempered as the model says).
+    init_test_poses: global initialisation's budget of likelihood evaluations (0: amcl's
+        ``max_particles`` uniform poses; N > 0: N test poses weighted by the first scan,
+        ``max_particles`` resampled from them, as CEAMCL starts).
+    init_batch: test poses weighed per likelihood call (bounds memory).
     """
 
     min_particles: int = 500
@@ -139,8 +155,19 @@ class KLDAMCLConfig:
     resample_interval: int = 1
     update_min_d: float = 0.25
     update_min_a: float = 0.2
+    scoring: str = "ros"
+    init_test_poses: int = 0
+    init_batch: int = INIT_BATCH
 
     def __post_init__(self) -> None:
+        if self.scoring not in SCORINGS:
+            raise ConfigError(
+                f"scoring: expected one of {', '.join(SCORINGS)}, got {self.scoring!r}"
+            )
+        if self.init_test_poses < 0:
+            raise ConfigError(f"init_test_poses: expected >= 0, got {self.init_test_poses}")
+        if self.init_batch < 1:
+            raise ConfigError(f"init_batch: expected >= 1, got {self.init_batch}")
         if self.min_particles < 1:
             raise ConfigError(f"min_particles: expected >= 1, got {self.min_particles}")
         if self.max_particles < self.min_particles:
@@ -179,8 +206,15 @@ def average_weight(
     prepared: PreparedScan,
     sensor: SensorModel,
 ) -> float:
-    """The "average weight" that ``w_slow`` and ``w_fast`` follow: the per-beam marginal
-    likelihood ``(sum_i w_i p(z | x_i))^(1 / n_beams) / p_max``, in [0, 1].
+    """The "average weight" that ``w_slow`` and ``w_fast`` follow.
+
+    With amcl's scoring (``sensor.scoring == "ros"``), amcl's: the mean of the updated
+    weights, ``sum_i w_i p(z | x_i)`` with ``p = 1 + sum_k pz_k^3`` (in [1, 1 + n_beams]; amcl
+    divides it further by the particle count, docs/baselines.md). 0 when every particle is
+    impossible.
+
+    With the textbook product: the per-beam marginal likelihood
+    ``(sum_i w_i p(z | x_i))^(1 / n_beams) / p_max``, in [0, 1].
 
     ``sum_i w_i p(z | x_i)`` (prior weights ``w_i``) is what Probabilistic Robotics' average
     weight estimates: the likelihood of the scan given the past, ``p(z_t | z_1:t-1, u_1:t)``.
@@ -198,6 +232,8 @@ def average_weight(
     if not math.isfinite(top):
         return 0.0
     log_marginal = top + math.log(float(np.sum(np.exp(x - top))))
+    if sensor.scoring == "ros":
+        return float(math.exp(log_marginal))
     per_beam = log_marginal / (prepared.n_beams * sensor.temper) - sensor.max_log_beam_likelihood(
         prepared
     )
@@ -333,10 +369,11 @@ class KLDAMCL:
     ) -> None:
         self.grid = grid
         self.motion = motion
-        self.sensor = sensor
         self.config = config or KLDAMCLConfig()
-        self.rng = rng
         cfg = self.config
+        # amcl's scoring on whichever model it is given (same map, same other settings).
+        self.sensor = with_settings(sensor, {"scoring": cfg.scoring})
+        self.rng = rng
         if cfg.recovery:
             self.name = "kld-amcl-recovery"
         self.update_when = on_motion(cfg.update_min_d, cfg.update_min_a)
@@ -362,9 +399,29 @@ class KLDAMCL:
         self._kld_target = ps.n
 
     def initialise_global(self, scan: LaserScan) -> KLDAMCLRecord:
-        """``max_particles`` poses uniform over free space, then a (forced) update with ``scan``."""
-        self._reset(uniform(self.grid, self.config.max_particles, self.rng))
-        return self._update(scan)
+        """``max_particles`` poses uniform over free space, then a (forced) update with ``scan``;
+        with ``init_test_poses``, ``max_particles`` resampled from that many test poses
+        weighted by ``scan`` (which counts as the first update)."""
+        cfg = self.config
+        if cfg.init_test_poses == 0:
+            self._reset(uniform(self.grid, cfg.max_particles, self.rng))
+            return self._update(scan)
+        prepared = usable(self.sensor, scan)
+        ps, evaluations = importance_start(
+            self.grid,
+            self.sensor,
+            prepared,
+            cfg.init_test_poses,
+            cfg.max_particles,
+            self.rng,
+            batch=cfg.init_batch,
+        )
+        self._reset(ps)
+        if evaluations == 0:  # no usable beam: uniform, and the next scan updates at once
+            return self._record(updated=False)
+        self._force_update = False
+        self._updates = 1
+        return self._record(evaluations=evaluations, resampled=True)
 
     def initialise_pose(self, pose: ArrayLike, covariance: ArrayLike) -> None:
         """``max_particles`` poses from ``N(pose, covariance)`` (amcl's ``pf_init``)."""
@@ -521,12 +578,24 @@ RECOVERY_ALGORITHM = Algorithm(
     with_particles=_with_particles,
     summary="KLD-AMCL with augmented-MCL recovery (alpha_slow 0.001, alpha_fast 0.1)",
 )
+#: KLD-AMCL (amcl's scoring, recovery off) as the tuning sweep found it best on the symmetric
+#: hall (docs/tuning.md; a test holds it to the best row of docs/tuning.csv).
+TUNED_ALGORITHM = Algorithm(
+    "kld-amcl-tuned",
+    KLDAMCLConfig,
+    KLDAMCL,
+    default_config=lambda: _with_particles(KLDAMCLConfig(init_test_poses=100_000), 5000),
+    with_particles=_with_particles,
+    sensor_settings={"max_beams": 60},
+    summary="KLD-AMCL with the tuning sweep's best max_particles, start and beams (docs/tuning.md)",
+)
 
 
 __all__ = [
     "ALGORITHM",
     "KLDAMCL",
     "RECOVERY_ALGORITHM",
+    "TUNED_ALGORITHM",
     "Z_099",
     "KLDAMCLConfig",
     "KLDAMCLRecord",

@@ -32,8 +32,10 @@ from ceamcl.filters.base import (
 )
 from ceamcl.filters.clustering import cluster_hypotheses, cluster_labels
 from ceamcl.filters.particles import (
+    INIT_BATCH,
     ParticleSet,
     gaussian,
+    importance_start,
     propagate,
     resample,
     reweight,
@@ -55,15 +57,26 @@ class MCLConfig:
     n_particles: fixed sample size.
     resample_ess_fraction: resample when ESS < fraction x N (1.0 resamples every step).
     cluster_cell_m: cell size of the x-y grid whose connected regions are the hypotheses.
+    init_test_poses: global initialisation's budget of likelihood evaluations: 0 starts from
+        ``n_particles`` uniform poses weighted by the first scan; N > 0 weighs N uniform test
+        poses with it and resamples ``n_particles`` from them, as CEAMCL starts
+        (:func:`~ceamcl.filters.particles.importance_start`).
+    init_batch: test poses weighed per likelihood call (bounds memory).
     """
 
     n_particles: int = 5000
     resample_ess_fraction: float = 0.5
     cluster_cell_m: float = 0.5
+    init_test_poses: int = 0
+    init_batch: int = INIT_BATCH
 
     def __post_init__(self) -> None:
         if self.n_particles < 1:
             raise ValueError(f"n_particles: expected >= 1, got {self.n_particles}")
+        if self.init_test_poses < 0:
+            raise ValueError(f"init_test_poses: expected >= 0, got {self.init_test_poses}")
+        if self.init_batch < 1:
+            raise ValueError(f"init_batch: expected >= 1, got {self.init_batch}")
         if not 0.0 <= self.resample_ess_fraction <= 1.0:
             raise ValueError(
                 f"resample_ess_fraction: expected in [0, 1], got {self.resample_ess_fraction}"
@@ -97,10 +110,24 @@ class MCL:
 
     # ------------------------------------------------------------------ initialisation
     def initialise_global(self, scan: LaserScan) -> StepRecord:
-        """Particles uniform over free space, weighted by ``scan``."""
+        """Particles uniform over free space, weighted by ``scan``; with ``init_test_poses``,
+        resampled from that many test poses weighted by ``scan`` instead."""
         self.t = 0
-        self.particle_set = uniform(self.grid, self.config.n_particles, self.rng)
-        return self.correct(usable(self.sensor, scan))
+        cfg = self.config
+        prepared = usable(self.sensor, scan)
+        if cfg.init_test_poses > 0:
+            self.particle_set, evaluations = importance_start(
+                self.grid,
+                self.sensor,
+                prepared,
+                cfg.init_test_poses,
+                cfg.n_particles,
+                self.rng,
+                batch=cfg.init_batch,
+            )
+            return StepRecord(resampled=evaluations > 0, likelihood_evaluations=evaluations)
+        self.particle_set = uniform(self.grid, cfg.n_particles, self.rng)
+        return self.correct(prepared)
 
     def initialise_pose(self, pose: ArrayLike, covariance: ArrayLike) -> None:
         """Particles from ``N(pose, covariance)``."""
@@ -168,4 +195,16 @@ ALGORITHM = Algorithm(
     MCL,
     with_particles=lambda cfg, n: replace(cfg, n_particles=n),
     summary="Monte Carlo localisation with a fixed sample size (the paper's first baseline)",
+)
+#: MCL as the tuning sweep found it best on the symmetric hall (docs/tuning.md; a test holds
+#: it to the best row of docs/tuning.csv).
+TUNED_ALGORITHM = Algorithm(
+    "mcl-tuned",
+    MCLConfig,
+    MCL,
+    default_config=lambda: MCLConfig(n_particles=5000, init_test_poses=1_000_000),
+    with_particles=lambda cfg, n: replace(cfg, n_particles=n),
+    sensor_settings={"max_beams": 30, "temper": 0.1},
+    summary="MCL with the tuning sweep's best particles, start and sensor settings "
+    "(docs/tuning.md)",
 )

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ceamcl import budget
 from ceamcl.angles import wrap
 from ceamcl.errors import ConfigError, LogFormatError
 from ceamcl.filters.evolution import EvolutionConfig, evolve_groups
@@ -155,6 +156,59 @@ def gaussian(
     return ParticleSet.from_poses(gaussian_poses(pose, covariance, n, rng))
 
 
+#: Test poses weighed per likelihood call by :func:`importance_start` (bounds the sensor's work).
+INIT_BATCH = 250_000
+#: Memory per test pose of :func:`importance_start`: the pose, its log-likelihood and weights.
+TEST_POSE_BYTES = 64
+
+
+def importance_start(
+    grid: OccupancyGrid,
+    sensor: SensorModel,
+    prepared: PreparedScan | None,
+    n_test: int,
+    n: int,
+    rng: np.random.Generator,
+    *,
+    batch: int = INIT_BATCH,
+) -> tuple[ParticleSet, int]:
+    """Global initialisation with a budget of ``n_test`` likelihood evaluations, the start
+    CEAMCL's section 3.1 makes for every baseline (``init_test_poses``): ``n_test`` poses
+    uniform over free space, weighed by the first scan ``batch`` poses per call, and ``n``
+    particles drawn from them by systematic resampling (equal weights; their log-likelihood
+    and fitness kept). Returns the particles and the evaluations spent.
+
+    Without a usable scan (``prepared`` None), or when every test pose is impossible, the
+    particles are ``n`` poses uniform over free space (the scan said nothing to resample by).
+    The test poses are checked against the memory budget before they are drawn.
+    """
+    if n_test < 1 or n < 1 or batch < 1:
+        raise ConfigError(f"init_test_poses: expected positive counts, got {n_test}, {n}, {batch}")
+    if prepared is None or prepared.n_beams == 0:
+        return uniform(grid, n, rng), 0
+    budget.require("init_test_poses", n_test, TEST_POSE_BYTES, "test poses")
+    poses = grid.sample_free_poses(n_test, rng)
+    ll = np.concatenate(
+        [
+            sanitise_log_likelihood(sensor.log_likelihood(poses[i : i + batch], prepared))
+            for i in range(0, n_test, batch)
+        ]
+    )
+    _, w, ok = normalise_log_weights(ll)
+    if not ok:
+        return uniform(grid, n, rng), n_test
+    ancestors = resampler("systematic")(w, n, rng)
+    chosen = ll[ancestors]
+    ps = ParticleSet(
+        poses=poses[ancestors],
+        log_weights=uniform_log_weights(n),
+        loglik=chosen,
+        fitness=fitness(chosen, prepared, sensor),
+        labels=np.zeros(n, dtype=np.int64),
+    )
+    return ps, n_test
+
+
 # ---------------------------------------------------------------------- prediction
 def check_increment(increment: OdometryIncrement) -> None:
     """Refuse an odometry increment with a NaN or infinite component (it would turn every
@@ -269,6 +323,7 @@ __all__ = [
     "evolve",
     "gaussian",
     "gaussian_poses",
+    "importance_start",
     "importance_weights",
     "propagate",
     "resample",

@@ -14,7 +14,7 @@ Algorithm("my-filter", MyConfig, MyFilter, ...)``) and add ``my_filter.ALGORITHM
 from __future__ import annotations
 
 import importlib
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import replace
 from typing import Any
 
@@ -26,7 +26,7 @@ from ceamcl.filters.base import Algorithm, LocalisationFilter
 from ceamcl.filters.ceamcl import filter as ceamcl_filter
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryMotionModel, OdometryNoise
-from ceamcl.sensors.base import SensorModel
+from ceamcl.sensors.base import SensorModel, with_settings
 from ceamcl.sensors.beam_model import BeamModel
 from ceamcl.sensors.likelihood_field import LikelihoodFieldModel
 
@@ -38,20 +38,30 @@ _BUILT_IN: tuple[Algorithm, ...] = (
     kld_amcl.ALGORITHM,
     kld_amcl.RECOVERY_ALGORITHM,
 )
+#: Presets: the baselines as the tuning sweep found them best (docs/tuning.md); the filters of
+#: :data:`_BUILT_IN` with other configs and sensor settings. Experiments run them too.
+_PRESETS: tuple[Algorithm, ...] = (
+    gmcl.TUNED_ALGORITHM,
+    mcl.TUNED_ALGORITHM,
+    kld_amcl.TUNED_ALGORITHM,
+)
 #: Algorithms outside the core: name -> module whose ``ALGORITHM`` declares it.
 _LAZY: dict[str, str] = {"nav2-amcl": "ceamcl.peers.nav2_amcl"}
 
 #: The project's own algorithms (always available).
 ALGORITHMS: tuple[str, ...] = tuple(a.name for a in _BUILT_IN)
+#: The tuned presets of the baselines (always available).
+PRESETS: tuple[str, ...] = tuple(a.name for a in _PRESETS)
 #: Sensor models by name (``make_sensor``).
 SENSOR_MODELS: tuple[str, ...] = ("likelihood-field", "beam")
 
-_BY_NAME: dict[str, Algorithm] = {a.name: a for a in _BUILT_IN}
+_BY_NAME: dict[str, Algorithm] = {a.name: a for a in (*_BUILT_IN, *_PRESETS)}
 
 
 def names() -> tuple[str, ...]:
-    """Every registered algorithm: the project's own, then those outside the core."""
-    return (*ALGORITHMS, *_LAZY)
+    """Every registered algorithm: the project's own, the presets, then those outside the
+    core."""
+    return (*ALGORITHMS, *PRESETS, *_LAZY)
 
 
 def get(name: str) -> Algorithm:
@@ -120,6 +130,7 @@ def make_filter(
     odometry_noise: OdometryNoise | None = None,
     n_particles: int | None = None,
     config: Any = None,
+    sensor_settings: Mapping[str, Any] | None = None,
 ) -> LocalisationFilter:
     """A filter by name (see :func:`names`), with its default settings or ``config`` (the
     algorithm's own config class, e.g. ``CEAMCLConfig(delta_per_m2=40)``).
@@ -128,6 +139,9 @@ def make_filter(
     the upper bound ``max_particles`` of KLD-sampling; CEAMCL chooses its own (eq. 5) and
     ignores it. Algorithms outside the core may bring their own sensor model (the Nav2 peer
     uses the wheel's beam model) and ignore ``sensor``.
+
+    The sensor model (named, or given) takes the algorithm's ``sensor_settings`` (a tuned
+    preset's ``max_beams`` and ``temper``), then ``sensor_settings`` given here on top.
     """
     spec = get(algorithm)
     if n_particles is not None and n_particles < 1:
@@ -140,6 +154,7 @@ def make_filter(
     if n_particles is not None and spec.with_particles is not None:
         cfg = spec.with_particles(cfg, n_particles)
     sensor_model = make_sensor(sensor, grid) if isinstance(sensor, str) else sensor
+    sensor_model = with_settings(sensor_model, {**spec.sensor_settings, **(sensor_settings or {})})
     motion = OdometryMotionModel(odometry_noise or OdometryNoise())
     return spec.build(grid, motion, sensor_model, cfg, rng)
 
@@ -155,6 +170,7 @@ def with_config(algorithm: str, **changes: Any) -> Any:
 
 __all__ = [
     "ALGORITHMS",
+    "PRESETS",
     "SENSOR_MODELS",
     "get",
     "make_filter",

@@ -9,8 +9,11 @@ the measured range ``r`` is scored by the mixture
              + z_rand / range_max                                if r < range_max
 
 The short-noise normaliser ``1 / (1 - exp(-lambda r*))`` and the Gaussian's truncation are
-dropped, as ROS amcl drops them; the Gaussian keeps its ``1 / (sqrt(2 pi) sigma)`` so that
-``z_hit`` and ``z_rand`` weigh densities of the same units. Ray casting and scoring are fused in
+dropped, as ROS amcl drops them; with ``scoring="product"`` (the default) the Gaussian keeps
+its ``1 / (sqrt(2 pi) sigma)`` so that ``z_hit`` and ``z_rand`` weigh densities of the same
+units, and beams combine as a product (a sum of logs). With ``scoring="ros"`` the model is
+amcl's: no Gaussian normaliser (amcl's ``pz += z_hit * exp(-z^2 / (2 sigma^2))``) and
+``log(1 + sum_k pz_k^3)`` (:mod:`ceamcl.sensors.scoring`). Ray casting and scoring are fused in
 one compiled kernel, parallel over particles, with no (N x M) temporaries.
 """
 
@@ -28,6 +31,7 @@ from ceamcl.sensors._compile import serial_and_parallel
 from ceamcl.sensors.likelihood_field import PARALLEL_MIN_POSES
 from ceamcl.sensors.raycast import RangeTable, _march, _mounted_pose, _table_range, cast_fan
 from ceamcl.sensors.scan import LaserScan, PreparedScan, laser_poses, prepare_scan
+from ceamcl.sensors.scoring import check_scoring
 from ceamcl.sensors.tempering import DEFAULT_TEMPER, check_temper, tempered
 
 _SQRT_2PI = math.sqrt(2.0 * math.pi)
@@ -39,7 +43,11 @@ RAY_CASTING: tuple[str, ...] = ("table", "exact")
 
 @dataclass(frozen=True)
 class BeamModelConfig:
-    """Parameters of the beam model; defaults are ROS amcl's (max_beams as Nav2)."""
+    """Parameters of the beam model; defaults are ROS amcl's (max_beams as Nav2).
+
+    scoring: how beams combine, ``"product"`` or ``"ros"`` (:mod:`ceamcl.sensors.scoring`);
+    temper applies to the product only.
+    """
 
     z_hit: float = 0.95
     z_short: float = 0.1
@@ -52,9 +60,11 @@ class BeamModelConfig:
     table_angles: int = 360
     table_max_mb: float = 256.0
     temper: float = DEFAULT_TEMPER
+    scoring: str = "product"
 
     def __post_init__(self) -> None:
         check_temper(self.temper)
+        check_scoring(self.scoring, self.temper)
         if not self.z_hit > 0 or min(self.z_short, self.z_max, self.z_rand) < 0:
             raise ValueError("z_hit must be > 0 and z_short, z_max, z_rand >= 0")
         if not self.sigma_hit_m > 0:
@@ -74,17 +84,24 @@ class BeamModelConfig:
 
 
 @numba.njit(cache=True, inline="always")
-def _beam_log_p(
-    r: float, expected: float, a_hit: float, inv_two_sigma2: float, short: float, extra: float
+def _beam_value(
+    r: float,
+    expected: float,
+    a_hit: float,
+    inv_two_sigma2: float,
+    short: float,
+    extra: float,
+    cube: bool,
 ) -> float:
-    """``log p(r | r*)`` of one beam: ``short`` is the short term ``z_short lambda
-    exp(-lambda r)`` (added where ``r < r*``), ``extra`` is ``z_max`` or ``z_rand / range_max``."""
+    """What one beam adds to the sum: ``log p(r | r*)``, or ``p^3`` when ``cube`` (ROS
+    scoring). ``short`` is the short term ``z_short lambda exp(-lambda r)`` (added where
+    ``r < r*``), ``extra`` is ``z_max`` or ``z_rand / range_max``."""
     z = r - expected
     p = a_hit * math.exp(-z * z * inv_two_sigma2)
     if z < 0.0:
         p += short
     p += extra
-    return math.log(p)
+    return p * p * p if cube else math.log(p)
 
 
 def _beam_kernel_py(
@@ -102,9 +119,10 @@ def _beam_kernel_py(
     range_max: float,
     a_hit: float,
     inv_two_sigma2: float,
+    cube: bool,
 ) -> NDArray[np.float64]:
-    """The beam model with an exact ray cast per beam; ``extra``, ``short`` per beam as in
-    :func:`_beam_log_p`."""
+    """The beam model with an exact ray cast per beam: per pose, the sum over beams of
+    :func:`_beam_value` (``extra``, ``short`` per beam as there)."""
     n = poses.shape[0]
     m = ranges.shape[0]
     out = np.empty(n)
@@ -115,7 +133,7 @@ def _beam_kernel_py(
         acc = 0.0
         for j in range(m):
             expected = _march(lx, ly, lth + bearings[j], blocking, dist, res, range_max)
-            acc += _beam_log_p(ranges[j], expected, a_hit, inv_two_sigma2, short[j], extra[j])
+            acc += _beam_value(ranges[j], expected, a_hit, inv_two_sigma2, short[j], extra[j], cube)
         out[i] = acc
     return out
 
@@ -142,6 +160,7 @@ def _beam_table_kernel_py(
     range_max: float,
     a_hit: float,
     inv_two_sigma2: float,
+    cube: bool,
 ) -> NDArray[np.float64]:
     """The beam model over a :class:`RangeTable` (:func:`_table_range`); otherwise as
     :func:`_beam_kernel_py`."""
@@ -167,7 +186,7 @@ def _beam_table_kernel_py(
                 res,
                 range_max,
             )
-            acc += _beam_log_p(ranges[j], expected, a_hit, inv_two_sigma2, short[j], extra[j])
+            acc += _beam_value(ranges[j], expected, a_hit, inv_two_sigma2, short[j], extra[j], cube)
         out[i] = acc
     return out
 
@@ -213,11 +232,25 @@ class BeamModel:
         """The exponent on the product of beam likelihoods (docs/sensor-models.md)."""
         return self.config.temper
 
+    @property
+    def scoring(self) -> str:
+        """How beams combine: ``"product"`` or ``"ros"`` (:mod:`ceamcl.sensors.scoring`)."""
+        return self.config.scoring
+
+    def _combined(self, summed: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The score from the per-beam sum: tempered log-product, or ``log(1 + sum pz^3)``."""
+        if self.config.scoring == "ros":
+            return np.log1p(summed)
+        return tempered(summed, self.config.temper)
+
     def prepare(self, scan: LaserScan) -> PreparedScan:
         return prepare_scan(scan, self.config.max_beams, keep_max_range=True)
 
     def _a_hit(self) -> float:
-        return self.config.z_hit / (self.config.sigma_hit_m * _SQRT_2PI)
+        cfg = self.config
+        if cfg.scoring == "ros":  # amcl's pz: no Gaussian normaliser (module docstring)
+            return cfg.z_hit
+        return cfg.z_hit / (cfg.sigma_hit_m * _SQRT_2PI)
 
     def max_log_beam_likelihood(self, prepared: PreparedScan) -> float:
         cfg = self.config
@@ -247,7 +280,8 @@ class BeamModel:
             lyaw,
         )
         grid = (self.grid.blocking_mask, self.grid.distance_to_blocking, self.grid.resolution)
-        mixture = (prepared.range_max, self._a_hit(), 1.0 / (2.0 * cfg.sigma_hit_m**2))
+        cube = cfg.scoring == "ros"
+        mixture = (prepared.range_max, self._a_hit(), 1.0 / (2.0 * cfg.sigma_hit_m**2), cube)
         if self.ray_casting == "table":
             table = self.range_table(prepared.range_max)
             table.reserve(mp, (lx, ly))
@@ -258,7 +292,7 @@ class BeamModel:
         else:
             kernel = _beam_kernel_parallel if parallel else _beam_kernel_serial
             out = kernel(*beams, *grid, *mixture)
-        return tempered(out, cfg.temper)
+        return self._combined(out)
 
     def expected_ranges(self, poses: ArrayLike, prepared: PreparedScan) -> NDArray[np.float64]:
         """Expected ranges ``(N, M)`` of the prepared beams, as :meth:`log_likelihood` uses
@@ -287,4 +321,5 @@ class BeamModel:
             z < 0, cfg.z_short * cfg.lambda_short * np.exp(-cfg.lambda_short * r), 0.0
         )
         prob = prob + np.where(prepared.is_max[None, :], cfg.z_max, cfg.z_rand / prepared.range_max)
-        return tempered(np.sum(np.log(prob), axis=1), cfg.temper)
+        per_beam = prob**3 if cfg.scoring == "ros" else np.log(prob)
+        return self._combined(np.sum(per_beam, axis=1))

@@ -7,8 +7,10 @@ the distance ``d`` to the nearest obstacle and a uniform term:
 
 ``d`` is read from the map's distance field (computed once per map), capped at
 ``max_occ_dist_m`` (ROS amcl's ``laser_likelihood_max_dist``); end points off the map get the
-cap, and max-range readings are skipped (as in ROS amcl). Unlike ROS amcl, which adds cubes of
-per-beam values, beams are combined as a product (a sum of logs), as the textbook does.
+cap, and max-range readings are skipped (as in ROS amcl). With ``scoring="product"`` (the
+default) beams are combined as a product (a sum of logs), as the textbook does; with
+``scoring="ros"`` as ROS amcl does, ``log(1 + sum_k pz_k^3)`` with amcl's ``pz`` (no
+``1 / (sqrt(2 pi) sigma_hit)`` on the Gaussian; :mod:`ceamcl.sensors.scoring`).
 
 The compiled kernel runs in parallel over poses;
 :meth:`LikelihoodFieldModel.log_likelihood_reference` is the plain NumPy version the tests hold
@@ -28,6 +30,7 @@ from numpy.typing import ArrayLike, NDArray
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.sensors._compile import serial_and_parallel
 from ceamcl.sensors.scan import LaserScan, PreparedScan, laser_poses, prepare_scan
+from ceamcl.sensors.scoring import check_scoring
 from ceamcl.sensors.tempering import DEFAULT_TEMPER, check_temper, tempered
 
 _SQRT_2PI = math.sqrt(2.0 * math.pi)
@@ -35,7 +38,11 @@ _SQRT_2PI = math.sqrt(2.0 * math.pi)
 
 @dataclass(frozen=True)
 class LikelihoodFieldConfig:
-    """Parameters of the likelihood field; defaults are ROS amcl's (max_beams as Nav2)."""
+    """Parameters of the likelihood field; defaults are ROS amcl's (max_beams as Nav2).
+
+    scoring: how beams combine, ``"product"`` or ``"ros"`` (:mod:`ceamcl.sensors.scoring`);
+    temper applies to the product only.
+    """
 
     z_hit: float = 0.95
     z_rand: float = 0.05
@@ -43,9 +50,11 @@ class LikelihoodFieldConfig:
     max_occ_dist_m: float = 2.0
     max_beams: int = 60
     temper: float = DEFAULT_TEMPER
+    scoring: str = "product"
 
     def __post_init__(self) -> None:
         check_temper(self.temper)
+        check_scoring(self.scoring, self.temper)
         if not (self.z_hit > 0 and self.z_rand >= 0):
             raise ValueError("z_hit must be > 0 and z_rand >= 0")
         if not self.sigma_hit_m > 0:
@@ -67,7 +76,8 @@ def _lf_kernel_py(
     res: float,
     log_p_off_map: float,
 ) -> NDArray[np.float64]:
-    """Sum over beams of the precomputed per-cell ``log p`` at each beam's end point.
+    """Sum over beams of the precomputed per-cell value at each beam's end point (``log p``
+    for the product, ``pz^3`` for ROS scoring; ``log_p_off_map`` is the value off the map).
 
     The end point's direction ``theta + yaw_laser + bearing`` is rotated with the angle-sum
     identity from per-pose and per-beam cosines, so no transcendental function runs per beam.
@@ -116,14 +126,19 @@ class LikelihoodFieldModel:
             np.minimum(self.grid.distance_to_occupied, self.config.max_occ_dist_m)
         )
 
+    def _beam_value(self, d: NDArray[np.float64], range_max: float) -> NDArray[np.float64]:
+        """What the kernel sums per beam whose end point lies ``d`` from an obstacle:
+        ``log p(z_k | x)`` for the product, ``pz^3`` for ROS scoring."""
+        a_hit, k, c_rand = self._terms_for(range_max)
+        p = a_hit * np.exp(-d * d * k) + c_rand
+        return p * p * p if self.config.scoring == "ros" else np.log(p)
+
     def _log_p_table(self, range_max: float) -> NDArray[np.float64]:
-        """Per-cell ``log p(z_k | x)`` for an end point in that cell (depends on ``range_max``
+        """Per-cell :meth:`_beam_value` for an end point in that cell (depends on ``range_max``
         through ``z_rand / range_max``); computed once per map and range limit."""
         table = self._tables.get(range_max)
         if table is None:
-            a_hit, k, c_rand = self._terms_for(range_max)
-            d = self._dist
-            table = np.ascontiguousarray(np.log(a_hit * np.exp(-d * d * k) + c_rand))
+            table = np.ascontiguousarray(self._beam_value(self._dist, range_max))
             self._tables[range_max] = table
         return table
 
@@ -131,6 +146,17 @@ class LikelihoodFieldModel:
     def temper(self) -> float:
         """The exponent on the product of beam likelihoods (docs/sensor-models.md)."""
         return self.config.temper
+
+    @property
+    def scoring(self) -> str:
+        """How beams combine: ``"product"`` or ``"ros"`` (:mod:`ceamcl.sensors.scoring`)."""
+        return self.config.scoring
+
+    def _combined(self, summed: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The score from the per-beam sum: tempered log-product, or ``log(1 + sum pz^3)``."""
+        if self.config.scoring == "ros":
+            return np.log1p(summed)
+        return tempered(summed, self.config.temper)
 
     def prepare(self, scan: LaserScan) -> PreparedScan:
         return prepare_scan(scan, self.config.max_beams, keep_max_range=False)
@@ -140,8 +166,9 @@ class LikelihoodFieldModel:
 
     def _terms_for(self, range_max: float) -> tuple[float, float, float]:
         cfg = self.config
-        a_hit = cfg.z_hit / (cfg.sigma_hit_m * _SQRT_2PI)
-        return a_hit, 1.0 / (2.0 * cfg.sigma_hit_m**2), cfg.z_rand / range_max
+        # amcl's pz has no Gaussian normaliser (module docstring); the product's density has.
+        norm = 1.0 if cfg.scoring == "ros" else 1.0 / (cfg.sigma_hit_m * _SQRT_2PI)
+        return cfg.z_hit * norm, 1.0 / (2.0 * cfg.sigma_hit_m**2), cfg.z_rand / range_max
 
     def max_log_beam_likelihood(self, prepared: PreparedScan) -> float:
         a_hit, _, c_rand = self._terms(prepared)
@@ -151,10 +178,9 @@ class LikelihoodFieldModel:
         mp = self.grid.poses_to_map(poses)
         if prepared.n_beams == 0:
             return np.zeros(mp.shape[0])
-        a_hit, k, c_rand = self._terms(prepared)
         lx, ly, lyaw = prepared.laser_pose
-        d_off = self.config.max_occ_dist_m
-        log_p_off = math.log(a_hit * math.exp(-d_off * d_off * k) + c_rand)
+        off_map = np.array([self.config.max_occ_dist_m])
+        value_off = float(self._beam_value(off_map, prepared.range_max)[0])
         angles = prepared.bearings + lyaw
         kernel = _lf_kernel_parallel if mp.shape[0] >= PARALLEL_MIN_POSES else _lf_kernel_serial
         out: NDArray[np.float64] = kernel(
@@ -166,9 +192,9 @@ class LikelihoodFieldModel:
             ly,
             self._log_p_table(prepared.range_max),
             self.grid.resolution,
-            log_p_off,
+            value_off,
         )
-        return tempered(out, self.config.temper)
+        return self._combined(out)
 
     def log_likelihood_reference(
         self, poses: ArrayLike, prepared: PreparedScan
@@ -177,7 +203,6 @@ class LikelihoodFieldModel:
         p = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
         if prepared.n_beams == 0:
             return np.zeros(p.shape[0])
-        a_hit, k, c_rand = self._terms(prepared)
         lp = laser_poses(p, prepared.laser_pose)
         ang = lp[:, 2:3] + prepared.bearings[None, :]
         ex = lp[:, 0:1] + prepared.ranges[None, :] * np.cos(ang)
@@ -186,6 +211,4 @@ class LikelihoodFieldModel:
         inside = self.grid.in_bounds(ix, iy)
         d = np.full(ex.shape, self.config.max_occ_dist_m)
         d[inside] = self._dist[iy[inside], ix[inside]]
-        return tempered(
-            np.sum(np.log(a_hit * np.exp(-d * d * k) + c_rand), axis=1), self.config.temper
-        )
+        return self._combined(np.sum(self._beam_value(d, prepared.range_max), axis=1))

@@ -1,0 +1,194 @@
+"""The tuning sweep (experiments/tuning.py), its CLI, and the presets it chose."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ceamcl.cli import main
+from ceamcl.errors import ConfigError
+from ceamcl.experiments.common import ExperimentSettings
+from ceamcl.experiments.routes import paper_course
+from ceamcl.experiments.tuning import (
+    BASELINES,
+    PRESETS,
+    TUNING_SEED,
+    Candidate,
+    TuningGrid,
+    TuningRow,
+    best_rows,
+    candidates,
+    read_tuning_csv,
+    run_tuning,
+    score_key,
+    write_tuning,
+)
+from ceamcl.filters import registry
+from ceamcl.maps.worlds import get_world
+
+DOCS_CSV = Path(__file__).resolve().parents[2] / "docs" / "tuning.csv"
+
+
+def row(**kw: object) -> TuningRow:
+    base: dict[str, object] = dict(
+        algorithm="mcl",
+        max_beams=60,
+        temper=1.0,
+        n_particles=1000,
+        init_test_poses=0,
+        runs=12,
+        kept_all_rate=0.5,
+        success_rate=0.5,
+        converged_runs=6,
+        converged_s=10.0,
+        likelihood_evaluations=1e6,
+    )
+    base.update(kw)
+    return TuningRow(**base)  # type: ignore[arg-type]
+
+
+# ---------------------------------------------------------------------- the score and grid
+def test_score_prefers_kept_all_then_success_then_time_then_fewer_evaluations() -> None:
+    rows = [
+        row(kept_all_rate=0.9, success_rate=0.9, converged_s=20.0),
+        row(kept_all_rate=1.0, success_rate=0.5),
+        row(kept_all_rate=1.0, success_rate=1.0, converged_s=None),
+        row(kept_all_rate=1.0, success_rate=1.0, converged_s=8.0, likelihood_evaluations=2e6),
+        row(kept_all_rate=1.0, success_rate=1.0, converged_s=8.0, likelihood_evaluations=1e6),
+    ]
+    ranked = sorted(rows, key=score_key)
+    assert ranked == [rows[4], rows[3], rows[2], rows[1], rows[0]]
+    assert best_rows(rows) == {"mcl": rows[4]}
+
+
+def test_grid_candidates_and_amcls_scoring_takes_no_temper() -> None:
+    grid = TuningGrid()
+    mcl = candidates(["mcl"], grid)
+    kld = candidates(["kld-amcl"], grid)
+    assert len(mcl) == 2 * 4 * 3 * 3 and len(kld) == 2 * 3 * 3
+    assert {c.temper for c in kld} == {1.0}
+    assert all("temper" not in c.sensor_settings() for c in kld)
+    c = Candidate("kld-amcl", 30, 1.0, 5000, 100_000)
+    assert c.config().max_particles == 5000 and c.config().init_test_poses == 100_000
+    with pytest.raises(ConfigError, match="tunes mcl, gmcl, kld-amcl"):
+        candidates(["ceamcl"], grid)
+
+
+# ---------------------------------------------------------------------- a small sweep
+def test_a_small_sweep_runs_table1s_trials_and_writes_every_row(tmp_path: Path) -> None:
+    settings = ExperimentSettings(
+        course=paper_course().select([0]),
+        algorithms=("mcl", "kld-amcl"),
+        trials=1,
+        seed=TUNING_SEED,
+        executor="serial",
+        max_time_s=2.0,
+    )
+    grid = TuningGrid(
+        max_beams=(30,), temper=(1.0, 0.1), n_particles=(200,), init_test_poses=(0, 5000)
+    )
+    result = run_tuning(settings, grid, quiet=True)
+    assert len(result.rows) == 2 * 2 + 2  # kld-amcl: temper 1 only
+    for r in result.rows:
+        assert r.runs == 1
+        # the initialisation's evaluations count: N_test, or N uniform particles, then the run
+        assert r.likelihood_evaluations >= max(r.init_test_poses, r.n_particles)
+    paths = write_tuning(result, tmp_path, {"command": "test"})
+    assert [p.name for p in paths] == ["tuning.csv", "tuning.md"]
+    back = read_tuning_csv(tmp_path / "tuning.csv")
+    assert [r.candidate for r in back] == [r.candidate for r in result.rows]
+    for a, b in zip(back, result.rows, strict=True):
+        assert a.kept_all_rate == b.kept_all_rate and a.runs == b.runs
+        assert a.likelihood_evaluations == pytest.approx(b.likelihood_evaluations, rel=1e-5)
+    assert "Chosen presets" in (tmp_path / "tuning.md").read_text()
+
+
+def test_make_filter_applies_sensor_settings_to_either_model() -> None:
+    grid = get_world("small-office")
+    for sensor in ("likelihood-field", "beam"):
+        f = registry.make_filter(
+            "mcl",
+            grid,
+            np.random.default_rng(0),
+            sensor=sensor,
+            sensor_settings={"max_beams": 7, "temper": 0.3},
+        )
+        assert f.sensor.config.max_beams == 7  # type: ignore[attr-defined]
+        assert f.sensor.config.temper == 0.3  # type: ignore[attr-defined]
+    with pytest.raises(ConfigError, match="sensor: LikelihoodFieldModel has no setting 'beams'"):
+        registry.make_filter("mcl", grid, np.random.default_rng(0), sensor_settings={"beams": 7})
+    with pytest.raises(ConfigError, match="temper: applies to scoring 'product' only"):
+        registry.make_filter(
+            "kld-amcl", grid, np.random.default_rng(0), sensor_settings={"temper": 0.3}
+        )
+
+
+def test_cli_tune(tmp_path: Path) -> None:
+    out = tmp_path / "tune"
+    args = ["experiment", "tune", "--trials", "1", "--starts", "0", "--executor", "serial"]
+    args += ["--quiet", "--algorithms", "mcl", "--max-beams", "30", "--tempers", "0.1"]
+    args += ["--particle-counts", "100", "--init-test-poses", "0", "--max-time", "2"]
+    assert main([*args, "--out", str(out)]) == 0
+    with (out / "tuning.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert [(r["algorithm"], r["max_beams"], r["temper"]) for r in rows] == [("mcl", "30", "0.1")]
+    # Each finished configuration is kept; the same sweep again resumes instead of re-running.
+    partial = out / "tuning-partial-seed10000-trials1.csv"
+    assert len(read_tuning_csv(partial)) == 1
+    assert main([*args, "--tempers", "0.1,0.03", "--out", str(out)]) == 0
+    assert [r.temper for r in read_tuning_csv(partial)] == [0.1, 0.03]
+    assert len(read_tuning_csv(out / "tuning.csv")) == 2
+    assert main(["experiment", "tune", "--algorithms", "ceamcl", "--out", str(out)]) == 2
+
+
+# ---------------------------------------------------------------------- the presets
+DOCS_CSV = Path(__file__).resolve().parents[2] / "docs" / "tuning.csv"
+
+
+@pytest.mark.parametrize("algorithm", BASELINES)
+def test_each_preset_is_the_best_row_of_the_committed_sweep(algorithm: str) -> None:
+    """The presets cannot drift from the evidence: each equals its algorithm's best row of
+    docs/tuning.csv (config and sensor settings)."""
+    best = best_rows(read_tuning_csv(DOCS_CSV))[algorithm]
+    preset = registry.get(PRESETS[algorithm])
+    want = best.candidate
+    assert preset.default() == want.config()
+    assert dict(preset.sensor_settings) == want.sensor_settings()
+    assert preset.config_type is registry.get(algorithm).config_type
+
+
+def test_the_committed_sweep_ran_on_seeds_disjoint_from_the_reported_ones() -> None:
+    rows = read_tuning_csv(DOCS_CSV)
+    assert {r.algorithm for r in rows} == set(BASELINES)
+    assert all(r.runs == 12 for r in rows)  # 3 per room, four rooms
+    assert f"--seed {TUNING_SEED}" in (DOCS_CSV.parent / "tuning.md").read_text()
+
+
+@pytest.mark.parametrize("sensor", ["likelihood-field", "beam"])
+def test_make_filter_applies_a_presets_sensor_settings_to_either_model(sensor: str) -> None:
+    grid = get_world("small-office")
+    for name in PRESETS.values():
+        spec = registry.get(name)
+        f = registry.make_filter(name, grid, np.random.default_rng(0), sensor=sensor)
+        assert f.name == name
+        cfg = f.sensor.config  # type: ignore[attr-defined]
+        for key, value in spec.sensor_settings.items():
+            assert getattr(cfg, key) == value
+        assert f.config == spec.default()  # type: ignore[attr-defined]
+
+
+def test_table1_runs_a_preset(tmp_path: Path) -> None:
+    out = tmp_path / "t1"
+    args = ["experiment", "table1", "--trials", "1", "--starts", "0", "--executor", "serial"]
+    args += ["--quiet", "--algorithms", "mcl-tuned", "--max-time", "2"]
+    assert main([*args, "--out", str(out)]) == 0
+    with (out / "table1.csv").open() as fh:
+        assert [r["algorithm"] for r in csv.DictReader(fh)] == ["mcl-tuned"]
+
+
+def test_every_algorithm_includes_the_presets() -> None:
+    chosen, _ = registry.resolve(None)
+    assert set(PRESETS.values()) <= set(chosen)
