@@ -18,6 +18,7 @@ from ceamcl.sensors import (
     LikelihoodFieldModel,
     fitness,
 )
+from ceamcl.sensors.tempering import resolve_temper
 from ceamcl.simulation import SimulatedLog, office_scenario
 
 Model = LikelihoodFieldModel | BeamModel
@@ -124,7 +125,8 @@ def test_ros_fitness_is_one_for_a_perfect_match() -> None:
 
 @pytest.mark.parametrize("config", [LikelihoodFieldConfig, BeamModelConfig])
 def test_ros_scoring_refuses_tempering_and_unknown_scorings(config: type) -> None:
-    assert config(scoring="ros").temper == 1.0
+    assert config(scoring="ros").temper is None  # the scoring's default: no tempering
+    assert resolve_temper(None, "ros") == 1.0
     with pytest.raises(ValueError, match="temper: applies to scoring 'product' only"):
         config(scoring="ros", temper=0.3)
     with pytest.raises(ValueError, match="scoring: expected one of product, ros"):

@@ -32,7 +32,7 @@ from ceamcl.sensors.likelihood_field import PARALLEL_MIN_POSES
 from ceamcl.sensors.raycast import RangeTable, _march, _mounted_pose, _table_range, cast_fan
 from ceamcl.sensors.scan import LaserScan, PreparedScan, laser_poses, prepare_scan
 from ceamcl.sensors.scoring import check_scoring
-from ceamcl.sensors.tempering import DEFAULT_TEMPER, check_temper, tempered
+from ceamcl.sensors.tempering import check_temper, resolve_temper, tempered
 
 _SQRT_2PI = math.sqrt(2.0 * math.pi)
 
@@ -59,12 +59,12 @@ class BeamModelConfig:
     ray_casting: str = "table"
     table_angles: int = 360
     table_max_mb: float = 256.0
-    temper: float = DEFAULT_TEMPER
+    temper: float | None = None  # None: the scoring's default (tempering.resolve_temper)
     scoring: str = "product"
 
     def __post_init__(self) -> None:
         check_temper(self.temper)
-        check_scoring(self.scoring, self.temper)
+        check_scoring(self.scoring, resolve_temper(self.temper, self.scoring))
         if not self.z_hit > 0 or min(self.z_short, self.z_max, self.z_rand) < 0:
             raise ValueError("z_hit must be > 0 and z_short, z_max, z_rand >= 0")
         if not self.sigma_hit_m > 0:
@@ -230,7 +230,7 @@ class BeamModel:
     @property
     def temper(self) -> float:
         """The exponent on the product of beam likelihoods (docs/sensor-models.md)."""
-        return self.config.temper
+        return resolve_temper(self.config.temper, self.config.scoring)
 
     @property
     def scoring(self) -> str:
@@ -241,7 +241,7 @@ class BeamModel:
         """The score from the per-beam sum: tempered log-product, or ``log(1 + sum pz^3)``."""
         if self.config.scoring == "ros":
             return np.log1p(summed)
-        return tempered(summed, self.config.temper)
+        return tempered(summed, self.temper)
 
     def prepare(self, scan: LaserScan) -> PreparedScan:
         return prepare_scan(scan, self.config.max_beams, keep_max_range=True)

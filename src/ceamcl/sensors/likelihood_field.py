@@ -31,7 +31,7 @@ from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.sensors._compile import serial_and_parallel
 from ceamcl.sensors.scan import LaserScan, PreparedScan, laser_poses, prepare_scan
 from ceamcl.sensors.scoring import check_scoring
-from ceamcl.sensors.tempering import DEFAULT_TEMPER, check_temper, tempered
+from ceamcl.sensors.tempering import check_temper, resolve_temper, tempered
 
 _SQRT_2PI = math.sqrt(2.0 * math.pi)
 
@@ -49,12 +49,12 @@ class LikelihoodFieldConfig:
     sigma_hit_m: float = 0.2
     max_occ_dist_m: float = 2.0
     max_beams: int = 60
-    temper: float = DEFAULT_TEMPER
+    temper: float | None = None  # None: the scoring's default (tempering.resolve_temper)
     scoring: str = "product"
 
     def __post_init__(self) -> None:
         check_temper(self.temper)
-        check_scoring(self.scoring, self.temper)
+        check_scoring(self.scoring, resolve_temper(self.temper, self.scoring))
         if not (self.z_hit > 0 and self.z_rand >= 0):
             raise ValueError("z_hit must be > 0 and z_rand >= 0")
         if not self.sigma_hit_m > 0:
@@ -145,7 +145,7 @@ class LikelihoodFieldModel:
     @property
     def temper(self) -> float:
         """The exponent on the product of beam likelihoods (docs/sensor-models.md)."""
-        return self.config.temper
+        return resolve_temper(self.config.temper, self.config.scoring)
 
     @property
     def scoring(self) -> str:
@@ -156,7 +156,7 @@ class LikelihoodFieldModel:
         """The score from the per-beam sum: tempered log-product, or ``log(1 + sum pz^3)``."""
         if self.config.scoring == "ros":
             return np.log1p(summed)
-        return tempered(summed, self.config.temper)
+        return tempered(summed, self.temper)
 
     def prepare(self, scan: LaserScan) -> PreparedScan:
         return prepare_scan(scan, self.config.max_beams, keep_max_range=False)

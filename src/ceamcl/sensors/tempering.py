@@ -22,8 +22,18 @@ from numpy.typing import NDArray
 DEFAULT_TEMPER = 0.2
 
 
-def check_temper(value: float) -> None:
-    """A :class:`ValueError` naming the field unless ``0 < value <= 1``."""
+def resolve_temper(value: float | None, scoring: str) -> float:
+    """The exponent in use: ``value``, or when it is ``None`` the default for the scoring
+    (:data:`DEFAULT_TEMPER` for the product, 1 for amcl's sum of cubes, which takes none)."""
+    if value is not None:
+        return value
+    return 1.0 if scoring == "ros" else DEFAULT_TEMPER
+
+
+def check_temper(value: float | None) -> None:
+    """A :class:`ValueError` naming the field unless ``value`` is ``None`` or ``0 < value <= 1``."""
+    if value is None:
+        return
     if not 0.0 < value <= 1.0:
         raise ValueError(f"temper: expected a number in (0, 1], got {value}")
 
