@@ -239,6 +239,30 @@ def read_covariance(
     )
 
 
+def summarise_states(
+    states: Sequence[LocalisationState | None], times: Sequence[float] | np.ndarray
+) -> dict[str, object]:
+    """The state over a run, for ``summary.json``: the final state, its confidence and reason,
+    the share of steps in each state, and when the filter first said LOCALISED (``None``:
+    never). Steps without a state are left out."""
+    known = [(float(t), s) for t, s in zip(times, states, strict=True) if s is not None]
+    if not known:
+        return {}
+    t0 = known[0][0]
+    final = known[-1][1]
+    first = next((t - t0 for t, s in known if s.state is State.LOCALISED), None)
+    return {
+        "final_state": final.state.name,
+        "final_state_confidence": final.confidence,
+        "final_state_hypotheses": final.n_hypotheses,
+        "final_state_reason": final.reason,
+        "first_localised_state_s": first,
+        "state_shares": {
+            st.name: sum(s.state is st for _, s in known) / len(known) for st in STATES
+        },
+    }
+
+
 __all__ = [
     "DEFAULT_THRESHOLDS",
     "STATES",
@@ -249,4 +273,5 @@ __all__ = [
     "read_covariance",
     "read_hypotheses",
     "read_particles",
+    "summarise_states",
 ]
