@@ -46,9 +46,10 @@ def test_a_rival_that_does_not_fit_the_scan_does_not_make_it_ambiguous() -> None
     assert s.state is State.LOCALISED
 
 
-def test_a_leader_holding_nearly_all_the_weight_is_localised_despite_a_small_rival() -> None:
-    assert read_hypotheses([hyp(0.93, 0.9), hyp(0.07, 0.9, 5)]).state is State.LOCALISED
-    assert read_hypotheses([hyp(0.85, 0.9), hyp(0.15, 0.9, 5)]).state is State.AMBIGUOUS
+def test_a_fitting_rival_holding_weight_makes_it_ambiguous_a_smaller_one_does_not() -> None:
+    assert read_hypotheses([hyp(0.97, 0.9), hyp(0.03, 0.9, 5)]).state is State.LOCALISED
+    s = read_hypotheses([hyp(0.93, 0.9), hyp(0.07, 0.9, 5)])
+    assert s.state is State.AMBIGUOUS and s.n_hypotheses == 2
 
 
 def test_nothing_that_fits_the_scan_is_lost() -> None:

@@ -27,6 +27,7 @@ from ceamcl.cli.common import (
 )
 from ceamcl.errors import ConfigError
 from ceamcl.experiments import delta, kidnapped, marked, table1
+from ceamcl.experiments import state as state_experiment
 from ceamcl.experiments.common import (
     ExperimentSettings,
     TrialOutputs,
@@ -55,7 +56,11 @@ class Experiment:
     ``run(settings, args, progress)`` returns the experiment's result (with ``.records``);
     ``table(result)`` is the table printed; ``write(result, out, meta)`` writes its files.
     ``repeats(args)``: runs per trial (the delta experiment runs every trial once per delta);
-    ``algorithms``: a fixed set of algorithms, or ``None`` for the registry's.
+    ``algorithms``: a fixed set of algorithms, or ``None`` for the registry's;
+    ``default_algorithms``: those run when ``--algorithms`` is not given (default: all);
+    ``routes(settings, args)``: the routes one algorithm runs per trial, when the experiment
+    runs more than the settings' course (the state experiment's three scenarios), and
+    ``where(args)`` names them.
     """
 
     help: str
@@ -66,6 +71,9 @@ class Experiment:
     repeats: Callable[[argparse.Namespace], int] = lambda args: 1
     add_arguments: Callable[[argparse.ArgumentParser], None] = lambda p: None
     algorithms: tuple[str, ...] | None = None
+    default_algorithms: tuple[str, ...] | None = None
+    routes: Callable[[ExperimentSettings, argparse.Namespace], int] | None = None
+    where: Callable[[argparse.Namespace], str] | None = None
 
 
 # ---------------------------------------------------------------- the tables printed
@@ -140,6 +148,25 @@ def kidnapped_rich(result: KidnapResult) -> Table:
     return plain_table(f"kidnapped robot on {result.settings.course.name}", header, rows)
 
 
+def state_rich(result: state_experiment.StateResult) -> Table:
+    header = ("algorithm", "state", "precision", "recall", "support")
+    rows = [
+        (s.algorithm, s.state, pct(s.precision), pct(s.recall), str(s.support))
+        for s in result.scores
+    ]
+    return plain_table(
+        f"localisation state on {', '.join(result.courses)} (every step scored)", header, rows
+    )
+
+
+def _state_courses(args: argparse.Namespace) -> Any:
+    """The state experiment's scenarios: the three built-in ones, or the one --world or
+    --routes names."""
+    if args.world is None and args.routes is None:
+        return state_experiment.default_courses()
+    return (resolve_course("state", args.world, args.routes).select(args.starts),)
+
+
 def _delta_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--deltas",
@@ -198,6 +225,19 @@ EXPERIMENTS: dict[str, Experiment] = {
         kidnapped_rich,
         kidnapped.write_kidnapped,
         add_arguments=_kidnapped_arguments,
+    ),
+    "state": Experiment(
+        "the localisation state (LOCALISED / AMBIGUOUS / LOST): precision and recall on "
+        "kidnapped small-office, symmetric-hall and marked-hall",
+        5,
+        lambda settings, args, progress: state_experiment.run_state(
+            settings, _state_courses(args), progress=progress
+        ),
+        state_rich,
+        state_experiment.write_state,
+        default_algorithms=state_experiment.DEFAULT_ALGORITHMS,
+        routes=lambda settings, args: sum(len(c.routes) for c in _state_courses(args)),
+        where=lambda args: ", ".join(c.name for c in _state_courses(args)),
     ),
 }
 
@@ -322,6 +362,8 @@ def _settings(args: argparse.Namespace, console: Console) -> ExperimentSettings:
                 f"got {', '.join(names)}"
             )
     else:
+        if names is None:
+            names = list(EXPERIMENTS[args.experiment].default_algorithms or []) or None
         algorithms, skipped = registry.resolve(names)
     for alg, reason in skipped.items():
         console.print(f"[yellow]skipping {alg}[/]: {reason}")
@@ -347,13 +389,19 @@ def run(args: argparse.Namespace, console: Console) -> int:
     experiment = EXPERIMENTS[args.experiment]
     settings = _settings(args, console)
     outputs = _output_options(args)  # refuses --mp4 without ffmpeg before the trials
-    runs = len(settings.algorithms) * len(settings.course.routes) * settings.trials
+    routes = (
+        len(settings.course.routes)
+        if experiment.routes is None
+        else experiment.routes(settings, args)
+    )
+    runs = len(settings.algorithms) * routes * settings.trials
+    place = settings.course.name if experiment.where is None else experiment.where(args)
     runs *= experiment.repeats(args)
     budget.require("--trials x routes x algorithms", runs, RUN_BYTES, "runs")
     ensure_output_dir(args.out)  # fail on an unwritable folder before hours of trials
     if not args.quiet:
         console.print(
-            f"[bold]{args.experiment}[/] on {settings.course.name}: {plural(runs, 'run')} "
+            f"[bold]{args.experiment}[/] on {place}: {plural(runs, 'run')} "
             f"({', '.join(settings.algorithms)}) on executor {settings.executor}"
         )
     meta = run_metadata(settings)
