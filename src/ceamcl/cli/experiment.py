@@ -167,6 +167,12 @@ def _state_courses(args: argparse.Namespace) -> Any:
     return (resolve_course("state", args.world, args.routes).select(args.starts),)
 
 
+def _state_real_logs(args: argparse.Namespace) -> bool:
+    """The real logs are scored with the built-in scenarios, not with --world, --routes or a
+    --max-time quick check."""
+    return args.world is None and args.routes is None and args.max_time is None
+
+
 def _delta_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--deltas",
@@ -231,7 +237,10 @@ EXPERIMENTS: dict[str, Experiment] = {
         "kidnapped small-office, symmetric-hall and marked-hall",
         5,
         lambda settings, args, progress: state_experiment.run_state(
-            settings, _state_courses(args), progress=progress
+            settings,
+            _state_courses(args),
+            real_logs=_state_real_logs(args),
+            progress=progress,
         ),
         state_rich,
         state_experiment.write_state,

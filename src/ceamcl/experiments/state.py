@@ -17,7 +17,11 @@ steps where it said ``S`` at which the truth was ``S``; recall = the share of th
 truth was ``S`` at which it said ``S``; support = the steps whose truth was ``S``.
 
 Scenarios: the kidnapped robot on ``small-office``, the four rooms of ``symmetric-hall`` and of
-``marked-hall`` (the paper's protocol), each ``--trials`` times per route from ``--seed``.
+``marked-hall`` (the paper's protocol), each ``--trials`` times per route from ``--seed``; and
+the corrected real logs of ``../shared/data/carmen`` (:data:`REAL_LOGS`; truth: their
+SLAM-corrected poses; odometry: synthetic from those poses, seeded; map: built from the log, as
+``ceamcl run`` does), one global localisation from the first scan per algorithm, every scan an
+update. A log that is absent is skipped and the reason written to ``state.md``.
 """
 
 from __future__ import annotations
@@ -46,7 +50,9 @@ from ceamcl.experiments.routes import Course, kidnapped_course, paper_course
 from ceamcl.experiments.trials import Trial, localise_trial
 from ceamcl.filters import registry
 from ceamcl.filters.state import DEFAULT_THRESHOLDS, STATES, State
+from ceamcl.io.recorded import RecordedLog
 from ceamcl.io.results import ensure_output_dir
+from ceamcl.maps.grid import OccupancyGrid
 
 #: The algorithms the issue asks for, when ``--algorithms`` is not given.
 DEFAULT_ALGORITHMS = ("ceamcl", "kld-amcl-recovery", "nav2-amcl")
@@ -54,6 +60,14 @@ DEFAULT_ALGORITHMS = ("ceamcl", "kld-amcl-recovery", "nav2-amcl")
 LOST_WITHIN_S = 2.0
 #: State codes in the per-step arrays (index into :data:`STATES`; -1: not scored).
 _CODE = {s: i for i, s in enumerate(STATES)}
+
+
+#: The real logs scored (``../shared/data/carmen``; freiburg-079's 4791 scans are left out to
+#: keep the experiment within minutes).
+REAL_LOGS = ("intel-corrected.log.gz", "fhw-corrected.log.gz")
+#: Where the real logs are: ``../shared/data/carmen``, beside the project's folder (the source
+#: tree's root: ``src/ceamcl/experiments`` -> three levels up).
+DATA_DIR = Path(__file__).resolve().parents[3].parent / "shared" / "data" / "carmen"
 
 
 def default_courses() -> tuple[Course, ...]:
@@ -135,6 +149,67 @@ def run_state_trial(trial: Trial) -> StateRun:
         hypotheses=counts,
         kidnapped_at=tuple(log.kidnapped_at),
     )
+
+
+@dataclass(frozen=True, eq=False)
+class LogStateTrial:
+    """Global localisation with ``algorithm`` over a whole real log with its truth."""
+
+    name: str
+    algorithm: str
+    grid: OccupancyGrid
+    log: RecordedLog
+    seed: int
+
+
+def run_log_state_trial(trial: LogStateTrial) -> StateRun:
+    """A real log: the filter's state and the true state at every scan."""
+    from ceamcl.replay import filter_rng, make_paced_filter
+    from ceamcl.runner import run_filter
+
+    f = make_paced_filter(
+        trial.algorithm, trial.grid, filter_rng(trial.seed, 0, trial.algorithm), None
+    )
+    result = run_filter(f, trial.log)
+    assert result.truth is not None and result.position_errors is not None
+    single = registry.get(trial.algorithm).reports == "estimate"
+    return StateRun(
+        algorithm=trial.algorithm,
+        course=trial.name,
+        route="whole log",
+        repetition=0,
+        seed=trial.seed,
+        times=result.times,
+        said=np.array(
+            [_CODE[s.state] if s is not None else -1 for s in result.states], dtype=np.int64
+        ),
+        truth=true_states(result.estimates, result.truth, result.hypotheses, single),
+        position_error=result.position_errors,
+        hypotheses=np.array([s.n_hypotheses if s is not None else 0 for s in result.states]),
+        kidnapped_at=(),
+    )
+
+
+def real_log_trials(
+    algorithms: Sequence[str], seed: int, data_dir: Path = DATA_DIR
+) -> tuple[list[LogStateTrial], list[tuple[str, str]]]:
+    """The trials of the real logs that are present, and ``(log, reason)`` for those skipped."""
+    from ceamcl.replay import obtain_map, prepare_log
+
+    trials, skipped = [], []
+    for name in REAL_LOGS:
+        path = data_dir / name
+        if not path.is_file():
+            skipped.append((name, f"{path} is absent (the shared data folder is not mounted)"))
+            continue
+        prepared = prepare_log(path, seed=seed)
+        if not prepared.has_truth:
+            skipped.append((name, f"no ground truth: {prepared.truth_reason}"))
+            continue
+        grid, _ = obtain_map(prepared.map_log, None)
+        label = name.removesuffix(".log.gz")
+        trials += [LogStateTrial(label, a, grid, prepared.log, seed) for a in algorithms]
+    return trials, skipped
 
 
 @dataclass(frozen=True)
@@ -220,6 +295,8 @@ class StateResult:
     scores: list[StateScore]
     by_course: dict[str, list[StateScore]]
     kidnaps: list[KidnapFigures]
+    #: real logs not scored, with the reason
+    skipped_logs: list[tuple[str, str]]
 
     @property
     def records(self) -> list[Any]:
@@ -232,29 +309,45 @@ def run_state(
     settings: ExperimentSettings,
     courses: Sequence[Course] | None = None,
     *,
+    real_logs: bool = True,
+    data_dir: Path = DATA_DIR,
     progress: ProgressCallback | None = None,
     quiet: bool = False,
 ) -> StateResult:
     """Every algorithm on every route of ``courses`` (default :func:`default_courses`),
-    ``settings.trials`` times each, with a progress bar."""
+    ``settings.trials`` times each, then (``real_logs``) once on each real log of
+    ``data_dir``, with a progress bar."""
     courses = tuple(courses) if courses is not None else default_courses()
     trials = [
-        t
-        for course in courses
-        for t in make_trials("state", replace(settings, course=course))
+        t for course in courses for t in make_trials("state", replace(settings, course=course))
     ]
+    log_trials: list[LogStateTrial] = []
+    skipped: list[tuple[str, str]] = []
+    if real_logs:
+        log_trials, skipped = real_log_trials(settings.algorithms, settings.seed, data_dir)
     with open_executor(settings.executor, settings.workers) as ex:
         runs = map_trials(
             ex, run_state_trial, trials, label="state trials", progress=progress, quiet=quiet
         )
+        if log_trials:
+            runs += map_trials(
+                ex,
+                run_log_state_trial,
+                log_trials,
+                label="state on real logs",
+                progress=progress,
+                quiet=quiet,
+            )
     by_course = {c: score(rs) for c, rs in group_by(runs, lambda r: r.course).items()}
+    names = tuple(c.name for c in courses) + tuple(dict.fromkeys(t.name for t in log_trials))
     return StateResult(
         settings,
-        tuple(c.name for c in courses),
+        names,
         runs,
         score(runs),
         by_course,
         kidnap_figures(runs),
+        skipped,
     )
 
 
@@ -303,6 +396,8 @@ def state_markdown(result: StateResult, meta: dict[str, Any]) -> str:
     ]
     for course, scores in result.by_course.items():
         lines += ["", f"## {course}", "", _score_table(scores)]
+    for name, reason in result.skipped_logs:
+        lines += ["", f"Real log {name} not scored: {reason}."]
     if result.kidnaps:
         lines += [
             "",
