@@ -124,7 +124,7 @@ def test_demo_writes_gif_report_and_mcap(demo_run: Path) -> None:
         summary = make_reader(fh).get_summary()
     assert summary is not None
     topics = {c.topic for c in summary.channels.values()}
-    assert topics == {"/map", "/particles", "/estimate", "/ground_truth", "/scan", "/tf"}
+    assert topics == {"/map", "/particles", "/estimate", "/ground_truth", "/scan", "/tf", "/state"}
     assert not list(demo_run.rglob("*.tmp*"))
 
 

@@ -7,6 +7,7 @@ import numpy as np
 
 from ceamcl.filters import KLDAMCLRecord, StepRecord, make_filter
 from ceamcl.filters.resampling import effective_sample_size
+from ceamcl.filters.state import LocalisationState, State, initialising
 from ceamcl.runner import measure, run_filter
 from ceamcl.simulation import office_scenario
 
@@ -41,7 +42,23 @@ class Hidden:
     def particle_weights(self) -> np.ndarray:
         return np.full(7, np.nan)
 
+    def state(self) -> LocalisationState:
+        return initialising()
+
 
 def test_hidden_weights_give_the_reported_count_and_an_unknown_ess() -> None:
     d = measure(Hidden(), 3, lambda: StepRecord(resampled=True))  # type: ignore[arg-type]
     assert d.step == 3 and d.n_particles == 7 and np.isnan(d.ess) and d.resampled
+    assert d.state is not None and d.state.state is State.INITIALISING
+
+
+def test_runner_records_the_state_of_every_step_in_the_diagnostics_rows() -> None:
+    sc = office_scenario()
+    grid = sc.grid()
+    log = sc.simulate(np.random.default_rng(1), grid)
+    res = run_filter(make_filter("ceamcl", grid, np.random.default_rng(2)), log)
+    assert len(res.states) == len(log)
+    assert all(s is not None for s in res.states)
+    assert res.diagnostics[0].row()["state"] == "INITIALISING"
+    assert res.diagnostics[-1].row()["state"] == "LOCALISED"
+    assert 0.0 <= float(res.diagnostics[-1].row()["state_confidence"]) <= 1.0

@@ -9,6 +9,7 @@ import pytest
 
 from ceamcl.filters.base import Hypothesis, ParticleSnapshot, PoseEstimate, StepRecord
 from ceamcl.filters.policies import on_motion
+from ceamcl.filters.state import LocalisationState, read_hypotheses
 from ceamcl.motion.odometry import OdometryIncrement, apply_increment
 from ceamcl.replay import UpdatePace, make_paced_filter
 from ceamcl.runner import run_filter
@@ -56,6 +57,9 @@ class DeadReckoning:
 
     def particles(self) -> ParticleSnapshot:
         return ParticleSnapshot(self.pose[None, :].copy(), np.ones(1), np.zeros(1, dtype=int))
+
+    def state(self) -> LocalisationState:
+        return read_hypotheses(self.hypotheses())
 
     def particle_weights(self) -> np.ndarray:
         return np.ones(1)

@@ -50,6 +50,7 @@ from ceamcl.experiments.metrics import (
 from ceamcl.filters.base import LocalisationFilter
 from ceamcl.filters.policies import Policy, on_motion
 from ceamcl.filters.registry import make_filter, with_config
+from ceamcl.filters.state import summarise_states
 from ceamcl.io.logs import DEFAULT_SYNTHETIC_NOISE, open_log, poses_look_corrected
 from ceamcl.io.recorded import RecordedLog
 from ceamcl.io.results import ensure_output_dir
@@ -343,6 +344,7 @@ def run_summary(
         "particles_final": int(result.diagnostics[-1].n_particles),
         "mean_particles": float(np.mean([d.n_particles for d in result.diagnostics])),
         **restarts(result.diagnostics),
+        **summarise_states(result.states, result.times),
     }
     if prepared.pairing is not None:
         p = prepared.pairing

@@ -21,6 +21,7 @@ from ceamcl.filters.base import (
 )
 from ceamcl.filters.policies import Context, Policy
 from ceamcl.filters.resampling import effective_sample_size
+from ceamcl.filters.state import LocalisationState
 from ceamcl.io.recorded import RobotLog
 from ceamcl.motion.odometry import OdometryIncrement, apply_increment, increment_between
 from ceamcl.pose import heading_error, position_error
@@ -47,6 +48,11 @@ class RunResult:
     @property
     def steps(self) -> int:
         return int(self.times.size)
+
+    @property
+    def states(self) -> list[LocalisationState | None]:
+        """The filter's state after each step (:mod:`ceamcl.filters.state`)."""
+        return [d.state for d in self.diagnostics]
 
     @property
     def truth_known(self) -> NDArray[np.bool_]:
@@ -92,13 +98,14 @@ def _hypothesis_array(f: LocalisationFilter) -> NDArray[np.float64]:
 def measure(f: LocalisationFilter, k: int, act: Callable[[], StepRecord]) -> StepDiagnostics:
     """Run one filter call ``act`` (an initialisation or a step) as step ``k``: its wall time,
     then the particle count and the ESS ``1 / sum w_i^2`` of the filter's normalised weights
-    afterwards (NaN when the filter cannot show its weights)."""
+    afterwards (NaN when the filter cannot show its weights) and its state (it only observes:
+    asking it changes nothing of the run)."""
     start = time.perf_counter()
     record = act()
     step_ms = (time.perf_counter() - start) * 1e3
     w = f.particle_weights()
     ess = effective_sample_size(w) if np.all(np.isfinite(w)) else float("nan")
-    return StepDiagnostics(k, int(w.size), ess, step_ms, record)
+    return StepDiagnostics(k, int(w.size), ess, step_ms, record, state=f.state())
 
 
 def timed_step(
@@ -188,7 +195,9 @@ def run_filter(
         else:
             last = diagnostics[-1]
             diagnostics.append(
-                StepDiagnostics(k, last.n_particles, last.ess, 0.0, StepRecord(), False)
+                StepDiagnostics(
+                    k, last.n_particles, last.ess, 0.0, StepRecord(), False, last.state
+                )
             )
             estimates[k] = _carried(estimates[k - 1][None, :], log.odometry[k - 1], odom)[0]
             covariances[k] = covariances[k - 1]

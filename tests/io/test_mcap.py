@@ -23,6 +23,7 @@ ALL_TOPICS = {
     "/ground_truth": "foxglove.PoseInFrame",
     "/scan": "foxglove.LaserScan",
     "/tf": "foxglove.FrameTransforms",
+    "/state": "ceamcl.LocalisationState",
 }
 
 
@@ -83,7 +84,8 @@ def test_channels_and_schemas_are_foxgloves(exported: tuple[Any, dict[str, Any]]
     for schema in summary.schemas.values():
         body = json.loads(schema.data)
         assert body["title"] == schema.name
-        assert schema.name.startswith("foxglove.")
+        # Foxglove's own schemas, and ours for the state (shown in its Raw Messages panel)
+        assert schema.name.startswith("foxglove.") or schema.name == "ceamcl.LocalisationState"
 
 
 def test_message_counts(exported: tuple[Any, dict[str, Any]]) -> None:
@@ -97,6 +99,7 @@ def test_message_counts(exported: tuple[Any, dict[str, Any]]) -> None:
         "/ground_truth": STEPS,
         "/scan": STEPS,
         "/tf": STEPS,
+        "/state": STEPS,
     }
     assert {t: len(m) for t, m in messages.items()} == expected
     counts = summary.statistics.channel_message_counts
@@ -174,7 +177,7 @@ def test_without_truth_or_log_the_base_frame_follows_the_estimate(tmp_path: Path
     result, grid, _ = short_run()
     blind = dataclasses.replace(result, truth=None, snapshots={})
     _, messages = _read(write_mcap(tmp_path / "x.mcap", blind, grid))
-    assert set(messages) == {"/map", "/particles", "/estimate", "/tf"}
+    assert set(messages) == {"/map", "/particles", "/estimate", "/tf", "/state"}
     assert len(messages["/particles"]) == 2  # first and last step
     for k, (_, m) in enumerate(messages["/tf"]):
         t = m["transforms"][0]["translation"]
@@ -197,7 +200,18 @@ def test_schemas_are_valid_json_schemas() -> None:
         "foxglove.PoseInFrame",
         "foxglove.LaserScan",
         "foxglove.FrameTransforms",
+        "ceamcl.LocalisationState",
     ):
         schema = SCHEMAS[name]
         jsonschema.Draft202012Validator.check_schema(schema)
         assert schema["title"] == name
+
+
+def test_the_state_of_every_step_is_exported(exported: tuple[Any, dict[str, Any]]) -> None:
+    _, messages = exported
+    states = messages["/state"]
+    assert len(states) == STEPS
+    assert states[0][1]["state"] == "INITIALISING"
+    assert {m["state"] for _, m in states} <= {"LOCALISED", "AMBIGUOUS", "LOST", "INITIALISING"}
+    assert all(0.0 <= m["confidence"] <= 1.0 and m["reason"] for _, m in states)
+    assert all(len(m["weights"]) == m["n_hypotheses"] for _, m in states)

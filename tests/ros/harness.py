@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseArray, PoseStamped, PoseWithCovarianceStamped
 from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState, GetState
@@ -130,6 +131,7 @@ class Driver:
         self.hypotheses: list[PoseArray] = []
         self.markers: list[MarkerArray] = []
         self.clouds: list[PoseArray] = []
+        self.states: list[DiagnosticArray] = []
         self.map_to_odom: dict[float, Pose2] = {}
         # transient local like the node's publisher, with room for every pose of a run
         deep = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
@@ -137,6 +139,7 @@ class Driver:
         n.create_subscription(PoseWithCovarianceStamped, "amcl_pose", self.poses.append, deep)
         n.create_subscription(PoseArray, "amcl/hypotheses", self.hypotheses.append, 10)
         n.create_subscription(MarkerArray, "amcl/hypotheses/markers", self.markers.append, 10)
+        n.create_subscription(DiagnosticArray, "amcl/state", self.states.append, LATCHED)
         n.create_subscription(PoseArray, "particle_cloud", self.clouds.append,
                               qos_profile_sensor_data)
         n.create_subscription(TFMessage, "/tf", self._on_tf, 100)
@@ -152,6 +155,11 @@ class Driver:
         self.get_state = n.create_client(GetState, "amcl/get_state")
         self.reinit = n.create_client(Empty, "reinitialize_global_localization")
         self.nomotion = n.create_client(Empty, "request_nomotion_update")
+
+    def last_state(self) -> dict[str, str]:
+        """The values of the last ``~/state`` message, with its ``message``."""
+        status = self.states[-1].status[0]
+        return {"message": status.message, **{kv.key: kv.value for kv in status.values}}
 
     def close(self) -> None:
         self.executor.shutdown()

@@ -72,6 +72,7 @@ def test_symmetric_hall_four_hypotheses(driver, tmp_path: Path) -> None:
 
     driver.poses.clear()
     driver.hypotheses.clear()
+    driver.states.clear()
     log, _, _, _ = run_route(driver, "symmetric-hall", tmp_path)
     stamp, estimate = latest_pose(driver)
     check_tf_composes(driver, log, 1_000.0, stamp, estimate)
@@ -86,14 +87,21 @@ def test_symmetric_hall_four_hypotheses(driver, tmp_path: Path) -> None:
         d, a = pose_error(best, image)
         assert d < 0.3 and a < 0.3, f"image {q} {image}: nearest hypothesis {best} ({d:.2f} m)"
     assert driver.markers and len(driver.markers[-1].markers) >= 1 + 3 * 4
+    # ~/state: the four images are one AMBIGUOUS state with four hypotheses
+    assert driver.spin_until(lambda: len(driver.states) > 0, 5.0)
+    state = driver.last_state()
+    assert state["state"] == "AMBIGUOUS" and state["n_hypotheses"] == "4", state
 
 
 def test_marked_hall_converges_to_truth(driver, tmp_path: Path) -> None:
     from tests.ros.harness import pose_error
 
     driver.poses.clear()
+    driver.states.clear()
     log, _, _, _ = run_route(driver, "marked-hall", tmp_path)
     stamp, estimate = latest_pose(driver)
     d, a = pose_error(estimate, log.true_poses[-1])
     assert d < 0.3 and a < 0.3, f"amcl_pose {estimate} vs truth {log.true_poses[-1]}"
+    assert driver.spin_until(lambda: len(driver.states) > 0, 5.0)
+    assert driver.last_state()["state"] == "LOCALISED", driver.last_state()
     check_tf_composes(driver, log, 1_000.0, stamp, estimate)

@@ -71,7 +71,8 @@ def test_report_loads_nothing_from_the_network(report: Path) -> None:
 def test_report_embeds_figures_and_summary(report: Path) -> None:
     text = report.read_text(encoding="utf-8")
     images = re.findall(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', text)
-    assert len(images) == 2  # run.png and species.png (CEAMCL has species)
+    assert len(images) == 3  # run.png, state.png and species.png (CEAMCL has species)
+    assert 'id="fig-state"' in text
     for b64 in images:
         assert base64.b64decode(b64).startswith(b"\x89PNG\r\n\x1a\n")
     assert "&lt;b&gt;not markup&lt;/b&gt;" in text and "<b>not markup</b>" not in text
@@ -107,7 +108,8 @@ def test_report_without_species_or_summary() -> None:
     text = render_report(result, grid)
     data = _embedded_data(text)
     assert data["label_name"] == "cluster" and data["resources"] is None
-    assert len(re.findall(r'src="data:image/png;base64,', text)) == 1  # run.png only
+    # run.png and state.png (no species)
+    assert len(re.findall(r'src="data:image/png;base64,', text)) == 2
     assert "final_position_error_m" in text
 
 

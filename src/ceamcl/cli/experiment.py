@@ -27,6 +27,7 @@ from ceamcl.cli.common import (
 )
 from ceamcl.errors import ConfigError
 from ceamcl.experiments import delta, kidnapped, marked, table1, tuning
+from ceamcl.experiments import state as state_experiment
 from ceamcl.experiments.common import (
     ExperimentSettings,
     TrialOutputs,
@@ -61,6 +62,9 @@ class Experiment:
     ``algorithms``: a fixed set of algorithms, or ``None`` for the registry's.
     ``default_algorithms``: what runs without ``--algorithms`` (``None``: every algorithm).
     ``default_seed``: the base seed without ``--seed``.
+    ``routes(settings, args)``: the routes one algorithm runs per trial, when the experiment
+    runs more than the settings' course (the state experiment's three scenarios), and
+    ``where(args)`` names them.
     """
 
     help: str
@@ -74,6 +78,8 @@ class Experiment:
     default_algorithms: tuple[str, ...] | None = None
     default_seed: int = 0
     count: Callable[[ExperimentSettings, argparse.Namespace], int] | None = None
+    routes: Callable[[ExperimentSettings, argparse.Namespace], int] | None = None
+    where: Callable[[argparse.Namespace], str] | None = None
 
 
 # ---------------------------------------------------------------- the tables printed
@@ -199,6 +205,31 @@ def kidnapped_rich(result: KidnapResult) -> Group:
             [((s.algorithm,), s.precision) for s in result.summaries],
         ),
     )
+
+
+def state_rich(result: state_experiment.StateResult) -> Table:
+    header = ("algorithm", "state", "precision", "recall", "support")
+    rows = [
+        (s.algorithm, s.state, pct(s.precision), pct(s.recall), str(s.support))
+        for s in result.scores
+    ]
+    return plain_table(
+        f"localisation state on {', '.join(result.courses)} (every step scored)", header, rows
+    )
+
+
+def _state_courses(args: argparse.Namespace) -> Any:
+    """The state experiment's scenarios: the three built-in ones, or the one --world or
+    --routes names."""
+    if args.world is None and args.routes is None:
+        return state_experiment.default_courses()
+    return (resolve_course("state", args.world, args.routes).select(args.starts),)
+
+
+def _state_real_logs(args: argparse.Namespace) -> bool:
+    """The real logs are scored with the built-in scenarios, not with --world, --routes or a
+    --max-time quick check."""
+    return args.world is None and args.routes is None and args.max_time is None
 
 
 def _delta_arguments(p: argparse.ArgumentParser) -> None:
@@ -370,6 +401,22 @@ EXPERIMENTS: dict[str, Experiment] = {
         default_algorithms=tuning.BASELINES,
         default_seed=tuning.TUNING_SEED,
     ),
+    "state": Experiment(
+        "the localisation state (LOCALISED / AMBIGUOUS / LOST): precision and recall on "
+        "kidnapped small-office, symmetric-hall and marked-hall",
+        5,
+        lambda settings, args, progress: state_experiment.run_state(
+            settings,
+            _state_courses(args),
+            real_logs=_state_real_logs(args),
+            progress=progress,
+        ),
+        state_rich,
+        state_experiment.write_state,
+        default_algorithms=state_experiment.DEFAULT_ALGORITHMS,
+        routes=lambda settings, args: sum(len(c.routes) for c in _state_courses(args)),
+        where=lambda args: ", ".join(c.name for c in _state_courses(args)),
+    ),
 }
 
 
@@ -527,7 +574,13 @@ def run(args: argparse.Namespace, console: Console) -> int:
     experiment = EXPERIMENTS[args.experiment]
     settings = _settings(args, console)
     outputs = _output_options(args)  # refuses --mp4 without ffmpeg before the trials
-    runs = len(settings.algorithms) * len(settings.course.routes) * settings.trials
+    routes = (
+        len(settings.course.routes)
+        if experiment.routes is None
+        else experiment.routes(settings, args)
+    )
+    runs = len(settings.algorithms) * routes * settings.trials
+    place = settings.course.name if experiment.where is None else experiment.where(args)
     runs *= experiment.repeats(args)
     if experiment.count is not None:
         runs = experiment.count(settings, args)
@@ -535,7 +588,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     ensure_output_dir(args.out)  # fail on an unwritable folder before hours of trials
     if not args.quiet:
         console.print(
-            f"[bold]{args.experiment}[/] on {settings.course.name}: {plural(runs, 'run')} "
+            f"[bold]{args.experiment}[/] on {place}: {plural(runs, 'run')} "
             f"({', '.join(settings.algorithms)}) on executor {settings.executor}"
         )
     meta = run_metadata(settings)

@@ -227,6 +227,19 @@ def run_table(title: str, summary: Mapping[str, Any]) -> Table:
                 f"{s['final_position_error_m']:.3f}, {s['final_heading_error_rad']:.3f}",
             ),
         ]
+    if "final_state" in s:
+        shares = s["state_shares"]
+        rows += [
+            (
+                "state at the end",
+                f"{s['final_state']} ({s['final_state_confidence']:.2f}): "
+                f"{s['final_state_reason']}",
+            ),
+            (
+                "steps LOCALISED / AMBIGUOUS / LOST",
+                " / ".join(f"{100 * shares[k]:.0f} %" for k in ("LOCALISED", "AMBIGUOUS", "LOST")),
+            ),
+        ]
     restarts = str(s["restarts"])
     if s["kidnap_recoveries"]:
         restarts += f" ({s['kidnap_recoveries']} kidnap recoveries)"

@@ -170,3 +170,29 @@ def plot_evaluation(ev: Evaluation, out_dir: Path) -> None:
     fig.tight_layout()
     fig.savefig(out_dir / "success.png", dpi=110)
     plt.close(fig)
+
+
+def plot_state(
+    runs: Sequence[tuple[str, np.ndarray, np.ndarray, np.ndarray]],
+    path: str | os.PathLike[str],
+) -> Path:
+    """One row per run ``(label, times, state codes, position error)``: the position error of
+    the estimate over time (log scale), the reported state as a coloured band beneath it."""
+    from ceamcl.viz.state import draw_state_band, state_legend
+
+    n = max(len(runs), 1)
+    fig, axes = plt.subplots(n, 1, figsize=(9, 1.9 * n + 0.6), squeeze=False, sharex=False)
+    for ax, (label, times, codes, errors) in zip(axes[:, 0], runs, strict=False):
+        t = np.asarray(times) - float(times[0])
+        err = np.maximum(np.asarray(errors), 1e-3)
+        draw_state_band(ax, t, codes, 1e-3, 2e-3)
+        ax.plot(t, err, color="k", lw=1.0)
+        ax.axhline(POSITION_TOL_M, color="k", ls=":", lw=0.8)
+        ax.set_yscale("log")
+        ax.set_ylim(1e-3, 50.0)
+        ax.set_ylabel("error (m)")
+        ax.set_title(label, fontsize=9, loc="left")
+        ax.grid(alpha=0.3)
+    axes[-1, 0].set_xlabel("time (s); band: the state the filter reports")
+    state_legend(axes[0, 0], fontsize=7, loc="upper right", ncol=4)
+    return _save(fig, path)

@@ -8,7 +8,9 @@ A filter is built with a map, a motion model, a sensor model, a frozen config an
 * ``step(increment, scan)``: odometry since the last step, then the new scan.
 
 It can be asked, at any time, for ``estimate()`` (the pose it believes), ``hypotheses()`` (every
-distinct pose it still entertains, best first) and ``particles()`` (for plotting). Each call
+distinct pose it still entertains, best first), ``state()`` (LOCALISED, AMBIGUOUS, LOST or
+INITIALISING: whether to trust the pose, :mod:`ceamcl.filters.state`) and ``particles()`` (for
+plotting). Each call
 to ``initialise_global`` and ``step`` returns the filter's :class:`StepRecord`; the runner
 (:func:`ceamcl.runner.run_filter`) adds what it measures into a :class:`StepDiagnostics`.
 """
@@ -26,6 +28,7 @@ from ceamcl.motion.odometry import OdometryIncrement
 from ceamcl.sensors.scan import LaserScan
 
 if TYPE_CHECKING:
+    from ceamcl.filters.state import LocalisationState
     from ceamcl.maps.grid import OccupancyGrid
     from ceamcl.motion.odometry import OdometryMotionModel
     from ceamcl.sensors.base import SensorModel
@@ -98,7 +101,10 @@ class StepDiagnostics:
     stepped: the filter was stepped (updated) with this scan. False when the runner's update
     policy held the scan back (:func:`ceamcl.runner.run_filter` with ``update_when``): the
     odometry then accumulates into the next update, and ``record`` is an empty
-    :class:`StepRecord`."""
+    :class:`StepRecord`.
+
+    state: the filter's :class:`~ceamcl.filters.state.LocalisationState` after the step (the
+    last update's when the step was held back); ``None`` when not asked."""
 
     step: int
     n_particles: int
@@ -106,6 +112,7 @@ class StepDiagnostics:
     step_ms: float
     record: StepRecord
     stepped: bool = True
+    state: LocalisationState | None = None
 
     @property
     def resampled(self) -> bool:
@@ -119,10 +126,11 @@ class StepDiagnostics:
     def reinitialised(self) -> bool:
         return self.record.reinitialised
 
-    def row(self) -> dict[str, float | int | bool]:
+    def row(self) -> dict[str, float | int | bool | str]:
         """A flat record for CSV: step, particle count, ESS, resampled, evaluations, step time,
-        whether the filter was stepped, then the filter's own fields."""
-        out: dict[str, float | int | bool] = {
+        whether the filter was stepped, the state (``state``, ``state_confidence``,
+        ``state_hypotheses``) when known, then the filter's own fields."""
+        out: dict[str, float | int | bool | str] = {
             "step": self.step,
             "n_particles": self.n_particles,
             "ess": self.ess,
@@ -133,6 +141,8 @@ class StepDiagnostics:
         )
         out["step_ms"] = self.step_ms
         out["stepped"] = self.stepped
+        if self.state is not None:
+            out.update(self.state.row())
         out.update(record)
         return out
 
@@ -156,6 +166,10 @@ class LocalisationFilter(Protocol):
     def estimate(self) -> PoseEstimate: ...
 
     def hypotheses(self) -> list[Hypothesis]: ...
+
+    def state(self) -> LocalisationState:
+        """Whether to trust the pose (:mod:`ceamcl.filters.state`); only observes the filter."""
+        ...
 
     def particles(self) -> ParticleSnapshot: ...
 

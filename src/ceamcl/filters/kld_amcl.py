@@ -71,6 +71,7 @@ from ceamcl.filters.particles import (
 )
 from ceamcl.filters.policies import Context, every_n, on_motion
 from ceamcl.filters.resampling import multinomial, normalise_log_weights
+from ceamcl.filters.state import LocalisationState, read_particles
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import (
     OdometryIncrement,
@@ -537,6 +538,10 @@ class KLDAMCL:
         """The heaviest cluster's weighted mean and covariance (as amcl publishes)."""
         best = self.hypotheses(limit=1)[0]
         return PoseEstimate(best.pose, best.covariance)
+
+    def state(self) -> LocalisationState:
+        """Read from the particle clusters (:func:`ceamcl.filters.state.read_particles`)."""
+        return read_particles(self.particle_set, self.t, self.hypotheses)
 
     def particles(self) -> ParticleSnapshot:
         """The particles, carried by the odometry since the last update; labels are clusters."""

@@ -43,6 +43,7 @@ from ceamcl.filters.particles import (
     usable,
 )
 from ceamcl.filters.policies import Context, ess_below
+from ceamcl.filters.state import LocalisationState, read_particles
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel
 from ceamcl.pose import pose_covariance, pose_mean
@@ -183,6 +184,10 @@ class MCL:
     def hypotheses(self) -> list[Hypothesis]:
         ps = self.particle_set
         return cluster_hypotheses(ps.poses, ps.weights, ps.fitness, *self._labels())
+
+    def state(self) -> LocalisationState:
+        """Read from the particle clusters (:func:`ceamcl.filters.state.read_particles`)."""
+        return read_particles(self.particle_set, self.t, self.hypotheses)
 
     def particles(self) -> ParticleSnapshot:
         labels, _ = self._labels()

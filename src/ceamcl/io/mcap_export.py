@@ -14,6 +14,10 @@ topic                     schema                     when
                                                      ``laser``
 ``/tf``                   ``foxglove.FrameTransforms``  every step: ``map -> base_link`` and
                                                      ``base_link -> laser``
+``/state``                ``ceamcl.LocalisationState``  every step the runner recorded it: the
+                                                     state (LOCALISED, AMBIGUOUS, LOST,
+                                                     INITIALISING), confidence, hypotheses,
+                                                     their weights and the reason (issue 14)
 ========================  =========================  =============================================
 
 ``map -> base_link`` is the ground truth where the log has it (so the scan lands where the robot
@@ -171,6 +175,19 @@ SCHEMAS: dict[str, dict[str, Any]] = {
     ),
 }
 
+SCHEMAS["ceamcl.LocalisationState"] = _schema(
+    "ceamcl.LocalisationState",
+    "Whether to trust the pose: LOCALISED, AMBIGUOUS, LOST or INITIALISING (ceamcl.filters.state)",
+    {
+        "timestamp": _TIME,
+        "state": {"type": "string"},
+        "confidence": {"type": "number"},
+        "n_hypotheses": {"type": "integer"},
+        "weights": {"type": "array", "items": {"type": "number"}},
+        "reason": {"type": "string"},
+    },
+)
+
 TOPICS: dict[str, str] = {
     "/map": "foxglove.Grid",
     "/particles": "foxglove.PosesInFrame",
@@ -178,6 +195,7 @@ TOPICS: dict[str, str] = {
     "/ground_truth": "foxglove.PoseInFrame",
     "/scan": "foxglove.LaserScan",
     "/tf": "foxglove.FrameTransforms",
+    "/state": "ceamcl.LocalisationState",
 }
 
 
@@ -329,6 +347,9 @@ def write_mcap(
                 topics.append("/ground_truth")
             if log is not None:
                 topics.append("/scan")
+            states = result.states
+            if any(st is not None for st in states):
+                topics.append("/state")
             channels = {
                 t: writer.register_channel(
                     topic=t, message_encoding="json", schema_id=schema_ids[TOPICS[t]]
@@ -372,5 +393,19 @@ def write_mcap(
                     emit("/scan", ns, scan_message(scan, ns))
                 if k in particles:
                     emit("/particles", ns, poses_json(particles[k].poses, ns))
+                st = states[k]
+                if st is not None:
+                    emit(
+                        "/state",
+                        ns,
+                        {
+                            "timestamp": stamp(ns),
+                            "state": st.state.name,
+                            "confidence": st.confidence,
+                            "n_hypotheses": st.n_hypotheses,
+                            "weights": list(st.weights),
+                            "reason": st.reason,
+                        },
+                    )
             writer.finish()
     return Path(path)

@@ -61,6 +61,7 @@ from ceamcl.filters.base import (
     PoseEstimate,
     StepRecord,
 )
+from ceamcl.filters.state import LocalisationState, initialising, read_covariance
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryIncrement, OdometryNoise, apply_increment
 from ceamcl.sensors.base import fitness
@@ -438,6 +439,15 @@ class Nav2AMCL:
                 label=0,
             )
         ]
+
+    def state(self) -> LocalisationState:
+        """From the covariance, as Nav2's users read it today
+        (:func:`ceamcl.filters.state.read_covariance`); INITIALISING until the first step."""
+        if self.t == 0:
+            return initialising()
+        if self._pending is not None:
+            return initialising("the initial pose waits for its first scan")
+        return read_covariance(self.estimate())
 
     def particles(self) -> ParticleSnapshot:
         """NOT the wheel's particles (its API hides them): ``snapshot_particles`` samples from

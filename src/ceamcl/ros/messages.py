@@ -28,6 +28,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from ceamcl.errors import CeamclError, LogFormatError, MapFormatError
 from ceamcl.filters.base import Hypothesis, PoseEstimate
+from ceamcl.filters.state import LocalisationState, State
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.ros.transforms import Pose2, is_upside_down, quaternion_of, yaw_of
 from ceamcl.sensors.scan import LaserScan
@@ -209,9 +210,8 @@ def hypothesis_markers(hypotheses: Sequence[Hypothesis], frame: str, stamp: floa
 def hypotheses_status(
     hypotheses: Sequence[Hypothesis], algorithm: str, node_name: str, stamp: float
 ) -> DiagnosticArray:
-    """What is measured today about the hypotheses: how many, each one's weight, fitness,
-    particle count and pose. Not a localisation state: that classifier (LOCALISED /
-    AMBIGUOUS / LOST, issue 14) is not written yet, so no ``state`` value is published."""
+    """What is measured about the hypotheses: how many, each one's weight, fitness, particle
+    count and pose (the localisation state read from them is ``~/state``, :func:`state_status`)."""
     values = [
         KeyValue(key="algorithm", value=algorithm),
         KeyValue(key="n_hypotheses", value=str(len(hypotheses))),
@@ -230,7 +230,39 @@ def hypotheses_status(
         level=DiagnosticStatus.OK,
         name=f"{node_name}: hypotheses",
         message=f"{len(hypotheses)} hypotheses (measured weights and fitness; "
-        "no localisation state yet)",
+        "the state is on ~/state)",
+        hardware_id="",
+        values=values,
+    )
+    return DiagnosticArray(header=Header(stamp=time_msg(stamp)), status=[status])
+
+
+#: Diagnostic level of each state: LOCALISED OK, AMBIGUOUS and INITIALISING WARN, LOST ERROR.
+STATE_LEVELS = {
+    State.LOCALISED: DiagnosticStatus.OK,
+    State.AMBIGUOUS: DiagnosticStatus.WARN,
+    State.INITIALISING: DiagnosticStatus.WARN,
+    State.LOST: DiagnosticStatus.ERROR,
+}
+
+
+def state_status(
+    state: LocalisationState, algorithm: str, node_name: str, stamp: float
+) -> DiagnosticArray:
+    """``~/state``: the localisation state (issue 14, :mod:`ceamcl.filters.state`) as one
+    diagnostic status: level OK (LOCALISED), WARN (AMBIGUOUS, INITIALISING) or ERROR (LOST),
+    message ``STATE: reason``, values ``state``, ``confidence``, ``n_hypotheses``, ``weights``."""
+    values = [
+        KeyValue(key="algorithm", value=algorithm),
+        KeyValue(key="state", value=state.state.name),
+        KeyValue(key="confidence", value=f"{state.confidence:.4f}"),
+        KeyValue(key="n_hypotheses", value=str(state.n_hypotheses)),
+        KeyValue(key="weights", value=" ".join(f"{w:.4f}" for w in state.weights)),
+    ]
+    status = DiagnosticStatus(
+        level=STATE_LEVELS[state.state],
+        name=f"{node_name}: localisation state",
+        message=f"{state.state.name}: {state.reason}",
         hardware_id="",
         values=values,
     )

@@ -144,6 +144,7 @@ class LocalisationNode(LifecycleNode):
         self.status_pub = self.create_lifecycle_publisher(
             DiagnosticArray, "~/hypotheses/status", 10
         )
+        self.state_pub = self.create_lifecycle_publisher(DiagnosticArray, "~/state", latched)
         self.tf_pub = self.create_lifecycle_publisher(TFMessage, "/tf", 100)
         self._entities = [
             # TF first: the executor serves ready subscriptions in this order, so a scan's
@@ -176,7 +177,15 @@ class LocalisationNode(LifecycleNode):
             else:
                 self.destroy_subscription(entity)
         self._entities = []
-        for name in ("pose_pub", "cloud_pub", "hyp_pub", "marker_pub", "status_pub", "tf_pub"):
+        for name in (
+            "pose_pub",
+            "cloud_pub",
+            "hyp_pub",
+            "marker_pub",
+            "status_pub",
+            "state_pub",
+            "tf_pub",
+        ):
             pub = getattr(self, name, None)
             if pub is not None:
                 self.destroy_lifecycle_publisher(pub)
@@ -360,6 +369,9 @@ class LocalisationNode(LifecycleNode):
         self.marker_pub.publish(m.hypothesis_markers(hypotheses, frame, stamp))
         self.status_pub.publish(
             m.hypotheses_status(hypotheses, self.params.algorithm, self.get_name(), stamp)
+        )
+        self.state_pub.publish(
+            m.state_status(f.state(), self.params.algorithm, self.get_name(), stamp)
         )
 
 

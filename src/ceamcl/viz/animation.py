@@ -38,6 +38,7 @@ from ceamcl.io.results import atomic_write
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.runner import RunResult
 from ceamcl.viz.draw import draw_map
+from ceamcl.viz.state import draw_state_band, state_codes
 
 #: Matplotlib's ``tab10``: species ``i`` is drawn in ``SPECIES_COLOURS[i % 10]`` everywhere
 #: (run.png, the animation, the report).
@@ -236,6 +237,11 @@ class _Renderer:
         self.ax_n.grid(alpha=0.3)
         self.ax_n.tick_params(labelsize=7)
         (self.n_live,) = self.ax_n.plot([], [], "k-", lw=2, animated=True)
+        # the localisation state as a coloured band along the bottom of the sample-size chart
+        self.states = result.states
+        if any(st is not None for st in self.states):
+            top = self.ax_n.get_ylim()[1]
+            draw_state_band(self.ax_n, t, state_codes(self.states), 0.0, 0.06 * top)
         self.ax_r = self.fig.add_subplot(gs[1, 1], sharex=self.ax_n)
         self.has_resources = bool(np.any(np.isfinite(r)))
         if self.has_resources:
@@ -303,9 +309,11 @@ class _Renderer:
         n_species = int(np.unique(snap.labels).size)
         res = self.r_series[k]
         res_text = f"   R = {res:.0f}" if self.has_resources and np.isfinite(res) else ""
+        st = self.states[k] if k < len(self.states) else None
+        state_text = "" if st is None else f"   {st.state.name} ({st.confidence:.2f})"
         self.text.set_text(
             f"t = {frame.time:5.1f} s   step {k}   N = {snap.poses.shape[0]}   "
-            f"{self.group} = {n_species}{res_text}"
+            f"{self.group} = {n_species}{res_text}{state_text}"
         )
         self.canvas.restore_region(self.background)
         for artist in self.moving:

@@ -33,6 +33,7 @@ from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.runner import RunResult
 from ceamcl.viz.animation import SPECIES_COLOURS, replay_frames, series
 from ceamcl.viz.plots import plot_run, plot_species
+from ceamcl.viz.state import plot_state_run
 
 _TEMPLATE = "report_template.html"
 
@@ -170,6 +171,16 @@ def figures_html(result: RunResult, grid: OccupancyGrid, title: str) -> str:
                 "Map, tracks of the living species, final particles and hypotheses, true path.",
             )
         )
+        if any(st is not None for st in result.states):
+            parts.append(
+                (
+                    "state",
+                    plot_state_run(result, Path(tmp) / "state.png", title=f"{title}: state"),
+                    "The localisation state the filter reported at each step (green LOCALISED, "
+                    "orange AMBIGUOUS, red LOST, grey INITIALISING) and its confidence, "
+                    "beneath the true position error.",
+                )
+            )
         if any(species_of(d) for d in result.diagnostics):
             sp = plot_species(result, Path(tmp) / "species.png", title=f"{title}: species")
             parts.append(

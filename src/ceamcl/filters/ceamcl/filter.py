@@ -66,6 +66,7 @@ from ceamcl.filters.particles import (
     weigh,
 )
 from ceamcl.filters.resampling import label_groups
+from ceamcl.filters.state import LocalisationState, initialising, read_hypotheses
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel
 from ceamcl.sensors.base import SensorModel
@@ -468,6 +469,13 @@ class CEAMCL:
             )
             for s, w in zip(stats, share, strict=True)
         ]
+
+    def state(self) -> LocalisationState:
+        """Read from the species: their evidence shares and fitness
+        (:func:`ceamcl.filters.state.read_hypotheses`); INITIALISING until the first step."""
+        if not self.stats or self.t == 0:
+            return initialising()
+        return read_hypotheses(self.hypotheses())
 
     def particle_weights(self) -> NDArray[np.float64]:
         """Each particle's in-species weight times its species' share, normalised (measured

@@ -1,0 +1,105 @@
+"""``ceamcl experiment state``: the true state of a step, the precision/recall arithmetic, and
+a smoke run of the command (runs cut short)."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ceamcl.cli import main
+from ceamcl.experiments.state import StateRun, kidnap_figures, score, true_states
+from ceamcl.filters.state import STATES, State
+
+C = {s: i for i, s in enumerate(STATES)}
+TRUTH = np.array([[1.0, 1.0, 0.0]])
+
+
+def _h(*rows: tuple[float, float, float, float]) -> np.ndarray:
+    return np.array([[x, y, th, w, 0.9] for x, y, th, w in rows])
+
+
+def test_true_state_of_a_step() -> None:
+    est = np.array([[1.1, 1.0, 0.0]])
+    assert true_states(est, TRUTH, [_h((1.1, 1.0, 0.0, 1.0))], False)[0] == C[State.LOCALISED]
+    # the truth and a wrong place both hold weight
+    both = _h((1.1, 1.0, 0.0, 0.5), (5.0, 5.0, 0.0, 0.5))
+    assert true_states(est, TRUTH, [both], False)[0] == C[State.AMBIGUOUS]
+    # the truth is a minor hypothesis while a wrong place leads: still ambiguous
+    minor = _h((5.0, 5.0, 0.0, 0.97), (1.1, 1.0, 0.0, 0.03))
+    assert true_states(np.array([[5.0, 5.0, 0.0]]), TRUTH, [minor], False)[0] == C[State.AMBIGUOUS]
+    # no hypothesis near the truth (position or heading off)
+    wrong = _h((5.0, 5.0, 0.0, 0.9), (1.0, 1.0, 1.0, 0.1))
+    assert true_states(est, TRUTH, [wrong], False)[0] == C[State.LOST]
+    # a wrong place holding less than weight_min does not make it ambiguous
+    tiny = _h((1.1, 1.0, 0.0, 0.98), (5.0, 5.0, 0.0, 0.02))
+    assert true_states(est, TRUTH, [tiny], False)[0] == C[State.LOCALISED]
+    # one estimate only (the Nav2 peer): localised or lost
+    far = np.array([[3.0, 1.0, 0.0]])
+    assert true_states(far, TRUTH, [_h((3.0, 1.0, 0.0, 1.0))], True)[0] == C[State.LOST]
+    assert true_states(est, TRUTH, [_h((1.1, 1.0, 0.0, 1.0))], True)[0] == C[State.LOCALISED]
+
+
+def _run(said: list[State], truth: list[State], kidnapped_at: tuple[int, ...] = ()) -> StateRun:
+    n = len(said)
+    return StateRun(
+        "alg",
+        "course",
+        "route",
+        0,
+        0,
+        np.arange(n) * 0.1,
+        np.array([C[s] for s in said]),
+        np.array([C[s] for s in truth]),
+        np.zeros(n),
+        np.zeros(n, dtype=np.int64),
+        kidnapped_at,
+    )
+
+
+def test_precision_recall_and_support_skip_initialising_steps() -> None:
+    L, A, X, I = State.LOCALISED, State.AMBIGUOUS, State.LOST, State.INITIALISING  # noqa: E741
+    run = _run([I, A, A, L, L, L, X, L], [X, A, L, L, L, L, X, X])
+    by = {s.state: s for s in score([run])}
+    assert by["LOCALISED"].precision == pytest.approx(3 / 4)  # the last L was wrong
+    assert by["LOCALISED"].recall == pytest.approx(3 / 4)  # one true L was called A
+    assert by["LOCALISED"].support == 4
+    assert by["AMBIGUOUS"].precision == pytest.approx(1 / 2)
+    assert by["AMBIGUOUS"].recall == pytest.approx(1.0)
+    assert by["LOST"].precision == pytest.approx(1.0)
+    assert by["LOST"].recall == pytest.approx(1 / 2)  # step 0 is INITIALISING: not scored
+    assert by["LOST"].support == 2
+
+
+def test_kidnap_noticed_within_two_seconds_and_false_lost() -> None:
+    L, X = State.LOCALISED, State.LOST
+    said = [L] * 10 + [L] * 25 + [X] + [L] * 4
+    truth = [L] * 10 + [X] * 26 + [L] * 4
+    late = kidnap_figures([_run(said, truth, (10,))])[0]
+    assert late.kidnaps == 1 and late.lost_within_2s == 0.0  # LOST only 2.5 s after
+    steps = [L] * 10 + [X] * 3 + [L] * 2
+    (early,) = kidnap_figures([_run(steps, steps, (10,))])
+    assert early.lost_within_2s == 1.0 and early.false_lost == 0.0
+
+
+def _read_csv(path: Path) -> list[dict[str, str]]:
+    with path.open() as fh:
+        return list(csv.DictReader(fh))
+
+
+def test_state_smoke(tmp_path: Path) -> None:
+    out = tmp_path / "s"
+    args = ["experiment", "state", "--trials", "1", "--executor", "serial", "--quiet"]
+    args += ["--algorithms", "ceamcl,mcl", "--max-time", "2", "--starts", "0"]
+    assert main([*args, "--world", "symmetric-hall", "--out", str(out)]) == 0
+    rows = _read_csv(out / "state.csv")
+    assert list(rows[0]) == ["algorithm", "state", "precision", "recall", "support"]
+    assert [(r["algorithm"], r["state"]) for r in rows] == [
+        (a, s) for a in ("ceamcl", "mcl") for s in ("LOCALISED", "AMBIGUOUS", "LOST")
+    ]
+    assert (out / "state.png").stat().st_size > 0
+    text = (out / "state.md").read_text()
+    assert "symmetric-hall" in text and "| ceamcl | AMBIGUOUS |" in text
+    assert not list(out.glob("*.tmp*"))

@@ -1,0 +1,110 @@
+"""The localisation state read from hypotheses and covariances (issue 14,
+:mod:`ceamcl.filters.state`) and ``state()`` on every registered filter."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ceamcl.filters import make_filter, registry
+from ceamcl.filters.base import Hypothesis, PoseEstimate
+from ceamcl.filters.state import (
+    DEFAULT_THRESHOLDS,
+    LocalisationState,
+    State,
+    read_covariance,
+    read_hypotheses,
+)
+from ceamcl.motion.odometry import OdometryIncrement
+from ceamcl.simulation.scenarios import office_scenario
+
+TIGHT = np.diag([0.01, 0.01, 0.001])
+
+
+def hyp(weight: float, fitness: float, x: float = 0.0, cov: np.ndarray = TIGHT) -> Hypothesis:
+    return Hypothesis(np.array([x, 0.0, 0.0]), cov, 100, weight, fitness, 0)
+
+
+def test_one_fitting_hypothesis_holding_the_weight_is_localised() -> None:
+    s = read_hypotheses([hyp(0.97, 0.9), hyp(0.03, 0.9, x=5.0)])
+    assert s.state is State.LOCALISED
+    assert s.n_hypotheses == 1 and s.weights == pytest.approx((0.97,))
+    assert 0.9 < s.confidence <= 1.0
+    assert "fits the scan" in s.reason
+
+
+def test_several_fitting_hypotheses_sharing_the_weight_are_ambiguous() -> None:
+    s = read_hypotheses([hyp(0.26, 0.9), hyp(0.25, 0.85, 3), hyp(0.25, 0.9, 6), hyp(0.24, 0.8, 9)])
+    assert s.state is State.AMBIGUOUS
+    assert s.n_hypotheses == 4
+    assert s.weights == pytest.approx((0.26, 0.25, 0.25, 0.24))
+    assert "4 hypotheses" in s.reason
+
+
+def test_a_rival_that_does_not_fit_the_scan_does_not_make_it_ambiguous() -> None:
+    s = read_hypotheses([hyp(0.6, 0.9), hyp(0.4, 0.2, x=5.0)])
+    assert s.state is State.LOCALISED
+
+
+def test_a_fitting_rival_holding_weight_makes_it_ambiguous_a_smaller_one_does_not() -> None:
+    assert read_hypotheses([hyp(0.97, 0.9), hyp(0.03, 0.9, 5)]).state is State.LOCALISED
+    s = read_hypotheses([hyp(0.93, 0.9), hyp(0.07, 0.9, 5)])
+    assert s.state is State.AMBIGUOUS and s.n_hypotheses == 2
+
+
+def test_nothing_that_fits_the_scan_is_lost() -> None:
+    s = read_hypotheses([hyp(0.99, 0.2), hyp(0.01, 0.9, x=5.0)])  # the fitting one holds 1 %
+    assert s.state is State.LOST
+    assert s.n_hypotheses == 0
+    assert s.confidence == pytest.approx(1 - 0.2 / DEFAULT_THRESHOLDS.fit_min)
+
+
+def test_a_pose_spread_over_metres_is_lost() -> None:
+    wide = np.diag([4.0, 4.0, 0.1])
+    s = read_hypotheses([hyp(1.0, 0.9, cov=wide)])
+    assert s.state is State.LOST
+    assert "spread" in s.reason
+
+
+def test_nan_weights_and_fitness_and_no_hypotheses_give_a_state_not_nan() -> None:
+    s = read_hypotheses([hyp(float("nan"), float("nan")), hyp(1.0, float("nan"))])
+    assert s.state is State.LOST and np.isfinite(s.confidence)
+    assert read_hypotheses([]).state is State.LOST
+    zero = read_hypotheses([hyp(0.0, 0.9), hyp(0.0, 0.9, 5)])  # no weight at all
+    assert zero.state is State.LOST and np.isfinite(zero.confidence)
+
+
+def test_covariance_reading_as_nav2_users_do() -> None:
+    small = read_covariance(PoseEstimate(np.zeros(3), np.diag([0.01, 0.01, 0.005])))
+    assert small.state is State.LOCALISED and 0 < small.confidence <= 1
+    wide = read_covariance(PoseEstimate(np.zeros(3), np.diag([1.0, 1.0, 0.005])))
+    assert wide.state is State.LOST
+    turned = read_covariance(PoseEstimate(np.zeros(3), np.diag([0.01, 0.01, 0.5])))
+    assert turned.state is State.LOST
+    bad = read_covariance(PoseEstimate(np.zeros(3), np.full((3, 3), np.nan)))
+    assert bad.state is State.LOST and bad.confidence == 1.0
+
+
+def test_state_row_has_the_csv_columns() -> None:
+    s = LocalisationState(State.AMBIGUOUS, 0.5, 2, (0.5, 0.5), "x")
+    assert s.row() == {"state": "AMBIGUOUS", "state_confidence": 0.5, "state_hypotheses": 2}
+
+
+@pytest.mark.parametrize("name", registry.names())
+def test_every_filter_reports_a_state_initialising_then_localised_when_tracking(
+    name: str,
+) -> None:
+    if registry.unavailable_reason(name):
+        pytest.skip(registry.unavailable_reason(name) or "")
+    sc = office_scenario()
+    log = sc.simulate(np.random.default_rng(1))
+    grid = sc.grid()
+    f = make_filter(name, grid, np.random.default_rng(2))
+    f.initialise_global(log.scan(0))
+    assert f.state().state is State.INITIALISING
+    f.initialise_pose(log.true_poses[0], np.diag([0.01, 0.01, 0.002]))
+    for _ in range(1, 15):
+        f.step(OdometryIncrement(0.0, 0.0, 0.0), log.scan(0))
+    s = f.state()
+    assert s.state is State.LOCALISED, s.reason
+    assert 0.0 <= s.confidence <= 1.0
