@@ -50,6 +50,9 @@ def test_demo_writes_summary(demo_dir: Path) -> None:
     assert 0.0 <= summary["final_heading_error_rad"] <= np.pi
     assert summary["mean_step_ms"] > 0.0
     assert summary["particles_final"] >= 1
+    # the localisation state at the end (docs/state.md), as ceamcl run reports it
+    assert summary["final_state"] in {"LOCALISED", "AMBIGUOUS", "LOST", "INITIALISING"}
+    assert 0.0 <= summary["final_state_confidence"] <= 1.0 and summary["final_state_reason"]
 
 
 def test_demo_writes_tum_trajectories(demo_dir: Path) -> None:

@@ -28,6 +28,7 @@ from ceamcl.experiments.metrics import (
 )
 from ceamcl.filters import make_filter
 from ceamcl.filters.ceamcl.records import species_of
+from ceamcl.filters.state import summarise_states
 from ceamcl.io.results import ensure_output_dir
 from ceamcl.maps.worlds import symmetric_images
 from ceamcl.outputs import write_run_files
@@ -138,6 +139,7 @@ def summarise(result: RunResult, log: SimulatedLog, **context: Any) -> dict[str,
                 "confidently_wrong": bool(confidently_wrong(estimate_ok, shares.heaviest)),
             }
         )
+    summary.update(summarise_states([d.state for d in result.diagnostics], result.times))
     first, last = species_of(result.diagnostics[0]), species_of(result.diagnostics[-1])
     if first or last:
         summary["species_initial"] = len(first)

@@ -182,8 +182,16 @@ def state_table(title: str, s: Mapping[str, Any]) -> Table:
         ]
     state = _hypotheses_count(s)
     evals = s["likelihood_evaluations"]
+    if "final_state" in s:
+        rows.append(
+            (
+                "localisation state (docs/state.md)",
+                f"{s['final_state']} ({s['final_state_confidence']:.2f}): "
+                f"{s['final_state_reason']}",
+            )
+        )
     rows += [
-        ("filter state", state),
+        ("species or hypotheses", state),
         ("sample size initial -> final", f"{s['samples_initial']} -> {s['samples_final']}"),
         (
             "likelihood evaluations (initialisation)",
