@@ -32,7 +32,7 @@ from ceamcl.sensors.likelihood_field import PARALLEL_MIN_POSES
 from ceamcl.sensors.raycast import RangeTable, _march, _mounted_pose, _table_range, cast_fan
 from ceamcl.sensors.scan import LaserScan, PreparedScan, laser_poses, prepare_scan
 from ceamcl.sensors.scoring import check_scoring
-from ceamcl.sensors.tempering import check_temper, resolve_temper, tempered
+from ceamcl.sensors.tempering import CombinedBeams, check_temper, resolve_temper
 
 _SQRT_2PI = math.sqrt(2.0 * math.pi)
 
@@ -194,7 +194,7 @@ def _beam_table_kernel_py(
 _beam_table_serial, _beam_table_parallel = serial_and_parallel(_beam_table_kernel_py)
 
 
-class BeamModel:
+class BeamModel(CombinedBeams):
     """Beam model over an occupancy grid (implements :class:`SensorModel`).
 
     With ``config.ray_casting == "table"`` (the default) expected ranges come from a lazily
@@ -226,22 +226,6 @@ class BeamModel:
             )
             self._tables[range_max] = table
         return table
-
-    @property
-    def temper(self) -> float:
-        """The exponent on the product of beam likelihoods (docs/sensor-models.md)."""
-        return resolve_temper(self.config.temper, self.config.scoring)
-
-    @property
-    def scoring(self) -> str:
-        """How beams combine: ``"product"`` or ``"ros"`` (:mod:`ceamcl.sensors.scoring`)."""
-        return self.config.scoring
-
-    def _combined(self, summed: NDArray[np.float64]) -> NDArray[np.float64]:
-        """The score from the per-beam sum: tempered log-product, or ``log(1 + sum pz^3)``."""
-        if self.config.scoring == "ros":
-            return np.log1p(summed)
-        return tempered(summed, self.temper)
 
     def prepare(self, scan: LaserScan) -> PreparedScan:
         return prepare_scan(scan, self.config.max_beams, keep_max_range=True)

@@ -31,7 +31,7 @@ from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.sensors._compile import serial_and_parallel
 from ceamcl.sensors.scan import LaserScan, PreparedScan, laser_poses, prepare_scan
 from ceamcl.sensors.scoring import check_scoring
-from ceamcl.sensors.tempering import check_temper, resolve_temper, tempered
+from ceamcl.sensors.tempering import CombinedBeams, check_temper, resolve_temper
 
 _SQRT_2PI = math.sqrt(2.0 * math.pi)
 
@@ -112,7 +112,7 @@ _lf_kernel_serial, _lf_kernel_parallel = serial_and_parallel(_lf_kernel_py)
 PARALLEL_MIN_POSES = 4096
 
 
-class LikelihoodFieldModel:
+class LikelihoodFieldModel(CombinedBeams):
     """Likelihood field over an occupancy grid (implements :class:`SensorModel`)."""
 
     def __init__(self, grid: OccupancyGrid, config: LikelihoodFieldConfig | None = None) -> None:
@@ -141,22 +141,6 @@ class LikelihoodFieldModel:
             table = np.ascontiguousarray(self._beam_value(self._dist, range_max))
             self._tables[range_max] = table
         return table
-
-    @property
-    def temper(self) -> float:
-        """The exponent on the product of beam likelihoods (docs/sensor-models.md)."""
-        return resolve_temper(self.config.temper, self.config.scoring)
-
-    @property
-    def scoring(self) -> str:
-        """How beams combine: ``"product"`` or ``"ros"`` (:mod:`ceamcl.sensors.scoring`)."""
-        return self.config.scoring
-
-    def _combined(self, summed: NDArray[np.float64]) -> NDArray[np.float64]:
-        """The score from the per-beam sum: tempered log-product, or ``log(1 + sum pz^3)``."""
-        if self.config.scoring == "ros":
-            return np.log1p(summed)
-        return tempered(summed, self.temper)
 
     def prepare(self, scan: LaserScan) -> PreparedScan:
         return prepare_scan(scan, self.config.max_beams, keep_max_range=False)

@@ -15,6 +15,8 @@ tracking, docs/sensor-models.md gives the figures); ``temper = 1`` is the textbo
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -43,3 +45,29 @@ def tempered(log_likelihood: NDArray[np.float64], temper: float) -> NDArray[np.f
     if temper == 1.0:
         return log_likelihood
     return np.multiply(log_likelihood, temper)
+
+
+class CombinedBeams:
+    """What the beam model and the likelihood field share: how the per-beam values of a scan
+    combine into one score (``config.scoring``: the tempered log-product, or amcl's
+    ``log(1 + sum pz^3)``, :mod:`ceamcl.sensors.scoring`) and how much a scan counts
+    (``config.temper``). A model's kernel returns the per-beam sum; :meth:`_combined` turns it
+    into the score."""
+
+    config: Any  # a frozen config with ``temper`` and ``scoring`` fields
+
+    @property
+    def temper(self) -> float:
+        """The exponent on the product of beam likelihoods (docs/sensor-models.md)."""
+        return resolve_temper(self.config.temper, self.config.scoring)
+
+    @property
+    def scoring(self) -> str:
+        """How beams combine: ``"product"`` or ``"ros"`` (:mod:`ceamcl.sensors.scoring`)."""
+        return str(self.config.scoring)
+
+    def _combined(self, summed: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The score from the per-beam sum: tempered log-product, or ``log(1 + sum pz^3)``."""
+        if self.config.scoring == "ros":
+            return np.log1p(summed)
+        return tempered(summed, self.temper)
