@@ -42,7 +42,7 @@ class Hidden:
     def particle_weights(self) -> np.ndarray:
         return np.full(7, np.nan)
 
-    def state(self) -> LocalisationState:
+    def state(self, hypotheses: object = None) -> LocalisationState:
         return initialising()
 
 

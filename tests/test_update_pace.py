@@ -58,7 +58,7 @@ class DeadReckoning:
     def particles(self) -> ParticleSnapshot:
         return ParticleSnapshot(self.pose[None, :].copy(), np.ones(1), np.zeros(1, dtype=int))
 
-    def state(self) -> LocalisationState:
+    def state(self, hypotheses: object = None) -> LocalisationState:
         return read_hypotheses(self.hypotheses())
 
     def particle_weights(self) -> np.ndarray:

@@ -7,13 +7,15 @@ of a run are written by :mod:`ceamcl.outputs`, one layer above.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ceamcl.filters.base import (
+    Hypothesis,
     LocalisationFilter,
     ParticleSnapshot,
     StepDiagnostics,
@@ -88,8 +90,7 @@ class RunResult:
         return np.array([d.step_ms for d in self.diagnostics[1:] if d.stepped] or [0.0])
 
 
-def _hypothesis_array(f: LocalisationFilter) -> NDArray[np.float64]:
-    hyps = f.hypotheses()
+def _hypothesis_array(hyps: Sequence[Hypothesis]) -> NDArray[np.float64]:
     if not hyps:
         return np.zeros((0, 5))
     return np.array([[*h.pose, h.weight, h.fitness] for h in hyps])
@@ -100,12 +101,22 @@ def measure(f: LocalisationFilter, k: int, act: Callable[[], StepRecord]) -> Ste
     then the particle count and the ESS ``1 / sum w_i^2`` of the filter's normalised weights
     afterwards (NaN when the filter cannot show its weights) and its state (it only observes:
     asking it changes nothing of the run)."""
+    return _measure(f, k, act, with_hypotheses=False)[0]
+
+
+def _measure(
+    f: LocalisationFilter, k: int, act: Callable[[], StepRecord], *, with_hypotheses: bool
+) -> tuple[StepDiagnostics, list[Hypothesis]]:
+    """:func:`measure`, and with ``with_hypotheses`` the filter's hypotheses after the call,
+    asked once and handed to ``state`` (a particle filter clusters its particles for them)."""
     start = time.perf_counter()
     record = act()
     step_ms = (time.perf_counter() - start) * 1e3
     w = f.particle_weights()
     ess = effective_sample_size(w) if np.all(np.isfinite(w)) else float("nan")
-    return StepDiagnostics(k, int(w.size), ess, step_ms, record, state=f.state())
+    hyps = f.hypotheses() if with_hypotheses else []
+    state = f.state(hyps) if with_hypotheses else f.state()
+    return StepDiagnostics(k, int(w.size), ess, step_ms, record, state=state), hyps
 
 
 def timed_step(
@@ -176,12 +187,14 @@ def run_filter(
     covariances = np.full((n, 3, 3), np.nan)
     first = log.scan(0)
     if initial_pose is None:
-        diagnostics = [measure(f, 0, lambda: f.initialise_global(first))]
+        diag, hyps = _measure(f, 0, partial(f.initialise_global, first), with_hypotheses=True)
     else:
-        diagnostics = [measure(f, 0, lambda: _start_tracking(f, initial_pose, first))]
+        start = partial(_start_tracking, f, initial_pose, first)
+        diag, hyps = _measure(f, 0, start, with_hypotheses=True)
+    diagnostics = [diag]
     initial = f.particles()
     estimates[0], covariances[0] = _estimate(f)
-    hypotheses = [_hypothesis_array(f)]
+    hypotheses = [_hypothesis_array(hyps)]
     snapshots: dict[int, ParticleSnapshot] = {0: initial} if snapshot_every > 0 else {}
     if on_step is not None:
         on_step(0)
@@ -206,9 +219,10 @@ def run_filter(
                 on_step(k)
             continue
         odom_at_update = odom
-        diagnostics.append(timed_step(f, k, inc, log.scan(k)))
+        diag, hyps = _measure(f, k, partial(f.step, inc, log.scan(k)), with_hypotheses=True)
+        diagnostics.append(diag)
         estimates[k], covariances[k] = _estimate(f)
-        hypotheses.append(_hypothesis_array(f))
+        hypotheses.append(_hypothesis_array(hyps))
         if snapshot_every > 0 and k % snapshot_every == 0:
             snapshots[k] = f.particles()
         if on_step is not None:

@@ -17,7 +17,7 @@ to ``initialise_global`` and ``step`` returns the filter's :class:`StepRecord`; 
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from typing import TYPE_CHECKING, Any, Literal, Protocol
 
@@ -167,8 +167,10 @@ class LocalisationFilter(Protocol):
 
     def hypotheses(self) -> list[Hypothesis]: ...
 
-    def state(self) -> LocalisationState:
-        """Whether to trust the pose (:mod:`ceamcl.filters.state`); only observes the filter."""
+    def state(self, hypotheses: Sequence[Hypothesis] | None = None) -> LocalisationState:
+        """Whether to trust the pose (:mod:`ceamcl.filters.state`); only observes the filter.
+        ``hypotheses``: this filter's :meth:`hypotheses` now, when the caller already has
+        them (they are not computed twice)."""
         ...
 
     def particles(self) -> ParticleSnapshot: ...

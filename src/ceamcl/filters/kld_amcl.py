@@ -42,6 +42,7 @@ sensor models:
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -539,9 +540,12 @@ class KLDAMCL:
         best = self.hypotheses(limit=1)[0]
         return PoseEstimate(best.pose, best.covariance)
 
-    def state(self) -> LocalisationState:
+    def state(self, hypotheses: Sequence[Hypothesis] | None = None) -> LocalisationState:
         """Read from the particle clusters (:func:`ceamcl.filters.state.read_particles`)."""
-        return read_particles(self.particle_set, self.t, self.hypotheses)
+        known = hypotheses
+        return read_particles(
+            self.particle_set, self.t, self.hypotheses if known is None else lambda: known
+        )
 
     def particles(self) -> ParticleSnapshot:
         """The particles, carried by the odometry since the last update; labels are clusters."""

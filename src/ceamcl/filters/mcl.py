@@ -18,6 +18,7 @@ the particle clusters (as ROS amcl does), heaviest first.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -185,9 +186,12 @@ class MCL:
         ps = self.particle_set
         return cluster_hypotheses(ps.poses, ps.weights, ps.fitness, *self._labels())
 
-    def state(self) -> LocalisationState:
+    def state(self, hypotheses: Sequence[Hypothesis] | None = None) -> LocalisationState:
         """Read from the particle clusters (:func:`ceamcl.filters.state.read_particles`)."""
-        return read_particles(self.particle_set, self.t, self.hypotheses)
+        known = hypotheses
+        return read_particles(
+            self.particle_set, self.t, self.hypotheses if known is None else lambda: known
+        )
 
     def particles(self) -> ParticleSnapshot:
         labels, _ = self._labels()

@@ -44,6 +44,7 @@ import ctypes
 import ctypes.util
 import importlib
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from types import ModuleType, TracebackType
 from typing import Any
@@ -440,7 +441,7 @@ class Nav2AMCL:
             )
         ]
 
-    def state(self) -> LocalisationState:
+    def state(self, hypotheses: Sequence[Hypothesis] | None = None) -> LocalisationState:
         """From the covariance, as Nav2's users read it today
         (:func:`ceamcl.filters.state.read_covariance`); INITIALISING until the first step."""
         if self.t == 0:

@@ -36,6 +36,7 @@ globally (section 3.1 on that scan, or uniformly over free space without one) an
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -470,12 +471,12 @@ class CEAMCL:
             for s, w in zip(stats, share, strict=True)
         ]
 
-    def state(self) -> LocalisationState:
+    def state(self, hypotheses: Sequence[Hypothesis] | None = None) -> LocalisationState:
         """Read from the species: their evidence shares and fitness
         (:func:`ceamcl.filters.state.read_hypotheses`); INITIALISING until the first step."""
         if not self.stats or self.t == 0:
             return initialising()
-        return read_hypotheses(self.hypotheses())
+        return read_hypotheses(self.hypotheses() if hypotheses is None else hypotheses)
 
     def particle_weights(self) -> NDArray[np.float64]:
         """Each particle's in-species weight times its species' share, normalised (measured
