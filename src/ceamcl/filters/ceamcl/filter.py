@@ -305,18 +305,15 @@ class CEAMCL:
         (docs/ceamcl.md, "evidence"); then the largest is set to 0."""
         ll = self.particle_set.loglik if best_seen is None else best_seen
         for sid, idx in members.items():
-            top = float(np.max(ll[idx])) if idx.size else -np.inf
-            evidence = top if np.isfinite(top) else -np.inf
-            self.log_weight[sid] = memory * self.log_weight.get(sid, 0.0) + evidence
+            top = float(np.max(ll[idx])) if idx.size else -np.inf  # never +inf: sanitised
+            self.log_weight[sid] = memory * self.log_weight.get(sid, 0.0) + top
         self._normalise_weights()
 
     def _normalise_weights(self, living: bool = False) -> None:
         """The largest log-weight 0 (all 0 when none is finite); with ``living``, only the
-        species in ``stats`` keep one (a species new to them starts at the largest)."""
+        species in ``stats`` keep one (a species new to them starts at 0, the leader's)."""
         if living:
-            lw = {sid: self.log_weight.get(sid, -np.inf) for sid in self.stats}
-            top = max(lw.values(), default=0.0)
-            lw = {sid: (v if np.isfinite(v) else top) for sid, v in lw.items()}
+            lw = {sid: self.log_weight.get(sid, 0.0) for sid in self.stats}
         else:
             lw = dict(self.log_weight)
         top = max(lw.values(), default=0.0)
