@@ -157,14 +157,21 @@ def cast_fan(
     sensor_poses: ArrayLike,
     bearings: ArrayLike,
     max_range: float,
+    *,
+    through_unknown: bool = False,
 ) -> NDArray[np.float64]:
-    """Ranges ``(N, M)``: from each sensor pose ``(N, 3)`` along each bearing ``(M,)``."""
+    """Ranges ``(N, M)``: from each sensor pose ``(N, 3)`` along each bearing ``(M,)``.
+    ``through_unknown``: only occupied cells stop a ray (the farthest the map allows)."""
     mp = grid.poses_to_map(sensor_poses)
+    if through_unknown:
+        blocking, dist = grid.occupied_mask, grid.distance_to_occupied
+    else:
+        blocking, dist = grid.blocking_mask, grid.distance_to_blocking
     return _cast_fan(
         np.ascontiguousarray(mp),
         np.ascontiguousarray(np.asarray(bearings, dtype=np.float64).reshape(-1)),
-        grid.blocking_mask,
-        grid.distance_to_blocking,
+        blocking,
+        dist,
         grid.resolution,
         float(max_range),
     )

@@ -10,6 +10,7 @@ import numpy as np
 from ceamcl.filters.ceamcl.initialisation import InitialisationConfig
 from ceamcl.filters.ceamcl.phases import CompetitionConfig, GrowthConfig, SplitMergeConfig
 from ceamcl.filters.evolution import EvolutionConfig
+from ceamcl.sensors.beam_skip import BeamSkipConfig
 
 #: What the ``w`` of eqs. 9 and 16 is (``CEAMCLConfig.competition_fitness``).
 COMPETITION_FITNESS: tuple[str, ...] = ("evidence", "scan")
@@ -59,6 +60,11 @@ class CEAMCLConfig:
             running average of the fittest species' fitness below ``recovery_ratio`` times the
             slow one.
         recovery_warmup_steps: steps after any initialisation before collapse is tested.
+
+    Not in the paper (unmapped obstacles, docs/ceamcl.md):
+        beam_skip: while a single species lives (tracking), the short readings it cannot
+            explain (unmapped obstacles) are left out of the step's weighting, as ROS amcl's
+            beam skipping does (:mod:`ceamcl.sensors.beam_skip`); ``None`` weighs every beam.
     """
 
     n_test: int = 1_000_000
@@ -91,6 +97,7 @@ class CEAMCLConfig:
     recovery_alpha_fast: float = 0.3
     recovery_alpha_slow: float = 0.02
     recovery_warmup_steps: int = 20
+    beam_skip: BeamSkipConfig | None = field(default_factory=BeamSkipConfig)
 
     def __post_init__(self) -> None:
         checks = {

@@ -71,6 +71,7 @@ from ceamcl.filters.state import LocalisationState, initialising, read_hypothese
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel
 from ceamcl.sensors.base import SensorModel
+from ceamcl.sensors.beam_skip import skip_unexplained_beams
 from ceamcl.sensors.scan import LaserScan, PreparedScan
 
 #: A species' log-weight never falls below this (exp of it is still a positive number, so
@@ -229,11 +230,17 @@ class CEAMCL:
             self._refresh_stats()
             self.competition.dn = {sid: 0.0 for sid in self.stats}
             return self._record(reinitialised=False)
-        # 4. Weighting, all species in one likelihood call.
+        # 4. Weighting, all species in one likelihood call; while one species tracks the
+        # robot, without the short readings it cannot explain (beam skipping, docs/ceamcl.md).
+        full = prepared  # a restart generates species from every beam
+        if cfg.beam_skip is not None and len(members) == 1:
+            prepared, self.events.skipped_beams = skip_unexplained_beams(
+                self.grid, (ps.poses[idx] for idx in members.values()), prepared, cfg.beam_skip
+            )
         self._prepared = prepared
         self._evaluations += ps.n
         if not weigh(ps, self.sensor, prepared):
-            return self._restart(prepared)  # every particle impossible under this scan
+            return self._restart(full)  # every particle impossible under this scan
         best_seen = ps.loglik.copy()  # each sample's best, over its children too
         # 5. Evolution inside each species.
         groups = list(members.values())
@@ -246,7 +253,7 @@ class CEAMCL:
         self._split_and_merge(members)  # leaves self.stats fresh
         if self._fitness_collapsed():
             self.events.recoveries += 1
-            return self._restart(prepared)  # kidnapped: no species explains the scans
+            return self._restart(full)  # kidnapped: no species explains the scans
         # 7. Competition: dN of every species for the next step.
         self.competition = compete(self.stats, cfg.competition, self._competition_fitness())
         return self._record(reinitialised=False)

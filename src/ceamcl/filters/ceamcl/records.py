@@ -39,6 +39,7 @@ class Events:
     merges: int = 0
     restarts: int = 0
     recoveries: int = 0
+    skipped_beams: int = 0
     n0: int = 0
     v_cells: int = 0
 

@@ -1,0 +1,103 @@
+"""Beam skipping (ceamcl.sensors.beam_skip): short readings no hypothesis explains are left out;
+readings through a wall of the map, and scans nothing explains, always count."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ceamcl.maps.grid import FREE, OCCUPIED, OccupancyGrid
+from ceamcl.sensors.beam_skip import BeamSkipConfig, keep_beams, skip_unexplained_beams
+from ceamcl.sensors.likelihood_field import LikelihoodFieldModel
+from ceamcl.sensors.raycast import cast_fan
+from ceamcl.sensors.scan import LaserGeometry, laser_poses
+
+RES = 0.05
+LASER = LaserGeometry.covering(np.pi, 61, 8.0)
+
+
+def room(box: bool) -> OccupancyGrid:
+    """A 10 m x 6 m room; with ``box``, a 0.6 m crate 2 m in front of (1.5, 3) facing +x."""
+    data = np.full((120, 200), FREE, dtype=np.int8)
+    data[:2, :] = data[-2:, :] = data[:, :2] = data[:, -2:] = OCCUPIED
+    if box:
+        data[54:66, 70:82] = OCCUPIED  # x 3.5-4.1 m, y 2.7-3.3 m
+    return OccupancyGrid(data, RES, (0.0, 0.0, 0.0), name="room")
+
+
+POSE = np.array([1.5, 3.0, 0.0])
+
+
+def scan_in(grid: OccupancyGrid, pose: np.ndarray = POSE):  # type: ignore[no-untyped-def]
+    sensor = laser_poses(pose[None, :], LASER.pose)
+    return LASER.scan(cast_fan(grid, sensor, LASER.angles, LASER.range_max)[0])
+
+
+def test_the_readings_of_an_unmapped_obstacle_are_left_out() -> None:
+    mapped = room(box=False)
+    prepared = LikelihoodFieldModel(mapped).prepare(scan_in(room(box=True)))
+    kept, skipped = skip_unexplained_beams(mapped, [POSE[None, :]], prepared, BeamSkipConfig())
+    on_box = scan_in(room(box=True)).ranges < scan_in(mapped).ranges - 0.5
+    assert 0 < skipped == prepared.n_beams - kept.n_beams
+    assert skipped <= int(on_box.sum())  # only beams that hit the crate can go
+    assert skipped >= int(on_box.sum()) - 2  # and all but its edge beams do
+    # what is left fits the map as a clean scan does
+    lf = LikelihoodFieldModel(mapped)
+    fit = lf.log_likelihood(POSE[None, :], kept)[0] / kept.n_beams
+    clean = lf.prepare(scan_in(mapped))
+    assert fit >= lf.log_likelihood(POSE[None, :], clean)[0] / clean.n_beams - 0.05
+
+
+def test_a_scan_the_map_explains_loses_no_beam() -> None:
+    grid = room(box=False)
+    prepared = LikelihoodFieldModel(grid).prepare(scan_in(grid))
+    kept, skipped = skip_unexplained_beams(grid, [POSE[None, :]], prepared, BeamSkipConfig())
+    assert skipped == 0 and kept is prepared
+
+
+def test_readings_through_a_wall_always_count() -> None:
+    """Seen from the wrong place (1 m from the right wall, facing it), the readings of the real
+    scan run far beyond that wall: they are not clutter, and none of them is left out."""
+    grid = room(box=False)
+    prepared = LikelihoodFieldModel(grid).prepare(scan_in(grid))
+    wrong = np.array([[8.9, 3.0, 0.0]])
+    kept, _ = skip_unexplained_beams(grid, [wrong], prepared, BeamSkipConfig())
+    sensor = laser_poses(wrong, LASER.pose)
+    expected = cast_fan(grid, sensor, prepared.bearings, LASER.range_max)[0]
+    through = prepared.ranges > expected + 0.5
+    assert through.any()
+    dropped = ~np.isin(prepared.bearings, kept.bearings)
+    assert not (dropped & through).any()
+
+
+def test_when_almost_nothing_is_explained_every_beam_counts() -> None:
+    grid = room(box=False)
+    crowd = scan_in(grid).ranges.copy()
+    crowd[:] = 0.4  # people all round the laser
+    prepared = LikelihoodFieldModel(grid).prepare(LASER.scan(crowd))
+    kept, skipped = skip_unexplained_beams(grid, [POSE[None, :]], prepared, BeamSkipConfig())
+    assert skipped == 0 and kept.n_beams == prepared.n_beams
+
+
+def test_any_hypothesis_that_explains_a_beam_keeps_it() -> None:
+    """Two hypotheses: the crate's readings (about 2 m straight ahead) end on the right-hand
+    wall seen from 2 m in front of it, so with that hypothesis alive they stay, and the
+    hypothesis at the crate pays for them: beams are left out only when no hypothesis
+    explains them."""
+    mapped = room(box=False)
+    prepared = LikelihoodFieldModel(mapped).prepare(scan_in(room(box=True)))
+    _, n_alone = skip_unexplained_beams(mapped, [POSE[None, :]], prepared, BeamSkipConfig())
+    near_wall = np.array([[7.9, 3.0, 0.0]])
+    _, n_both = skip_unexplained_beams(
+        mapped, [POSE[None, :], near_wall], prepared, BeamSkipConfig()
+    )
+    assert n_alone > 0
+    assert n_both < n_alone
+
+
+def test_keep_beams_is_consistent() -> None:
+    grid = room(box=False)
+    prepared = LikelihoodFieldModel(grid).prepare(scan_in(grid))
+    keep = np.arange(prepared.n_beams) % 3 != 0
+    kept = keep_beams(prepared, keep)
+    assert kept.n_beams == int(keep.sum()) == kept.ranges.size == kept.bearings.size
+    np.testing.assert_array_equal(kept.ranges, prepared.ranges[keep])
