@@ -27,6 +27,9 @@ class CEAMCLConfig:
         eta: eq. 5 factor of the initial sample size.
         growth_rate: r, the maximum growth rate of every species (per filter step).
         epsilon_m2: minimum living domain a species keeps (eq. 15).
+        tracking_epsilon_m2: the same while a single species lives (tracking): 1.5 m^2, a floor
+            of 120 samples, where the paper's 40 drift off a real robot (docs/ceamcl.md,
+            "epsilon"); ``None``: ``epsilon_m2`` throughout.
         delta_per_m2: resources per square metre of living domain (eq. 15).
         evolution: p_c = 0.85, p_m = 0.15 and the mutation's Sigma.
 
@@ -73,6 +76,7 @@ class CEAMCLConfig:
     eta: float = 2.0
     growth_rate: float = 0.2
     epsilon_m2: float = 0.5
+    tracking_epsilon_m2: float | None = 1.5
     delta_per_m2: float = 80.0
     evolution: EvolutionConfig = field(
         default_factory=lambda: EvolutionConfig(selection="metropolis")
@@ -107,6 +111,7 @@ class CEAMCLConfig:
             "eta": self.eta > 0,
             "growth_rate": self.growth_rate >= 0,
             "epsilon_m2": self.epsilon_m2 > 0,
+            "tracking_epsilon_m2": self.tracking_epsilon_m2 is None or self.tracking_epsilon_m2 > 0,
             "delta_per_m2": self.delta_per_m2 > 0,
             "cell_top_k": self.cell_top_k >= 1,
             "cell_fitness_exponent": self.cell_fitness_exponent > 0,
@@ -168,4 +173,6 @@ class CEAMCLConfig:
     @cached_property
     def competition(self) -> CompetitionConfig:
         """The competition phase's settings (eqs. 9-16)."""
-        return CompetitionConfig(self.growth_rate, self.epsilon_m2, self.delta_per_m2)
+        return CompetitionConfig(
+            self.growth_rate, self.epsilon_m2, self.delta_per_m2, self.tracking_epsilon_m2
+        )

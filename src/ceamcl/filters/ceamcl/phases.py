@@ -69,6 +69,7 @@ class CompetitionConfig:
     growth_rate: float
     epsilon_m2: float
     delta_per_m2: float
+    tracking_epsilon_m2: float | None = None
 
 
 @dataclass
@@ -234,7 +235,10 @@ def allocate_resources(
     ``competition``."""
     ids = list(stats)
     area = np.array([stats[s].area_m2 for s in ids])
-    res = resources(area, config.delta_per_m2, config.epsilon_m2)
+    eps = config.epsilon_m2
+    if len(ids) == 1 and config.tracking_epsilon_m2 is not None:
+        eps = config.tracking_epsilon_m2  # one species tracks the robot (docs/ceamcl.md)
+    res = resources(area, config.delta_per_m2, eps)
     fit = np.array([_fitness_of(stats, fitness, s) for s in ids])
     cap = carrying_capacity(fit, float(res.sum()))
     competition.resources = dict(zip(ids, res.tolist(), strict=True))
