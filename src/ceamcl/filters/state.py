@@ -62,9 +62,11 @@ class StateThresholds:
     """Every threshold of the state, in one place (chosen on seed 100, docs/state.md).
 
     fit_min: a hypothesis *fits* the scan when its fitness is at least this. Measured on
-        seed 100: a tracked pose scores 0.70-0.98 (CEAMCL's species) and 0.59-0.95 (a
-        KLD-AMCL cluster, whose mean includes its spread particles); right after the
-        small-office kidnap the leading hypothesis scores 0.18-0.26.
+        seed 100: a tracked pose scores 0.82-1.00 (CEAMCL's species, whose fitness is its
+        fittest individual's; 0.70-0.98 with the mean over its individuals, which was read
+        first) and 0.59-0.95 (a KLD-AMCL cluster, whose mean includes its spread particles);
+        right after the small-office kidnap the leading hypothesis scores 0.25-0.27 (CEAMCL;
+        0.18-0.26 with the mean).
     weight_min: a hypothesis *holds weight* when its share is at least this (smaller ones are
         leftovers: a KLD-AMCL cluster of a few particles, a species on its way out). A first
         version also called a leader with 90 % LOCALISED despite a fitting rival; on seed 100

@@ -469,7 +469,7 @@ class CEAMCL:
                 covariance=s.covariance.copy(),
                 n_particles=s.n,
                 weight=float(w),
-                fitness=s.fitness,
+                fitness=_reported_fitness(s),
                 label=s.species_id,
             )
             for s, w in zip(stats, share, strict=True)
@@ -505,3 +505,11 @@ ALGORITHM = Algorithm(
     CEAMCL,
     summary="coevolution-based adaptive MCL: species, Lotka-Volterra competition, evolution",
 )
+
+
+def _reported_fitness(s: SpeciesStats) -> float:
+    """How well a hypothesis fits the scan: its fittest individual's fitness, NaN-safe
+    (docs/state.md). The mean over its individuals depends on how far the motion spread them
+    since the last scan: on intel's corrected log (a scan every 0.67 m) a species on the truth
+    has a median mean fitness of 0.20 and a median best of 0.91."""
+    return s.best_fitness if np.isfinite(s.best_fitness) else s.fitness

@@ -32,6 +32,7 @@ class SpeciesStats:
     domain_variances: NDArray[np.float64]
     domain_axes: NDArray[np.float64]
     area_m2: float
+    best_fitness: float = float("nan")  # the fittest individual's (NaN: not computed)
 
     @property
     def n(self) -> int:
@@ -89,6 +90,7 @@ def all_species_stats(
     resultant = np.clip(np.hypot(total(np.sin(th)), total(np.cos(th))) / n, 1e-300, 1.0)
     heading_sd = np.sqrt(np.minimum(-2.0 * np.log(resultant), np.pi**2))
     fit = total(fitness[order]) / n
+    best = np.maximum.reduceat(fitness[order], starts)
     out: dict[int, SpeciesStats] = {}
     for k, sid in enumerate(ids.tolist()):
         a, b = int(starts[k]), int(starts[k] + counts[k])
@@ -101,6 +103,7 @@ def all_species_stats(
             cov_xy=cov_xy[k],
             heading_sd=float(heading_sd[k]),
             fitness=float(fit[k]),
+            best_fitness=float(best[k]),
             domain_variances=dv[k],
             domain_axes=axes[k],
             area_m2=float(area[k]),
