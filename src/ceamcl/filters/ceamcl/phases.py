@@ -64,7 +64,8 @@ class SplitMergeConfig:
 @dataclass(frozen=True)
 class CompetitionConfig:
     """Eqs. 9-16: growth rate ``r`` per step, minimum living domain ``epsilon_m2`` and
-    resources ``delta_per_m2`` per square metre of living domain."""
+    resources ``delta_per_m2`` per square metre of living domain; ``tracking_epsilon_m2``
+    replaces ``epsilon_m2`` while a single species lives (docs/ceamcl.md, "epsilon")."""
 
     growth_rate: float
     epsilon_m2: float
