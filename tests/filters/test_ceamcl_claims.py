@@ -156,3 +156,31 @@ def test_the_mark_decides_the_pose_after_the_robot_has_left_it(room: int, seed: 
     assert errors is not None and headings is not None
     print(f"room {room} seed {seed}: final error {errors[-1]:.3f} m, {headings[-1]:.3f} rad")
     assert errors[-1] < 0.5 and headings[-1] < 0.3
+
+
+def test_a_lone_tracking_species_has_the_tracking_floor_competing_ones_the_papers() -> None:
+    """eq. 15's floor is ``delta x epsilon`` while species compete, and ``delta x
+    tracking_epsilon`` while one species tracks the robot (docs/ceamcl.md, "epsilon")."""
+    sc = paper_scenario(0)
+    grid = sc.grid()
+    sim_rng, filter_rng = generators(0)
+    log = sc.simulate(sim_rng, grid)
+    cov = np.diag([0.0025, 0.0025, 0.0025])
+    inc = increment_between(log.odometry[0], log.odometry[1])
+
+    four = ceamcl(grid, filter_rng)
+    four.initialise_hypotheses(list(symmetric_images(log.true_poses[0])), cov)
+    record = four.step(inc, log.scan(1))
+    cfg = four.config
+    assert record.n_species == 4
+    assert all(s.area_m2 < cfg.epsilon_m2 for s in record.species)
+    floor = cfg.delta_per_m2 * cfg.epsilon_m2
+    assert all(s.resources == pytest.approx(floor) for s in record.species)
+
+    one = ceamcl(grid, np.random.default_rng(1))
+    one.initialise_pose(log.true_poses[0], cov)
+    record = one.step(inc, log.scan(1))
+    assert cfg.tracking_epsilon_m2 is not None and record.n_species == 1
+    (lone,) = record.species
+    assert lone.area_m2 < cfg.tracking_epsilon_m2
+    assert lone.resources == pytest.approx(cfg.delta_per_m2 * cfg.tracking_epsilon_m2)
