@@ -11,6 +11,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from ceamcl.demo import seeded_generators
 from ceamcl.errors import CeamclError
 from ceamcl.filters import registry
 from ceamcl.filters.base import LocalisationFilter, PoseEstimate
@@ -59,7 +60,7 @@ def sensor_model(params: NodeParams, grid: OccupancyGrid) -> SensorModel:
             BeamModelConfig(
                 z_hit=p["z_hit"], z_short=p["z_short"], z_max=p["z_max"], z_rand=p["z_rand"],
                 sigma_hit_m=p["sigma_hit"], lambda_short=p["lambda_short"],
-                max_beams=p["max_beams"],
+                max_beams=p["max_beams"], temper=params.laser_temper,
             ),
         )
     return LikelihoodFieldModel(
@@ -67,6 +68,7 @@ def sensor_model(params: NodeParams, grid: OccupancyGrid) -> SensorModel:
         LikelihoodFieldConfig(
             z_hit=p["z_hit"], z_rand=p["z_rand"], sigma_hit_m=p["sigma_hit"],
             max_occ_dist_m=p["laser_likelihood_max_dist"], max_beams=p["max_beams"],
+            temper=params.laser_temper,
         ),
     )
 
@@ -77,7 +79,9 @@ class Localiser:
 
     def __init__(self, params: NodeParams) -> None:
         self.params = params
-        self.rng = np.random.default_rng(params.seed)
+        # the filter's stream of `ceamcl demo --seed S` (child 1 of SeedSequence(S)), so a
+        # demo can be reproduced through the node (docs/ros.md)
+        self.rng = seeded_generators(params.seed, 2)[1]
         self.gate = MotionGate(params["update_min_d"], params["update_min_a"])
         self.grid: OccupancyGrid | None = None
         self.filter: LocalisationFilter | None = None

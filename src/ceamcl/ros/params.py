@@ -73,7 +73,7 @@ NAV2_DEFAULTS: dict[str, Any] = {
     "z_short": 0.05,
 }
 #: The node's own parameters (not Nav2's).
-OWN_DEFAULTS: dict[str, Any] = {"algorithm": "ceamcl", "seed": 0}
+OWN_DEFAULTS: dict[str, Any] = {"algorithm": "ceamcl", "seed": 0, "laser_temper": 0.2}
 #: Parameters every ROS node or Nav2 lifecycle node may be given; accepted and not used here.
 IGNORED = frozenset(
     {"use_sim_time", "bond_heartbeat_period", "bond_disable_heartbeat_timeout",
@@ -95,6 +95,8 @@ class NodeParams:
     config: Any
     warnings: tuple[str, ...] = ()
     algorithm_overrides: dict[str, Any] = field(default_factory=dict)
+    #: the laser model's tempering (``temper`` of the sensor configs, docs/sensor-models.md)
+    laser_temper: float = OWN_DEFAULTS["laser_temper"]
 
     def __getitem__(self, name: str) -> Any:
         return self.nav2[name]
@@ -249,6 +251,7 @@ def parse(values: Mapping[str, Any]) -> NodeParams:
     nav2 = dict(NAV2_DEFAULTS)
     overrides: dict[str, Any] = {}
     seed = OWN_DEFAULTS["seed"]
+    laser_temper = float(OWN_DEFAULTS["laser_temper"])
     unknown: list[str] = []
     for name, value in values.items():
         head, _, tail = name.partition(".")
@@ -262,6 +265,12 @@ def parse(values: Mapping[str, Any]) -> NodeParams:
                 errors.append(f"seed: expected a non-negative integer, got {value!r}")
             else:
                 seed = value
+        elif name == "laser_temper":
+            number = isinstance(value, int | float) and not isinstance(value, bool)
+            if not (number and math.isfinite(value) and 0 < value <= 1):
+                errors.append(f"laser_temper: expected a number in (0, 1], got {value!r}")
+            else:
+                laser_temper = float(value)
         elif name in NAV2_DEFAULTS:
             problem = _check_type(name, value, NAV2_DEFAULTS[name])
             if problem:
@@ -284,7 +293,7 @@ def parse(values: Mapping[str, Any]) -> NodeParams:
         errors.insert(
             0,
             f"unknown parameter{'s' if len(unknown) > 1 else ''}: {', '.join(sorted(unknown))} "
-            f"(Nav2 AMCL's names, algorithm, seed or {own}.<field of "
+            f"(Nav2 AMCL's names, algorithm, seed, laser_temper or {own}.<field of "
             f"{spec.config_type.__name__}>)",
         )
     errors.extend(_check_ranges(nav2))
@@ -299,4 +308,6 @@ def parse(values: Mapping[str, Any]) -> NodeParams:
     for name in NOT_IMPLEMENTED:
         if nav2[name] != NAV2_DEFAULTS[name]:
             warnings.append(f"{name}: not implemented by this node; ignored")
-    return NodeParams(nav2, algorithm, seed, config, tuple(warnings), overrides)
+    return NodeParams(
+        nav2, algorithm, seed, config, tuple(warnings), overrides, laser_temper=laser_temper
+    )

@@ -1,0 +1,57 @@
+"""The node adds nothing but transport: its core (``ceamcl.ros.localiser.Localiser``, what the
+node process runs on every converted message), given the demo's run and the demo's settings,
+ends with exactly the hypotheses of ``ceamcl demo`` with the same seed (no ROS needed).
+
+The settings that make a node run a demo: ``seed`` (the node draws the filter's stream of
+``ceamcl demo --seed S``), ``update_min_d = update_min_a = 0`` (the demo updates at every scan,
+Nav2 every 0.25 m / 0.2 rad), and the demo's likelihood field, ``z_hit 0.95`` and ``z_rand 0.05``
+(Nav2's defaults are 0.5 and 0.5). Through DDS the ranges travel as float32, so the node process
+agrees with the demo to rounding only; ``test_node_hall.py`` checks its four hypotheses.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ceamcl.demo import run_demo, seeded_generators
+from ceamcl.ros.localiser import Localiser
+from ceamcl.ros.params import parse
+from ceamcl.simulation.scenarios import get_scenario
+
+DEMO_SETTINGS = {"update_min_d": 0.0, "update_min_a": 0.0, "z_hit": 0.95, "z_rand": 0.05}
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_node_core_reproduces_ceamcl_demo_bit_for_bit(seed: int) -> None:
+    demo = run_demo("ceamcl", world="symmetric-hall", seed=seed)
+    scenario = get_scenario("paper", "symmetric-hall", 0)
+    grid = scenario.grid()
+    log = scenario.simulate(seeded_generators(seed, 2)[0], grid)
+    localiser = Localiser(parse({"seed": seed, **DEMO_SETTINGS}))
+    localiser.set_map(grid)
+    for k in range(len(log)):
+        localiser.scan(tuple(log.odometry[k]), log.scan(k))
+    assert localiser.filter is not None
+    node = np.array([[*h.pose, h.weight, h.fitness] for h in localiser.filter.hypotheses()])
+    expected = demo.result.hypotheses[-1]
+    assert node.shape == expected.shape == (4, 5)  # the four symmetric images
+    np.testing.assert_array_equal(node, expected)
+
+
+def test_laser_temper_reaches_the_sensor_model() -> None:
+    from ceamcl.ros.localiser import sensor_model
+
+    grid = get_scenario("paper", "symmetric-hall", 0).grid()
+    assert sensor_model(parse({}), grid).temper == pytest.approx(0.2)
+    assert sensor_model(parse({"laser_temper": 0.5}), grid).temper == pytest.approx(0.5)
+    beam = parse({"laser_temper": 0.1, "laser_model_type": "beam"})
+    assert sensor_model(beam, grid).temper == pytest.approx(0.1)
+
+
+@pytest.mark.parametrize("value", [0.0, -0.2, 1.5, float("nan"), "high", True])
+def test_a_bad_laser_temper_is_named(value: object) -> None:
+    from ceamcl.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="laser_temper: expected a number in"):
+        parse({"laser_temper": value})
