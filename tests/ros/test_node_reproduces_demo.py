@@ -5,8 +5,10 @@ ends with exactly the hypotheses of ``ceamcl demo`` with the same seed (no ROS n
 The settings that make a node run a demo: ``seed`` (the node draws the filter's stream of
 ``ceamcl demo --seed S``), ``update_min_d = update_min_a = 0`` (the demo updates at every scan,
 Nav2 every 0.25 m / 0.2 rad), and the demo's likelihood field, ``z_hit 0.95`` and ``z_rand 0.05``
-(Nav2's defaults are 0.5 and 0.5). Through DDS the ranges travel as float32, so the node process
-agrees with the demo to rounding only; ``test_node_hall.py`` checks its four hypotheses.
+(Nav2's defaults are 0.5 and 0.5). Through DDS the ranges travel as float32: from there on the
+run differs in its random choices, and ends with the same four hypotheses, 0.018-0.042 m from the
+demo's and with weights within 0.01 (seeds 0-4, measured), though which of the four near-equal
+images leads may differ; ``test_node_hall.py`` checks the node process' four hypotheses.
 """
 
 from __future__ import annotations
@@ -24,19 +26,35 @@ DEMO_SETTINGS = {"update_min_d": 0.0, "update_min_a": 0.0, "z_hit": 0.95, "z_ran
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_the_node_core_reproduces_ceamcl_demo_bit_for_bit(seed: int) -> None:
+    node, expected = run_node_core(seed, float32=False)
+    assert node.shape == expected.shape == (4, 5)  # the four symmetric images
+    np.testing.assert_array_equal(node, expected)
+
+
+def run_node_core(seed: int, float32: bool) -> tuple[np.ndarray, np.ndarray]:
     demo = run_demo("ceamcl", world="symmetric-hall", seed=seed)
     scenario = get_scenario("paper", "symmetric-hall", 0)
     grid = scenario.grid()
     log = scenario.simulate(seeded_generators(seed, 2)[0], grid)
+    if float32:  # as sensor_msgs/LaserScan carries them
+        log.ranges[:] = np.asarray(log.ranges, dtype=np.float32)
     localiser = Localiser(parse({"seed": seed, **DEMO_SETTINGS}))
     localiser.set_map(grid)
     for k in range(len(log)):
         localiser.scan(tuple(log.odometry[k]), log.scan(k))
     assert localiser.filter is not None
     node = np.array([[*h.pose, h.weight, h.fitness] for h in localiser.filter.hypotheses()])
-    expected = demo.result.hypotheses[-1]
-    assert node.shape == expected.shape == (4, 5)  # the four symmetric images
-    np.testing.assert_array_equal(node, expected)
+    return node, demo.result.hypotheses[-1]
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_float32_scans_give_the_demos_hypotheses_to_rounding(seed: int) -> None:
+    node, expected = run_node_core(seed, float32=True)
+    assert node.shape == expected.shape == (4, 5)
+    for h in node:
+        nearest = int(np.argmin(np.hypot(*(expected[:, :2] - h[:2]).T)))
+        assert np.hypot(*(expected[nearest, :2] - h[:2])) < 0.1
+        assert abs(expected[nearest, 3] - h[3]) < 0.03
 
 
 def test_laser_temper_reaches_the_sensor_model() -> None:
