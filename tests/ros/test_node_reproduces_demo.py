@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from ceamcl.demo import run_demo, seeded_generators
-from ceamcl.ros.localiser import Localiser
+from ceamcl.ros.localiser import Localiser, sensor_model
 from ceamcl.ros.params import parse
 from ceamcl.simulation.scenarios import get_scenario
 
@@ -58,8 +58,6 @@ def test_float32_scans_give_the_demos_hypotheses_to_rounding(seed: int) -> None:
 
 
 def test_laser_temper_reaches_the_sensor_model() -> None:
-    from ceamcl.ros.localiser import sensor_model
-
     grid = get_scenario("paper", "symmetric-hall", 0).grid()
     assert sensor_model(parse({}), grid).temper == pytest.approx(0.2)
     assert sensor_model(parse({"laser_temper": 0.5}), grid).temper == pytest.approx(0.5)
@@ -73,3 +71,14 @@ def test_a_bad_laser_temper_is_named(value: object) -> None:
 
     with pytest.raises(ConfigError, match="laser_temper: expected a number in"):
         parse({"laser_temper": value})
+
+
+def test_amcls_scoring_takes_no_laser_temper() -> None:
+    from ceamcl.errors import ConfigError
+
+    grid = get_scenario("paper", "symmetric-hall", 0).grid()
+    kld = parse({"algorithm": "kld-amcl"})  # unset: the scoring's own default (none)
+    assert sensor_model(kld, grid).temper == pytest.approx(0.2)  # the product's, replaced below
+    Localiser(kld).set_map(grid)  # builds the filter with amcl's scoring
+    with pytest.raises(ConfigError, match="laser_temper: kld-amcl scores scans as amcl does"):
+        parse({"algorithm": "kld-amcl", "laser_temper": 0.5})

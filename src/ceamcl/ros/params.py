@@ -73,7 +73,8 @@ NAV2_DEFAULTS: dict[str, Any] = {
     "z_short": 0.05,
 }
 #: The node's own parameters (not Nav2's).
-OWN_DEFAULTS: dict[str, Any] = {"algorithm": "ceamcl", "seed": 0, "laser_temper": 0.2}
+#: (``laser_temper`` too, when given: unset, each laser model keeps its own default.)
+OWN_DEFAULTS: dict[str, Any] = {"algorithm": "ceamcl", "seed": 0}
 #: Parameters every ROS node or Nav2 lifecycle node may be given; accepted and not used here.
 IGNORED = frozenset(
     {"use_sim_time", "bond_heartbeat_period", "bond_disable_heartbeat_timeout",
@@ -95,8 +96,9 @@ class NodeParams:
     config: Any
     warnings: tuple[str, ...] = ()
     algorithm_overrides: dict[str, Any] = field(default_factory=dict)
-    #: the laser model's tempering (``temper`` of the sensor configs, docs/sensor-models.md)
-    laser_temper: float = OWN_DEFAULTS["laser_temper"]
+    #: the laser model's tempering (``temper`` of the sensor configs, docs/sensor-models.md);
+    #: ``None``: the model's own default (0.2 for the product, none for amcl's scoring)
+    laser_temper: float | None = None
 
     def __getitem__(self, name: str) -> Any:
         return self.nav2[name]
@@ -251,7 +253,7 @@ def parse(values: Mapping[str, Any]) -> NodeParams:
     nav2 = dict(NAV2_DEFAULTS)
     overrides: dict[str, Any] = {}
     seed = OWN_DEFAULTS["seed"]
-    laser_temper = float(OWN_DEFAULTS["laser_temper"])
+    laser_temper: float | None = None
     unknown: list[str] = []
     for name, value in values.items():
         head, _, tail = name.partition(".")
@@ -265,6 +267,8 @@ def parse(values: Mapping[str, Any]) -> NodeParams:
                 errors.append(f"seed: expected a non-negative integer, got {value!r}")
             else:
                 seed = value
+        elif name == "laser_temper" and value is None:
+            continue  # unset: the laser model's own default
         elif name == "laser_temper":
             number = isinstance(value, int | float) and not isinstance(value, bool)
             if not (number and math.isfinite(value) and 0 < value <= 1):
@@ -305,6 +309,11 @@ def parse(values: Mapping[str, Any]) -> NodeParams:
         config = dataclasses.replace(config, **overrides)
     except (TypeError, ValueError) as exc:
         raise ConfigError(f"{own}: {exc}") from None
+    if laser_temper not in (None, 1.0) and getattr(config, "scoring", None) == "ros":
+        raise ConfigError(
+            f"laser_temper: {algorithm} scores scans as amcl does (a sum of cubed beam "
+            f"probabilities), which takes no tempering; got {laser_temper}"
+        )
     for name in NOT_IMPLEMENTED:
         if nav2[name] != NAV2_DEFAULTS[name]:
             warnings.append(f"{name}: not implemented by this node; ignored")
