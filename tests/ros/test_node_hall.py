@@ -24,12 +24,18 @@ TOLERANCE_S = 0.5
 RUN_BUDGET_S = 150.0
 
 
-def run_route(driver, world: str, tmp_path: Path, seed: int = 0):  # type: ignore[no-untyped-def]
+def run_route(  # type: ignore[no-untyped-def]
+    driver, world: str, tmp_path: Path, seed: int = 0, extra: dict[str, float] | None = None,
+    log=None,
+):
     from tests.ros.harness import NodeProcess, pose_error
 
     scenario = paper_scenario(0, world)
-    log = scenario.simulate(np.random.default_rng(seed))
+    if log is None:
+        log = scenario.simulate(np.random.default_rng(seed))
     args = ["--ros-args", "-p", f"seed:={seed}", "-p", f"transform_tolerance:={TOLERANCE_S}"]
+    for name, value in (extra or {}).items():
+        args += ["-p", f"{name}:={value}"]
     with NodeProcess(tmp_path, args) as node:
         driver.configure_and_activate()
         driver.start_run(node, log, scenario.grid())
@@ -105,3 +111,28 @@ def test_marked_hall_converges_to_truth(driver, tmp_path: Path) -> None:
     assert driver.spin_until(lambda: len(driver.states) > 0, 5.0)
     assert driver.last_state()["state"] == "LOCALISED", driver.last_state()
     check_tf_composes(driver, log, 1_000.0, stamp, estimate)
+
+
+def test_the_node_process_ends_the_demos_run_with_the_demos_hypotheses(
+    driver, tmp_path: Path  # type: ignore[no-untyped-def]
+) -> None:
+    """``ceamcl demo --seed 0``'s run of the symmetric hall through the node process with the
+    demo's settings (tests/ros/test_node_reproduces_demo.py): the four published hypotheses are
+    the demo's, to the float32 rounding of the ranges (measured offline: 0.018-0.042 m)."""
+    from ceamcl.demo import run_demo, seeded_generators
+    from ceamcl.ros.messages import pose2_from_msg
+    from tests.ros.harness import pose_error
+    from tests.ros.test_node_reproduces_demo import DEMO_SETTINGS
+
+    demo = run_demo("ceamcl", world="symmetric-hall", seed=0)
+    scenario = paper_scenario(0, "symmetric-hall")
+    log = scenario.simulate(seeded_generators(0, 2)[0], scenario.grid())
+    driver.hypotheses.clear()
+    run_route(driver, "symmetric-hall", tmp_path, seed=0, extra=DEMO_SETTINGS, log=log)
+    assert driver.spin_until(lambda: len(driver.hypotheses) > 0, 5.0)
+    hyps = [pose2_from_msg(p) for p in driver.hypotheses[-1].poses]
+    expected = demo.result.hypotheses[-1][:, :3]
+    assert len(hyps) == len(expected) == 4
+    for h in hyps:
+        d, a = min(pose_error(h, e) for e in expected)
+        assert d < 0.1 and a < 0.1, f"hypothesis {h}: nearest of the demo's {d:.3f} m off"
