@@ -4,12 +4,14 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from rich.console import Console
 
 from ceamcl import peers
-from ceamcl.bench import BenchSettings, run_bench, write_report
+from ceamcl.bench import BenchSettings, real_maps, run_bench, write_report
 from ceamcl.cli.common import make_progress
+from ceamcl.errors import ConfigError
 from ceamcl.io.results import ensure_output_dir
 
 
@@ -33,13 +35,32 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         help="instead: scan-in to pose-out latency through the ROS 2 node (needs the [ros] "
         "extra), p50/p95 at 1000 and 5000 particles; writes ros_latency.json",
     )
+    p.add_argument(
+        "--real-maps",
+        action="store_true",
+        help="instead: speed on real buildings (the logs of --data): global initialisation "
+        "against map area (525-3,900 m^2 free) and steps on the raw logs at their scan rate, "
+        "beside mcl-tuned and Nav2 AMCL at the same particle count; writes real_maps.json, "
+        "real_maps.md and real_maps.png",
+    )
+    p.add_argument(
+        "--data",
+        default=None,
+        help="with --real-maps: the folder holding carmen/ and carmen-raw/ (default: "
+        "../shared/data beside the project)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=run)
 
 
 #: Algorithms and particle budgets of ``--ros-latency`` (CEAMCL sizes its species itself).
-ROS_LATENCY_RUNS = (("kld-amcl", 1000), ("kld-amcl", 5000), ("mcl", 1000), ("mcl", 5000),
-                    ("ceamcl", 1000))
+ROS_LATENCY_RUNS = (
+    ("kld-amcl", 1000),
+    ("kld-amcl", 5000),
+    ("mcl", 1000),
+    ("mcl", 5000),
+    ("ceamcl", 1000),
+)
 #: Issue 15's target: p95 at 1,000 particles on 2 cores.
 ROS_LATENCY_TARGET_MS = 20.0
 
@@ -61,8 +82,9 @@ def run_ros_latency(args: argparse.Namespace, console: Console) -> int:
             rows.append(latency.measure_latency(algorithm, n, scans=scans))
             progress.advance(task)
     path = out / "ros_latency.json"
-    path.write_text(json.dumps({"target_p95_ms_at_1000": ROS_LATENCY_TARGET_MS, "runs": rows},
-                               indent=2))
+    path.write_text(
+        json.dumps({"target_p95_ms_at_1000": ROS_LATENCY_TARGET_MS, "runs": rows}, indent=2)
+    )
     for r in rows:
         size = "own size" if r["algorithm"] == "ceamcl" else f"{r['particles']} particles"
         verdict = ""
@@ -76,9 +98,45 @@ def run_ros_latency(args: argparse.Namespace, console: Console) -> int:
     return 0
 
 
+def run_real_maps(args: argparse.Namespace, console: Console) -> int:
+    data = Path(args.data) if args.data is not None else real_maps.DEFAULT_DATA
+    settings = (
+        real_maps.RealMapsSettings.quick_run(data)
+        if args.quick
+        else real_maps.RealMapsSettings(data=data)
+    )
+    settings.check()  # before the output folder exists
+    out = ensure_output_dir(args.out)
+    with make_progress("{task.description}", console, quiet=args.quiet) as progress:
+        task = progress.add_task("real maps", total=settings.n_items())
+        first = [True]
+
+        def tick(label: str) -> None:
+            if not first[0]:
+                progress.advance(task)
+            first[0] = False
+            progress.update(task, description=label)
+
+        result = real_maps.run_real_maps(settings, tick)
+        progress.update(task, completed=settings.n_items(), description="done")
+    paths = real_maps.write_real_maps(result, out)
+    for t in result["targets"]:
+        verdict = "not measured" if t["pass"] is None else ("PASS" if t["pass"] else "FAIL")
+        value = "-" if t["value"] is None else f"{t['value']:.2f}"
+        console.print(f"{verdict:>12}  {t['target']}: {value}")
+    console.print("wrote " + ", ".join(str(p) for p in paths))
+    return 0
+
+
 def run(args: argparse.Namespace, console: Console) -> int:
+    if args.ros_latency and args.real_maps:
+        raise ConfigError("bench: --ros-latency and --real-maps are two runs; pass one of them")
     if args.ros_latency:
         return run_ros_latency(args, console)
+    if args.real_maps:
+        return run_real_maps(args, console)
+    if args.data is not None:
+        raise ConfigError("bench: --data is read with --real-maps only")
     out = ensure_output_dir(args.out)  # fail before minutes of work, not after
     settings = BenchSettings.quick_run() if args.quick else BenchSettings()
     with_peer = peers.available()
