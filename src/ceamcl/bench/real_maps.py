@@ -95,6 +95,7 @@ class RealMapsSettings:
     data: Path = DEFAULT_DATA
     scans: int = 2500
     init_repeats: int = 3
+    rounds: int = 3
     seed: int = 0
     composites: bool = True
     raw_logs: tuple[str, ...] = ("intel", "fr079")
@@ -107,6 +108,7 @@ class RealMapsSettings:
             data=data,
             scans=120,
             init_repeats=1,
+            rounds=1,
             composites=False,
             raw_logs=("intel",),
             map_logs=("fhw",),
@@ -217,16 +219,21 @@ def _run_row(
     log_name: str,
     mode: str,
     pace: UpdatePace | None,
-    result: RunResult,
+    results: Sequence[RunResult],
     log: RecordedLog,
     algorithm: str,
     budget: int | None,
 ) -> dict[str, Any]:
-    upd = result.update_ms
+    """One row from the repeats of one run (identical but for their times, which are pooled:
+    the repeats of every algorithm were interleaved, so a slow spell of a shared machine
+    falls on all of them alike)."""
+    result = results[0]
+    upd = np.concatenate([r.update_ms for r in results])
+    step = np.concatenate([r.step_ms for r in results])
     duration = float(log.times[-1] - log.times[0])
-    spent_s = float(result.step_ms.sum()) / 1e3
+    spent_s = float(step.sum()) / 1e3 / len(results)
     load = spent_s / duration if duration > 0 else math.nan
-    per_scan_ms = float(result.step_ms.mean())
+    per_scan_ms = float(step.mean())
     row: dict[str, Any] = {
         "log": log_name,
         "mode": mode,
@@ -235,6 +242,7 @@ def _run_row(
         "particle_budget": budget,
         "scans": result.steps,
         "updates": result.updates,
+        "repeats": len(results),
         "log_s": duration,
         "scan_rate_hz": (result.steps - 1) / duration if duration > 0 else math.nan,
         "mean_particles": float(np.mean([d.n_particles for d in result.diagnostics[1:]])),
@@ -243,7 +251,7 @@ def _run_row(
         "mean_ms_per_scan": per_scan_ms,
         "load": load,
         "max_scan_rate_hz": 1e3 / per_scan_ms if per_scan_ms > 0 else math.inf,
-        "initialisation_ms": float(result.diagnostics[0].step_ms),
+        "initialisation_ms": float(np.median([r.diagnostics[0].step_ms for r in results])),
     }
     known = result.truth_known
     pos, head = result.position_errors, result.heading_errors
@@ -271,6 +279,28 @@ def _make(
     return make_paced_filter(algorithm, grid, rng, pace, n_particles=particles)
 
 
+def _rounds(
+    algorithms: Sequence[str],
+    grid: OccupancyGrid,
+    log: RecordedLog,
+    s: RealMapsSettings,
+    pace: UpdatePace | None,
+    particles: int | None,
+    start: tuple[np.ndarray, np.ndarray] | None,
+) -> dict[str, list[RunResult]]:
+    """``s.rounds`` rounds of every algorithm over ``log`` (global localisation, or tracking
+    from ``start``), each round in another order; CEAMCL sizes itself, the others get
+    ``particles`` (None: their own)."""
+    policy = None if pace is None else pace.policy()
+    out: dict[str, list[RunResult]] = {a: [] for a in algorithms}
+    for r in range(s.rounds):
+        k = r % len(algorithms)
+        for algo in [*algorithms[k:], *algorithms[:k]]:
+            f = _make(algo, grid, s.seed, pace, None if algo == "ceamcl" else particles)
+            out[algo].append(run_filter(f, log, update_when=policy, initial_pose=start))
+    return out
+
+
 def measure_raw_log(name: str, s: RealMapsSettings, tick: Progress) -> list[dict[str, Any]]:
     """Global localisation and tracking over a window of raw log ``name`` (module docstring)."""
     prepared = prepare_log(
@@ -283,27 +313,26 @@ def measure_raw_log(name: str, s: RealMapsSettings, tick: Progress) -> list[dict
     assert log.true_poses is not None
     rows: list[dict[str, Any]] = []
     nav2 = peers.available()
+    start = (perturbed_start(log.true_poses[0], s.seed), start_covariance())
     for pace in (UpdatePace(), None):
         what = "Nav2's pace" if pace is not None else "every scan"
         policy = None if pace is None else pace.policy()
         if pace is not None:
-            tick(f"{name}: global localisation ({what})")
-            for algo in GLOBAL_ALGORITHMS:
-                f = _make(algo, grid, s.seed, pace, None)
-                res = run_filter(f, log, update_when=policy)
+            tick(f"{name}: global localisation ({what}, {s.rounds} rounds)")
+            global_runs = _rounds(list(GLOBAL_ALGORITHMS), grid, log, s, pace, None, None)
+            for algo, res in global_runs.items():
                 rows.append(_run_row(name, "global", pace, res, log, algo, None))
-        tick(f"{name}: tracking ({what})")
-        start = (perturbed_start(log.true_poses[0], s.seed), start_covariance())
-        f = _make("ceamcl", grid, s.seed, pace, None)
-        res = run_filter(f, log, update_when=policy, initial_pose=start)
-        row = _run_row(name, "tracking", pace, res, log, "ceamcl", None)
-        rows.append(row)
-        n = max(1, round(row["mean_particles"]))
-        peers_here = ["mcl-tuned"] + (["nav2-amcl"] if nav2 else [])
-        for algo in peers_here:
-            f = _make(algo, grid, s.seed, pace, n)
-            res = run_filter(f, log, update_when=policy, initial_pose=start)
-            rows.append(_run_row(name, "tracking", pace, res, log, algo, n))
+        tick(f"{name}: tracking ({what}, {s.rounds} rounds)")
+        # the peers get CEAMCL's mean sample size of this run (it is the same in every round)
+        first_run = run_filter(
+            _make("ceamcl", grid, s.seed, pace, None), log, update_when=policy, initial_pose=start
+        )
+        n = max(1, round(float(np.mean([d.n_particles for d in first_run.diagnostics[1:]]))))
+        algos = ["ceamcl", "mcl-tuned"] + (["nav2-amcl"] if nav2 else [])
+        for algo, res in _rounds(algos, grid, log, s, pace, n, start).items():
+            rows.append(
+                _run_row(name, "tracking", pace, res, log, algo, None if algo == "ceamcl" else n)
+            )
     return rows
 
 
@@ -363,6 +392,7 @@ def run_real_maps(settings: RealMapsSettings, progress: Progress | None = None) 
             "data": str(settings.data),
             "scans": settings.scans,
             "init_repeats": settings.init_repeats,
+            "rounds": settings.rounds,
             "seed": settings.seed,
         },
         "machine": machine_info(),
