@@ -532,7 +532,8 @@ def render_markdown(r: dict[str, Any]) -> str:
 
 def plot_real_maps(r: dict[str, Any], path: Path) -> Path:
     """``real_maps.png``: initialisation time against free area; update time per run."""
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.2))
+    steps = r["steps"]
+    fig, axes = plt.subplots(1, 2, figsize=(13, max(4.2, 0.24 * len(steps) + 1.2)))
     ax = axes[0]
     maps = sorted(r["maps"], key=lambda mp: mp["free_area_m2"])
     area = [mp["free_area_m2"] for mp in maps]
@@ -547,9 +548,8 @@ def plot_real_maps(r: dict[str, Any], path: Path) -> Path:
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     ax = axes[1]
-    steps = r["steps"]
     labels = [
-        f"{st['log']} {st['mode'][:5]} {'every' if st['pace'] == 'every scan' else 'paced'}\n"
+        f"{st['log']} {st['mode']}, {'every scan' if st['pace'] == 'every scan' else 'paced'}: "
         f"{st['algorithm']} ({st['mean_particles']:.0f})"
         for st in steps
     ]
@@ -559,7 +559,7 @@ def plot_real_maps(r: dict[str, Any], path: Path) -> Path:
     colours = {"ceamcl": "C0", "mcl-tuned": "C1", "kld-amcl-recovery": "C2", "nav2-amcl": "C3"}
     ax.barh(y, med, color=[colours.get(st["algorithm"], "C7") for st in steps])
     ax.errorbar(p95, y, fmt="k|", ms=8, label="p95")
-    ax.set_yticks(y, labels, fontsize=6)
+    ax.set_yticks(y, labels, fontsize=7)
     ax.invert_yaxis()
     ax.set_xlabel("update time, median (bar) and p95 (ms)")
     ax.axvline(5.0, color="k", ls=":", lw=1, label="5 ms target")
