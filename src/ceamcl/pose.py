@@ -26,7 +26,10 @@ def pose_mean(poses: ArrayLike, weights: ArrayLike | None = None) -> NDArray[np.
     if p.shape[0] == 0:
         raise ValueError("pose_mean: no poses")
     w = normalised(weights, p.shape[0])
-    return np.array([w @ p[:, 0], w @ p[:, 1], circular_mean(p[:, 2], w)])
+    # NumPy's own sums, not BLAS (``w @ x``): OpenBLAS picks its kernel by CPU, and the last
+    # bits of a dot product differ between them, so a seed would not give the same run on
+    # another machine (docs/architecture.md, "Bits that do not depend on the machine").
+    return np.array([np.sum(w * p[:, 0]), np.sum(w * p[:, 1]), circular_mean(p[:, 2], w)])
 
 
 def pose_covariance(
@@ -37,8 +40,12 @@ def pose_covariance(
     w = normalised(weights, p.shape[0])
     m = pose_mean(p, w) if mean is None else np.asarray(mean, dtype=np.float64)
     d = np.column_stack([p[:, 0] - m[0], p[:, 1] - m[1], diff(p[:, 2], m[2])])
-    cov = (d * w[:, None]).T @ d
-    return 0.5 * (cov + cov.T)
+    wd = d * w[:, None]
+    cov = np.empty((3, 3))
+    for i in range(3):  # NumPy's sums, not BLAS: see pose_mean
+        for j in range(i, 3):
+            cov[i, j] = cov[j, i] = np.sum(wd[:, i] * d[:, j])
+    return cov
 
 
 def position_error(a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:

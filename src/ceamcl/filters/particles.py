@@ -138,7 +138,9 @@ def gaussian_poses(
                 f"covariance: expected a positive semi-definite matrix, eigenvalues {d.tolist()}"
             ) from None
         factor = u * np.sqrt(np.clip(d, 0.0, None))
-    out = mean + np.dot(rng.standard_normal((n, 3)), factor.T)
+    z = rng.standard_normal((n, 3))
+    # z @ factor.T without BLAS, whose kernel (and last bits) depend on the CPU
+    out = mean + np.sum(z[:, :, None] * factor.T[None, :, :], axis=1)
     out[:, 2] = wrap(out[:, 2])
     return np.asarray(out, dtype=np.float64)
 
