@@ -108,3 +108,35 @@ def test_every_filter_reports_a_state_initialising_then_localised_when_tracking(
     s = f.state()
     assert s.state is State.LOCALISED, s.reason
     assert 0.0 <= s.confidence <= 1.0
+
+
+# ------------------------------------------------------------------ the wall-crossing test
+def test_a_fitting_hypothesis_whose_scan_goes_through_walls_does_not_count() -> None:
+    lead, rival = hyp(0.7, 0.9), hyp(0.3, 0.9, x=5.0)
+    through = {0.0: 0.5, 5.0: 0.0}  # share of readings through walls, by x
+    s = read_hypotheses([lead, rival], crossing=lambda pose: through[float(pose[0])])
+    assert s.state is State.LOCALISED and s.weights == pytest.approx((0.3,))
+    alone = read_hypotheses([hyp(1.0, 0.95)], crossing=lambda pose: 0.5)
+    assert alone.state is State.LOST and "walls" in alone.reason and alone.confidence == 1.0
+    t = DEFAULT_THRESHOLDS.max_wall_crossing
+    assert read_hypotheses([hyp(1.0, 0.95)], crossing=lambda pose: t).state is State.LOCALISED
+
+
+def test_wall_crossing_is_small_at_the_true_pose_and_large_where_the_scan_sees_through() -> None:
+    from ceamcl.filters.state import wall_crossing
+    from ceamcl.maps.worlds import get_world
+
+    log = office_scenario().simulate(np.random.default_rng(2))
+    grid = get_world("small-office")
+    k = 10
+    crossing = wall_crossing(grid, log.scan(k))
+    assert crossing is not None
+    truth = log.true_poses[k]
+    assert crossing(truth) <= 0.05
+    # the same scan from half a turn away: long readings now run into the walls behind
+    turned = truth + np.array([0.0, 0.0, np.pi])
+    assert crossing(turned) > DEFAULT_THRESHOLDS.max_wall_crossing
+    assert crossing(np.array([np.nan, 0.0, 0.0])) == 1.0
+    empty = log.scan(k)
+    empty = type(empty)(**{**empty.__dict__, "ranges": np.full_like(empty.ranges, np.nan)})
+    assert wall_crossing(grid, empty) is None

@@ -72,7 +72,7 @@ from ceamcl.filters.particles import (
 )
 from ceamcl.filters.policies import Context, every_n, on_motion
 from ceamcl.filters.resampling import multinomial, normalise_log_weights
-from ceamcl.filters.state import LocalisationState, read_particles
+from ceamcl.filters.state import LocalisationState, read_particles, wall_crossing
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import (
     OdometryIncrement,
@@ -388,6 +388,8 @@ class KLDAMCL:
         self._force_update = True
         self._updates = 0  # weighted updates since the initialisation (resample_interval)
         self._kld_target = cfg.max_particles
+        #: the last scan received, for the state's wall-crossing test (docs/state.md)
+        self.last_scan: LaserScan | None = None
 
     # ------------------------------------------------------------------ initialisation
     def _reset(self, ps: ParticleSet) -> None:
@@ -405,6 +407,7 @@ class KLDAMCL:
         with ``init_test_poses``, ``max_particles`` resampled from that many test poses
         weighted by ``scan`` (which counts as the first update)."""
         cfg = self.config
+        self.last_scan = scan
         if cfg.init_test_poses == 0:
             self._reset(uniform(self.grid, cfg.max_particles, self.rng))
             return self._update(scan)
@@ -438,6 +441,8 @@ class KLDAMCL:
         thresholds) says so, or the first time after an initialisation."""
         check_increment(increment)
         self.t += 1
+        if scan is not None:
+            self.last_scan = scan
         self.odom = apply_increment(self.odom, increment.rot1, increment.trans, increment.rot2)[0]
         due = self._force_update or self.update_when(Context(self.odom - self.odom_at_update))
         if scan is None or not due:
@@ -544,7 +549,10 @@ class KLDAMCL:
         """Read from the particle clusters (:func:`ceamcl.filters.state.read_particles`)."""
         known = hypotheses
         return read_particles(
-            self.particle_set, self.t, self.hypotheses if known is None else lambda: known
+            self.particle_set,
+            self.t,
+            self.hypotheses if known is None else lambda: known,
+            crossing=None if self.last_scan is None else wall_crossing(self.grid, self.last_scan),
         )
 
     def particles(self) -> ParticleSnapshot:

@@ -44,7 +44,7 @@ from ceamcl.filters.particles import (
     usable,
 )
 from ceamcl.filters.policies import Context, ess_below
-from ceamcl.filters.state import LocalisationState, read_particles
+from ceamcl.filters.state import LocalisationState, read_particles, wall_crossing
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel
 from ceamcl.pose import pose_covariance, pose_mean
@@ -109,12 +109,15 @@ class MCL:
         self.particle_set = ParticleSet.from_poses(np.zeros((self.config.n_particles, 3)))
         self.resample_when = ess_below(self.config.resample_ess_fraction)
         self.t = 0
+        #: the last scan received, for the state's wall-crossing test (docs/state.md)
+        self.last_scan: LaserScan | None = None
 
     # ------------------------------------------------------------------ initialisation
     def initialise_global(self, scan: LaserScan) -> StepRecord:
         """Particles uniform over free space, weighted by ``scan``; with ``init_test_poses``,
         resampled from that many test poses weighted by ``scan`` instead."""
         self.t = 0
+        self.last_scan = scan
         cfg = self.config
         prepared = usable(self.sensor, scan)
         if cfg.init_test_poses > 0:
@@ -141,6 +144,8 @@ class MCL:
         """Predict with the odometry ``increment``, then :meth:`correct` with ``scan``."""
         propagate(self.particle_set, self.motion, increment, self.rng)
         self.t += 1
+        if scan is not None:
+            self.last_scan = scan
         return self.correct(usable(self.sensor, scan))
 
     def correct(self, prepared: PreparedScan | None) -> StepRecord:
@@ -190,7 +195,10 @@ class MCL:
         """Read from the particle clusters (:func:`ceamcl.filters.state.read_particles`)."""
         known = hypotheses
         return read_particles(
-            self.particle_set, self.t, self.hypotheses if known is None else lambda: known
+            self.particle_set,
+            self.t,
+            self.hypotheses if known is None else lambda: known,
+            crossing=None if self.last_scan is None else wall_crossing(self.grid, self.last_scan),
         )
 
     def particles(self) -> ParticleSnapshot:

@@ -67,7 +67,12 @@ from ceamcl.filters.particles import (
     weigh,
 )
 from ceamcl.filters.resampling import label_groups
-from ceamcl.filters.state import LocalisationState, initialising, read_hypotheses
+from ceamcl.filters.state import (
+    LocalisationState,
+    initialising,
+    read_hypotheses,
+    wall_crossing,
+)
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel
 from ceamcl.sensors.base import SensorModel
@@ -117,11 +122,14 @@ class CEAMCL:
         self._steps_since_init = 0
         #: log of each species' accumulated evidence, the largest 0 (docs/ceamcl.md)
         self.log_weight: dict[int, float] = {}
+        #: the last scan received, for the state's wall-crossing test (docs/state.md)
+        self.last_scan: LaserScan | None = None
 
     # ================================================================== initialisation
     def initialise_global(self, scan: LaserScan) -> CEAMCLRecord:
         """Initial species generation (section 3.1) from the first scan."""
         self.t = 0
+        self.last_scan = scan
         self.events = Events()
         self._evaluations = 0
         self._initialise_from(usable(self.sensor, scan))
@@ -202,6 +210,8 @@ class CEAMCL:
         cfg = self.config
         ps = self.particle_set
         self.t += 1
+        if scan is not None:
+            self.last_scan = scan
         self._evaluations = 0
         self.events = Events()
         prepared = usable(self.sensor, scan)
@@ -480,7 +490,9 @@ class CEAMCL:
         (:func:`ceamcl.filters.state.read_hypotheses`); INITIALISING until the first step."""
         if not self.stats or self.t == 0:
             return initialising()
-        return read_hypotheses(self.hypotheses() if hypotheses is None else hypotheses)
+        crossing = None if self.last_scan is None else wall_crossing(self.grid, self.last_scan)
+        hyps = self.hypotheses() if hypotheses is None else hypotheses
+        return read_hypotheses(hyps, crossing=crossing)
 
     def particle_weights(self) -> NDArray[np.float64]:
         """Each particle's in-species weight times its species' share, normalised (measured
