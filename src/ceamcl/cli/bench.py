@@ -4,7 +4,9 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from rich.console import Console
 
@@ -107,25 +109,47 @@ def run_real_maps(args: argparse.Namespace, console: Console) -> int:
     )
     settings.check()  # before the output folder exists
     out = ensure_output_dir(args.out)
-    with make_progress("{task.description}", console, quiet=args.quiet) as progress:
-        task = progress.add_task("real maps", total=settings.n_items())
+    result = _with_progress(
+        console,
+        args.quiet,
+        "real maps",
+        settings.n_items(),
+        lambda tick: real_maps.run_real_maps(settings, tick),
+    )
+    paths = real_maps.write_real_maps(result, out)
+    _print_targets(console, result["targets"])
+    console.print("wrote " + ", ".join(str(p) for p in paths))
+    return 0
+
+
+def _with_progress(
+    console: Console,
+    quiet: bool,
+    label: str,
+    total: int,
+    work: Callable[[Callable[[str], None]], dict[str, Any]],
+) -> dict[str, Any]:
+    """``work(tick)`` under a progress bar of ``total`` items; ``tick(label)`` starts each."""
+    with make_progress("{task.description}", console, quiet=quiet) as progress:
+        task = progress.add_task(label, total=total)
         first = [True]
 
-        def tick(label: str) -> None:
+        def tick(item: str) -> None:
             if not first[0]:
                 progress.advance(task)
             first[0] = False
-            progress.update(task, description=label)
+            progress.update(task, description=item)
 
-        result = real_maps.run_real_maps(settings, tick)
-        progress.update(task, completed=settings.n_items(), description="done")
-    paths = real_maps.write_real_maps(result, out)
-    for t in result["targets"]:
+        result = work(tick)
+        progress.update(task, completed=total, description="done")
+    return result
+
+
+def _print_targets(console: Console, targets: list[dict[str, Any]]) -> None:
+    for t in targets:
         verdict = "not measured" if t["pass"] is None else ("PASS" if t["pass"] else "FAIL")
         value = "-" if t["value"] is None else f"{t['value']:.2f}"
         console.print(f"{verdict:>12}  {t['target']}: {value}")
-    console.print("wrote " + ", ".join(str(p) for p in paths))
-    return 0
 
 
 def run(args: argparse.Namespace, console: Console) -> int:
@@ -142,22 +166,14 @@ def run(args: argparse.Namespace, console: Console) -> int:
     with_peer = peers.available()
     if not with_peer:
         console.print("Nav2 AMCL ('amcl' wheel) not installed: the peer columns are skipped.")
-    with make_progress("{task.description}", console, quiet=args.quiet) as progress:
-        task = progress.add_task("bench", total=settings.n_items(with_peer))
-        first = [True]
-
-        def tick(label: str) -> None:
-            if not first[0]:
-                progress.advance(task)
-            first[0] = False
-            progress.update(task, description=label)
-
-        result = run_bench(settings, tick)
-        progress.update(task, completed=settings.n_items(with_peer), description="done")
+    result = _with_progress(
+        console,
+        args.quiet,
+        "bench",
+        settings.n_items(with_peer),
+        lambda tick: run_bench(settings, tick),
+    )
     js, md = write_report(result, out)
-    for t in result["targets"]:
-        verdict = "not measured" if t["pass"] is None else ("PASS" if t["pass"] else "FAIL")
-        value = "-" if t["value"] is None else f"{t['value']:.2f}"
-        console.print(f"{verdict:>12}  {t['target']}: {value}")
+    _print_targets(console, result["targets"])
     console.print(f"wrote {js} and {md}")
     return 0
