@@ -166,9 +166,8 @@ def test_gaussian_poses_draws_as_numpy_and_accepts_singular_covariances() -> Non
     a = gaussian_poses([1.0, 2.0, 0.5], cov, 50, np.random.default_rng(3))
     b = np.random.default_rng(3).multivariate_normal([1.0, 2.0, 0.5], cov, 50, method="cholesky")
     b[:, 2] = np.angle(np.exp(1j * b[:, 2]))
-    # the same draws; equal to rounding only, since numpy multiplies through BLAS, whose last
-    # bits depend on the CPU, and gaussian_poses does not (docs/architecture.md)
-    np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(a[:, :2], b[:, :2])
+    np.testing.assert_allclose(a[:, 2], b[:, 2], atol=1e-12)
     rank_one = np.diag([0.04, 0.0, 0.0])
     line = gaussian_poses([1.0, 2.0, 0.5], rank_one, 100, np.random.default_rng(4))
     assert np.all(line[:, 1] == 2.0) and np.all(line[:, 2] == 0.5) and np.ptp(line[:, 0]) > 0

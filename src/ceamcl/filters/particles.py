@@ -138,9 +138,7 @@ def gaussian_poses(
                 f"covariance: expected a positive semi-definite matrix, eigenvalues {d.tolist()}"
             ) from None
         factor = u * np.sqrt(np.clip(d, 0.0, None))
-    z = rng.standard_normal((n, 3))
-    # z @ factor.T without BLAS, whose kernel (and last bits) depend on the CPU
-    out = mean + np.sum(z[:, :, None] * factor.T[None, :, :], axis=1)
+    out = mean + np.dot(rng.standard_normal((n, 3)), factor.T)
     out[:, 2] = wrap(out[:, 2])
     return np.asarray(out, dtype=np.float64)
 
