@@ -552,7 +552,7 @@ class KLDAMCL:
             self.particle_set,
             self.t,
             self.hypotheses if known is None else lambda: known,
-            crossing=None if self.last_scan is None else wall_crossing(self.grid, self.last_scan),
+            crossing=wall_crossing(self.grid, self.last_scan),
         )
 
     def particles(self) -> ParticleSnapshot:

@@ -158,13 +158,15 @@ WALL_CROSSING_BEAMS = 60
 
 
 def wall_crossing(
-    grid: OccupancyGrid, scan: LaserScan, thresholds: StateThresholds = DEFAULT_THRESHOLDS
+    grid: OccupancyGrid, scan: LaserScan | None, thresholds: StateThresholds = DEFAULT_THRESHOLDS
 ) -> Crossing | None:
     """For ``scan``: a function giving, for a pose, the share of its readings (60, evenly
     spread; max-range readings as the sensor's maximum) that end more than ``wall_margin_m``
     beyond the first occupied cell of ``grid`` along their ray (cast through unknown space, so
-    only walls the map holds count). ``None`` when the scan has no usable reading. A pose that
+    only walls the map holds count). ``None`` without a scan or a usable reading. A pose that
     is not finite crosses everything."""
+    if scan is None:
+        return None
     prepared = prepare_scan(scan, WALL_CROSSING_BEAMS, keep_max_range=True)
     if prepared.n_beams == 0:
         return None

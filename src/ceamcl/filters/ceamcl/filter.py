@@ -490,9 +490,8 @@ class CEAMCL:
         (:func:`ceamcl.filters.state.read_hypotheses`); INITIALISING until the first step."""
         if not self.stats or self.t == 0:
             return initialising()
-        crossing = None if self.last_scan is None else wall_crossing(self.grid, self.last_scan)
         hyps = self.hypotheses() if hypotheses is None else hypotheses
-        return read_hypotheses(hyps, crossing=crossing)
+        return read_hypotheses(hyps, crossing=wall_crossing(self.grid, self.last_scan))
 
     def particle_weights(self) -> NDArray[np.float64]:
         """Each particle's in-species weight times its species' share, normalised (measured
