@@ -45,9 +45,27 @@ def test_targets_read_the_maps_nearest_1000_and_4000_m2() -> None:
             {"free_area_m2": 3907.0, "ceamcl": {"first_s": 3.2}},
         ],
         "steps": [
-            {"mode": "global", "pace": "p", "algorithm": "ceamcl", "median_update_ms": 1.2},
-            {"mode": "global", "pace": "p", "algorithm": "mcl-tuned", "median_update_ms": 1.5},
-            {"mode": "global", "pace": "every scan", "algorithm": "ceamcl", "median_update_ms": 9},
+            {
+                "log": "a",
+                "mode": "global",
+                "pace": "p",
+                "algorithm": "ceamcl",
+                "median_update_ms": 1.2,
+            },
+            {
+                "log": "a",
+                "mode": "global",
+                "pace": "p",
+                "algorithm": "mcl-tuned",
+                "median_update_ms": 1.5,
+            },
+            {
+                "log": "a",
+                "mode": "global",
+                "pace": "every scan",
+                "algorithm": "ceamcl",
+                "median_update_ms": 9,
+            },
         ],
     }
     got = {t["key"]: (t["value"], t["pass"]) for t in evaluate_targets(result)}

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 from pathlib import Path
 from typing import Any
@@ -11,7 +12,8 @@ from ceamcl.io.results import ensure_output_dir, write_json
 
 
 def _f(v: Any, digits: int = 1) -> str:
-    if v is None:
+    """A table cell: ``-`` for None and non-finite numbers, thousands separators."""
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
         return "-"
     if isinstance(v, bool):
         return "yes" if v else "no"
