@@ -39,8 +39,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ceamcl.filters.base import Hypothesis, PoseEstimate
-from ceamcl.sensors.raycast import cast_fan
-from ceamcl.sensors.scan import laser_poses, prepare_scan
+from ceamcl.sensors.scan import prepare_scan
+from ceamcl.sensors.see_through import readings_through_walls
 
 if TYPE_CHECKING:
     from ceamcl.filters.particles import ParticleSet
@@ -176,11 +176,7 @@ def wall_crossing(
         p = np.asarray(pose, dtype=np.float64).reshape(1, 3)
         if not np.all(np.isfinite(p)):
             return 1.0
-        sensor = laser_poses(p, prepared.laser_pose)
-        expected = cast_fan(
-            grid, sensor, prepared.bearings, prepared.range_max, through_unknown=True
-        )[0]
-        return float(np.mean(prepared.ranges > expected + margin))
+        return float(np.mean(readings_through_walls(grid, p, prepared, margin)))
 
     return share
 

@@ -187,6 +187,12 @@ class LikelihoodFieldModel(CombinedBeams):
         p = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
         if prepared.n_beams == 0:
             return np.zeros(p.shape[0])
+        return self._combined(np.sum(self.beam_values(p, prepared), axis=1))
+
+    def beam_values(self, poses: ArrayLike, prepared: PreparedScan) -> NDArray[np.float64]:
+        """Per pose and prepared beam, what the kernel sums (``log p(z_k | x)`` for the
+        product), ``(N, M)``; plain NumPy."""
+        p = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
         lp = laser_poses(p, prepared.laser_pose)
         ang = lp[:, 2:3] + prepared.bearings[None, :]
         ex = lp[:, 0:1] + prepared.ranges[None, :] * np.cos(ang)
@@ -195,4 +201,9 @@ class LikelihoodFieldModel(CombinedBeams):
         inside = self.grid.in_bounds(ix, iy)
         d = np.full(ex.shape, self.config.max_occ_dist_m)
         d[inside] = self._dist[iy[inside], ix[inside]]
-        return self._combined(np.sum(self._beam_value(d, prepared.range_max), axis=1))
+        return self._beam_value(d, prepared.range_max)
+
+    def unexplained_value(self, prepared: PreparedScan) -> float:
+        """What one beam scores when nothing in the map explains it (``log(z_rand /
+        range_max)`` for the product)."""
+        return float(self._beam_value(np.array([np.inf]), prepared.range_max)[0])
