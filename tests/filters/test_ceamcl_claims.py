@@ -19,6 +19,7 @@ import pytest
 
 from ceamcl.filters import make_filter
 from ceamcl.filters.ceamcl import CEAMCL
+from ceamcl.filters.ceamcl.config import CEAMCLConfig
 from ceamcl.maps.worlds import symmetric_images
 from ceamcl.motion.odometry import increment_between
 from ceamcl.runner import run_filter
@@ -63,20 +64,28 @@ def test_the_living_domain_covers_the_truth_as_a_2_sigma_ellipse_should() -> Non
 
 
 # ---------------------------------------------------------------- 2. adaptive sample size
-@pytest.mark.parametrize("seed", [0, 1])
-def test_the_sample_size_falls_while_tracking_and_rises_after_a_kidnap(seed: int) -> None:
-    sc = kidnapped_scenario()
-    grid = sc.grid()
-    sim_rng, filter_rng = generators(seed)
-    log = sc.simulate(sim_rng, grid)
-    (kidnap,) = log.kidnapped_at
-    r = run_filter(ceamcl(grid, filter_rng), log)
-    n = np.array([d.n_particles for d in r.diagnostics])
-    tracking = n[kidnap // 2 : kidnap].mean()  # converged, before the kidnap
-    print(f"initial {n[0]}, tracking {tracking:.0f}, after the kidnap up to {n[kidnap:].max()}")
-    assert tracking < 0.25 * n[0]  # certain: a fraction of the ambiguous start's samples
-    assert n[kidnap : kidnap + 50].max() >= 3 * tracking  # lost again: many more
-    assert n[-50:].mean() < 0.5 * n[kidnap : kidnap + 50].max()  # and down once relocalised
+def test_the_sample_size_falls_while_tracking_and_rises_after_a_kidnap() -> None:
+    # How far it rises is the size of the restart's initial species, which depends on its
+    # random test poses: from the scan after seed 0's kidnap, 264-690 samples over 12
+    # generators (2.2-5.8 times the tracking floor of 120). The rise is therefore asserted on
+    # the mean over four runs, every other claim on each run.
+    rises = []
+    for seed in range(4):
+        sc = kidnapped_scenario()
+        grid = sc.grid()
+        sim_rng, filter_rng = generators(seed)
+        log = sc.simulate(sim_rng, grid)
+        (kidnap,) = log.kidnapped_at
+        r = run_filter(ceamcl(grid, filter_rng), log)
+        n = np.array([d.n_particles for d in r.diagnostics])
+        tracking = n[kidnap // 2 : kidnap].mean()  # converged, before the kidnap
+        after = n[kidnap : kidnap + 50].max()
+        print(f"seed {seed}: initial {n[0]}, tracking {tracking:.0f}, after the kidnap {after}")
+        assert tracking < 0.25 * n[0]  # certain: a fraction of the ambiguous start's samples
+        assert after > 2 * tracking  # lost again: more
+        assert n[-50:].mean() < 0.5 * after  # and down once relocalised
+        rises.append(after / tracking)
+    assert np.mean(rises) >= 3.0  # many more, on average
 
 
 def test_species_of_different_living_domains_get_different_resources() -> None:
@@ -141,6 +150,29 @@ def test_species_of_equal_fitness_coexist_while_the_world_is_symmetric(
     shares = {h.label: h.weight for h in f.hypotheses()}
     print(f"{len(log)} steps; final shares {sorted(shares.values())}")
     assert min(shares[sid] for sid in ids) > 0.05  # none is written off either
+
+
+def test_a_species_seeing_through_walls_loses_evidence_the_likelihood_field_alone_gives() -> None:
+    # the same two species (the truth at a room's centre, and half a turn from it: the room
+    # fits, but the readings out of the door now run through the wall behind) and the same
+    # random draws, with and without the wall check
+    sc = paper_scenario(0)
+    log = sc.simulate(generators(0)[0])
+    grid = sc.grid()
+    inc = increment_between(log.odometry[0], log.odometry[1])
+    turned = log.true_poses[0] + np.array([0.0, 0.0, np.pi])
+    shares = {}
+    for margin in (0.5, None):
+        f = make_filter(
+            "ceamcl", grid, generators(0)[1], config=CEAMCLConfig(see_through_margin_m=margin)
+        )
+        assert isinstance(f, CEAMCL)
+        f.initialise_hypotheses([log.true_poses[0], turned], np.diag([0.0025, 0.0025, 0.0025]))
+        f.step(inc, log.scan(1))
+        shares[margin] = f.log_weight[1] - f.log_weight[0]
+    print(f"log-evidence of the turned species over the true one: {shares}")
+    assert shares[None] > -3.0  # the likelihood field alone hardly tells them apart
+    assert shares[0.5] < shares[None] - 5.0
 
 
 # ---------------------------------------------------------------- 4. memory of the mark

@@ -82,12 +82,6 @@ def test_marked_hall_is_ambiguous_until_the_mark_is_seen_then_localised() -> Non
     assert err is not None and err[decided:].max() < 0.5
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="at step 23 the four wrong-heading species hold half of the weight (they fit the "
-    "likelihood field, 25-33 % of their readings go through walls) and one true image falls "
-    "below weight_min: 3 hypotheses are counted (docs/state.md)",
-)
 def test_marked_hall_counts_four_hypotheses_at_every_step_before_the_mark() -> None:
     result, seen = marked_hall_run()
     before = [s.n_hypotheses for s in result.states[1:seen] if s is not None]

@@ -56,6 +56,11 @@ class CEAMCLConfig:
         evidence_probes, evidence_rounds: a greedy climb from each species' best sample
             (rounds of probes with the mutation's Sigma) that finds how well the species can
             explain the scan, for its evidence only.
+        see_through_margin_m, see_through_tolerance: with the likelihood field, each step's
+            evidence of a species is taken at its best sample with the readings that pass
+            more than ``see_through_margin_m`` through a mapped wall scored as unexplained,
+            the ``see_through_tolerance`` share of the beams forgiven
+            (:mod:`ceamcl.sensors.see_through`); ``None``: the likelihood field alone.
 
     Not in the paper (kidnapped robot, docs/ceamcl.md):
         recovery: re-run the initial species generation when the fitness collapses.
@@ -96,6 +101,8 @@ class CEAMCLConfig:
     evidence_memory: float = 0.75
     evidence_probes: int = 6
     evidence_rounds: int = 2
+    see_through_margin_m: float | None = 0.5
+    see_through_tolerance: float = 0.1
     recovery: bool = True
     recovery_ratio: float = 0.5
     recovery_alpha_fast: float = 0.3
@@ -128,6 +135,9 @@ class CEAMCLConfig:
             "evidence_memory": 0 < self.evidence_memory <= 1,
             "evidence_probes": self.evidence_probes >= 0,
             "evidence_rounds": self.evidence_rounds >= 0,
+            "see_through_margin_m": self.see_through_margin_m is None
+            or self.see_through_margin_m >= 0,
+            "see_through_tolerance": 0 <= self.see_through_tolerance < 1,
             "recovery_ratio": 0 < self.recovery_ratio < 1,
             "recovery_alpha_fast": 0 < self.recovery_alpha_fast <= 1,
             "recovery_alpha_slow": 0 < self.recovery_alpha_slow < self.recovery_alpha_fast,

@@ -78,6 +78,7 @@ from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel
 from ceamcl.sensors.base import SensorModel
 from ceamcl.sensors.beam_skip import skip_unexplained_beams
 from ceamcl.sensors.scan import LaserScan, PreparedScan
+from ceamcl.sensors.see_through import see_through_penalty
 
 #: A species' log-weight never falls below this (exp of it is still a positive number, so
 #: shares stay well defined; the competition has long ended such a species).
@@ -258,7 +259,7 @@ class CEAMCL:
             ps, groups, cfg.evolution, self.sensor, prepared, self.rng, best_seen
         )
         self._evaluations += self._probe_peaks(members, best_seen, prepared)
-        self._accumulate_evidence(members, cfg.evidence_memory, best_seen)
+        self._accumulate_evidence(members, cfg.evidence_memory, best_seen, see_through=True)
         # 6. Split and merge.
         self._split_and_merge(members)  # leaves self.stats fresh
         if self._fitness_collapsed():
@@ -314,16 +315,39 @@ class CEAMCL:
         members: dict[int, NDArray[np.intp]],
         memory: float,
         best_seen: NDArray[np.float64] | None = None,
+        *,
+        see_through: bool = False,
     ) -> None:
         """Each species' log-weight becomes ``memory`` times itself plus the scan's evidence
         for it: the largest log-likelihood of any pose the step scored for it (its samples,
         and with ``best_seen`` every child evolution tried, kept or not), i.e. how well the
         species *can* explain the scan, not how well its cloud happens to sit this step
-        (docs/ceamcl.md, "evidence"); then the largest is set to 0."""
+        (docs/ceamcl.md, "evidence"); then the largest is set to 0. With ``see_through`` (and
+        ``see_through_margin_m`` set) that best sample also pays for the last scan's readings
+        that pass through the map's walls from it (:mod:`ceamcl.sensors.see_through`)."""
         ll = self.particle_set.loglik if best_seen is None else best_seen
-        for sid, idx in members.items():
-            top = float(np.max(ll[idx])) if idx.size else -np.inf  # never +inf: sanitised
-            self.log_weight[sid] = memory * self.log_weight.get(sid, 0.0) + top
+        living = {sid: idx for sid, idx in members.items() if idx.size}
+        top = {sid: float(np.max(ll[idx])) for sid, idx in living.items()}  # never +inf
+        margin = self.config.see_through_margin_m
+        if see_through and margin is not None and self.last_scan is not None and top:
+            # the samples at each species' best (a crossover pair shares its children's)
+            best = [idx[ll[idx] == top[sid]] for sid, idx in living.items()]
+            penalty = see_through_penalty(
+                self.grid,
+                self.sensor,
+                self.particle_set.poses[np.concatenate(best)],
+                self.last_scan,
+                margin,
+                self.config.see_through_tolerance,
+            )
+            ends = np.cumsum([b.size for b in best])
+            top = {
+                sid: v + float(np.max(part))
+                for (sid, v), part in zip(top.items(), np.split(penalty, ends[:-1]), strict=True)
+            }
+        for sid in members:
+            gain = top.get(sid, -np.inf)
+            self.log_weight[sid] = memory * self.log_weight.get(sid, 0.0) + gain
         self._normalise_weights()
 
     def _normalise_weights(self, living: bool = False) -> None:
