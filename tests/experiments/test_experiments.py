@@ -55,7 +55,8 @@ def test_every_algorithm_counts_its_initialisation_evaluations(algorithm: str) -
     assert m.initialisation_likelihood_evaluations == evals[0] >= record.n_particles[0] > 0
     assert m.likelihood_evaluations == int(evals.sum()) >= evals[0]
     if algorithm == "ceamcl":
-        assert evals[0] >= registry.get("ceamcl").default().initialisation.n_test
+        init = registry.get("ceamcl").default().initialisation
+        assert evals[0] >= init.test_pose_count(paper_course().grid().free_area_m2)
 
 
 def test_unknown_algorithm_is_a_config_error() -> None:
@@ -118,7 +119,8 @@ def test_table1_smoke(tmp_path: Path) -> None:
     assert not list(out.glob("*.tmp*"))
     # The precision side, in both files; the initialisation's evaluations count: CEAMCL's
     # N_test test poses are in its step 0, and so in the run's total.
-    n_test = registry.get("ceamcl").default().initialisation.n_test
+    init = registry.get("ceamcl").default().initialisation
+    n_test = init.test_pose_count(paper_course().grid().free_area_m2)
     trials = {t["algorithm"]: t for t in _read_csv(out / "trials.csv")}
     summary_columns = ("spurious_weight", "confidently_wrong_rate", "likelihood_evaluations")
     for row in rows:

@@ -174,7 +174,10 @@ def test_public_initialisation_phases_give_the_filters_species() -> None:
     sc = paper_scenario(0)
     grid = sc.grid()
     log = sc.simulate(np.random.default_rng(3), grid)
-    cfg = CEAMCLConfig(n_test=20_000, test_batch=7_000)
+    # exactly n_test test poses and no polishing: the phases below are section 3.1 alone
+    cfg = CEAMCLConfig(
+        n_test=20_000, test_batch=7_000, test_poses_per_m2=None, init_polish_rounds=0
+    )
     f = CEAMCL(
         grid, OdometryMotionModel(), LikelihoodFieldModel(grid), cfg, rng=np.random.default_rng(4)
     )
@@ -188,3 +191,52 @@ def test_public_initialisation_phases_give_the_filters_species() -> None:
     assert evaluations == cfg.n_test
     np.testing.assert_array_equal(species.poses, f.initial.poses)
     np.testing.assert_array_equal(species.labels, f.initial.labels)
+
+
+def test_test_poses_follow_the_free_area_up_to_n_test() -> None:
+    """``test_poses_per_m2`` of free space, at most ``n_test``: the hall (213 m^2 free) gets
+    about 426,000, a building of 5,000 m^2 the paper's 10^6, and ``None`` always ``n_test``."""
+    from ceamcl.filters.ceamcl.initialisation import sample_test_poses
+
+    init = CEAMCLConfig().initialisation
+    assert init.test_pose_count(213.0) == 426_000
+    assert init.test_pose_count(5_000.0) == init.n_test == 1_000_000
+    assert init.test_pose_count(0.0) == 1
+    fixed = CEAMCLConfig(test_poses_per_m2=None).initialisation
+    assert fixed.test_pose_count(213.0) == fixed.n_test
+    grid = paper_scenario(0).grid()
+    poses = sample_test_poses(grid, init, np.random.default_rng(0))
+    assert poses.shape == (round(2000.0 * grid.free_area_m2), 3)
+
+
+def test_polish_moves_initial_samples_uphill_and_nearer_the_pose() -> None:
+    """The greedy moves after section 3.1 never lower a sample's likelihood, score what they
+    keep exactly, count one evaluation per sample and round, and bring samples scattered
+    around the true pose nearer to it; with no rounds nothing moves and nothing is spent."""
+    from ceamcl.filters.ceamcl.initialisation import polish
+
+    sc = paper_scenario(1)
+    grid = sc.grid()
+    start = sc.true_path()[:1]
+    log = Simulator(grid, sc.config).run(start, np.random.default_rng(5))
+    sensor = LikelihoodFieldModel(grid)
+    prepared = sensor.prepare(log.scan(0))
+    rng = np.random.default_rng(6)
+    truth = start[0]
+    poses = truth + rng.normal(scale=[0.15, 0.15, 0.08], size=(300, 3))
+    ll0 = sensor.log_likelihood(poses, prepared)
+    init = CEAMCLConfig().initialisation
+    moved, ll, spent = polish(poses, ll0, sensor, prepared, init, rng)
+    assert spent == init.polish_rounds * poses.shape[0] > 0
+    assert np.all(ll >= ll0)
+    np.testing.assert_allclose(ll, sensor.log_likelihood(moved, prepared))
+    stayed = ll == ll0
+    np.testing.assert_array_equal(moved[stayed], poses[stayed])
+    assert np.count_nonzero(~stayed) > poses.shape[0] // 4
+    before = np.hypot(*(poses[:, :2] - truth[:2]).T)
+    after = np.hypot(*(moved[:, :2] - truth[:2]).T)
+    print(f"median distance to the pose {np.median(before):.3f} -> {np.median(after):.3f} m")
+    assert np.median(after) < np.median(before)
+    none = CEAMCLConfig(init_polish_rounds=0).initialisation
+    same, ll_same, zero = polish(poses, ll0, sensor, prepared, none, rng)
+    assert zero == 0 and same is poses and ll_same is ll0

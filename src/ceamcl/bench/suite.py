@@ -308,7 +308,8 @@ def measure_init(grid: OccupancyGrid, log: SimulatedLog, s: BenchSettings) -> di
     """CEAMCL's initial species generation (section 3.1) with the default sensor, whole and by
     phase: sampling test poses, their likelihood, then the cell statistics, SKIZ and
     selection."""
-    cfg = CEAMCLConfig(n_test=s.n_test)
+    # exactly n_test test poses (the target is stated for 10^6), not the default density
+    cfg = CEAMCLConfig(n_test=s.n_test, test_poses_per_m2=None)
     scan = log.scan(0)
     totals = []
     last: CEAMCL | None = None

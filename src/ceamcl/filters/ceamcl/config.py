@@ -21,7 +21,8 @@ class CEAMCLConfig:
     """Parameters of CEAMCL. Paper defaults first; docs/ceamcl.md explains the others.
 
     Paper (section 4):
-        n_test: test poses for initial species generation (N_test).
+        n_test: test poses for initial species generation (N_test), at most; see
+            ``test_poses_per_m2``.
         cell_m: side of the x-y cells of section 3.1 (150 x 150 over 15 m).
         mu: threshold on scaled cell weights that defines V.
         eta: eq. 5 factor of the initial sample size.
@@ -45,6 +46,13 @@ class CEAMCLConfig:
         tracking_samples: sample size of the single species of ``initialise_pose``.
         test_batch: test poses weighted per likelihood call (bounds memory).
 
+    Initialisation (docs/ceamcl.md, "test poses"):
+        test_poses_per_m2: test poses per square metre of free space, up to ``n_test``
+            (``None``: always ``n_test``); the paper's 10^6 over its hall is about 4,700; 2,000
+            gives real buildings of 500 m^2 and more the 10^6 they need.
+        init_polish_rounds: greedy rounds that move each initial sample to a better pose
+            nearby (the mutation's Sigma doubled, halved each round) before the first step.
+
     Read differently from the paper (docs/ceamcl.md, "evidence"):
         competition_fitness: the ``w`` of eqs. 9 and 16. "evidence" (default): each species'
             accumulated evidence, its marginal likelihood multiplied over the steps and
@@ -53,9 +61,10 @@ class CEAMCLConfig:
             species' individuals under the current scan only.
         evidence_memory: exponent on a species' past evidence at each step (1: every past scan
             counts fully; below 1, old scans fade with that factor per step).
-        evidence_probes, evidence_rounds: a greedy climb from each species' best sample
-            (rounds of probes with the mutation's Sigma) that finds how well the species can
-            explain the scan, for its evidence only.
+        evidence_probes, evidence_rounds, evidence_shrink: a greedy climb from each
+            species' best sample (rounds of probes with the mutation's Sigma, multiplied by
+            ``evidence_shrink`` each round) that finds how well the species can explain the
+            scan, for its evidence only.
         see_through_margin_m, see_through_tolerance: with the likelihood field, each step's
             evidence of a species is taken at its best sample with the readings that pass
             more than ``see_through_margin_m`` through a mapped wall scored as unexplained,
@@ -76,6 +85,8 @@ class CEAMCLConfig:
     """
 
     n_test: int = 1_000_000
+    test_poses_per_m2: float | None = 2000.0
+    init_polish_rounds: int = 3
     cell_m: float = 0.1
     mu: float = 0.85
     eta: float = 2.0
@@ -100,7 +111,8 @@ class CEAMCLConfig:
     competition_fitness: str = "evidence"
     evidence_memory: float = 0.75
     evidence_probes: int = 6
-    evidence_rounds: int = 2
+    evidence_rounds: int = 4
+    evidence_shrink: float = 0.6
     see_through_margin_m: float | None = 0.5
     see_through_tolerance: float = 0.1
     recovery: bool = True
@@ -135,6 +147,9 @@ class CEAMCLConfig:
             "evidence_memory": 0 < self.evidence_memory <= 1,
             "evidence_probes": self.evidence_probes >= 0,
             "evidence_rounds": self.evidence_rounds >= 0,
+            "evidence_shrink": 0 < self.evidence_shrink <= 1,
+            "test_poses_per_m2": self.test_poses_per_m2 is None or self.test_poses_per_m2 > 0,
+            "init_polish_rounds": self.init_polish_rounds >= 0,
             "see_through_margin_m": self.see_through_margin_m is None
             or self.see_through_margin_m >= 0,
             "see_through_tolerance": 0 <= self.see_through_tolerance < 1,
@@ -153,6 +168,12 @@ class CEAMCLConfig:
         """Section 3.1's settings."""
         return InitialisationConfig(
             n_test=self.n_test,
+            test_poses_per_m2=self.test_poses_per_m2,
+            polish_rounds=self.init_polish_rounds,
+            polish_sigma=(
+                2 * self.evolution.mutation_sigma_xy_m,
+                2 * self.evolution.mutation_sigma_theta_rad,
+            ),
             test_batch=self.test_batch,
             cell_m=self.cell_m,
             mu=self.mu,

@@ -44,7 +44,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ceamcl.filters.base import Algorithm, Hypothesis, ParticleSnapshot, PoseEstimate
 from ceamcl.filters.ceamcl.config import CEAMCLConfig
-from ceamcl.filters.ceamcl.initialisation import InitialSpecies, initial_species
+from ceamcl.filters.ceamcl.initialisation import InitialSpecies, initial_species, polish
 from ceamcl.filters.ceamcl.phases import (
     Competition,
     allocate_resources,
@@ -75,7 +75,7 @@ from ceamcl.filters.state import (
 )
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel
-from ceamcl.sensors.base import SensorModel
+from ceamcl.sensors.base import SensorModel, fitness
 from ceamcl.sensors.beam_skip import skip_unexplained_beams
 from ceamcl.sensors.scan import LaserScan, PreparedScan
 from ceamcl.sensors.see_through import see_through_penalty
@@ -144,14 +144,28 @@ class CEAMCL:
         init, evaluations = initial_species(
             self.grid, self.sensor, prepared, self.config.initialisation, self.rng
         )
-        self._evaluations += evaluations
         self.initial = init
+        # Not in the paper: a few greedy moves bring each chosen test pose nearer its peak
+        # (docs/ceamcl.md, "test poses"); ``self.initial`` keeps section 3.1's own choice.
+        poses, loglik, spent = polish(
+            init.poses,
+            init.loglik,
+            self.sensor,
+            prepared,
+            self.config.initialisation,
+            self.rng,
+        )
+        self._evaluations += evaluations + spent
         # ids are never reused: after a restart the new species count on from the old ones
         first = self._next_id
         labels = init.labels.astype(np.int64) + first
-        self.particle_set = ParticleSet.from_poses(init.poses, labels)
-        self.particle_set.loglik = init.loglik
-        self.particle_set.fitness = init.fitness
+        self.particle_set = ParticleSet.from_poses(poses, labels)
+        self.particle_set.loglik = loglik
+        self.particle_set.fitness = (
+            fitness(loglik, prepared, self.sensor)
+            if spent and prepared is not None
+            else init.fitness
+        )
         self._next_id = first + init.n_species
         self._prepared = prepared
         # "for each species i, let dN_0 / dt = 0": competition starts after the first step.
@@ -279,9 +293,12 @@ class CEAMCL:
         """A short greedy climb from each species' best sample, for its evidence only (the
         samples are not moved): ``evidence_rounds`` rounds of ``evidence_probes`` Gaussian
         probes (the mutation's Sigma) around the best pose so far; the best log-likelihood
-        found raises ``best_seen`` at that sample. Without it the evidence of a species would
-        depend on how close its cloud happened to come to the likelihood's peak, noise that
-        grows with the motion between updates (docs/ceamcl.md, "evidence"). Returns the
+        found raises ``best_seen`` at that sample; the probes' spread shrinks by
+        ``evidence_shrink`` each round, so later rounds refine what the first found. Without
+        it the evidence of a species would depend on how close its cloud happened to come to
+        the likelihood's peak, noise that grows with the motion between updates, and a small
+        species, with fewer samples near the peak, would lose to a large one at the same
+        place (docs/ceamcl.md, "evidence"). Returns the
         evaluations spent."""
         cfg = self.config
         k = cfg.evidence_probes
@@ -298,6 +315,7 @@ class CEAMCL:
         evaluations = 0
         for _ in range(cfg.evidence_rounds):
             probes = centre[:, None, :] + self.rng.standard_normal((len(sids), k, 3)) * sigma
+            sigma = sigma * cfg.evidence_shrink
             probes[..., 2] = np.arctan2(np.sin(probes[..., 2]), np.cos(probes[..., 2]))
             ll = self.sensor.log_likelihood(probes.reshape(-1, 3), prepared).reshape(len(sids), k)
             ll = np.where(np.isnan(ll), -np.inf, ll)

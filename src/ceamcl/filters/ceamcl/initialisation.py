@@ -46,10 +46,12 @@ CELL_BYTES = 256
 @dataclass(frozen=True)
 class InitialisationConfig:
     """The settings of section 3.1 (``CEAMCLConfig().initialisation`` gives them with the
-    paper's defaults): ``n_test`` test poses scored ``test_batch`` at a time, cells of
+    paper's defaults): ``n_test`` test poses (``test_poses_per_m2`` of free space, at most
+    ``n_test``, where that is set) scored ``test_batch`` at a time, cells of
     ``cell_m``, threshold ``mu``, eq. 5 factor ``eta``, how a cell's weight is formed
     (``cell_top_k``, ``cell_fitness_exponent``, ``cell_smoothing``), the smallest viable
-    species and the cap on the total sample size."""
+    species and the cap on the total sample size; ``polish_rounds`` greedy moves of the
+    chosen samples with ``polish_sigma`` (x-y metres, heading radians) halved each round."""
 
     n_test: int
     test_batch: int
@@ -61,6 +63,16 @@ class InitialisationConfig:
     cell_smoothing: int
     min_species_size: int
     max_samples: int
+    test_poses_per_m2: float | None = None
+    polish_rounds: int = 0
+    polish_sigma: tuple[float, float] = (0.1, 0.06)
+
+    def test_pose_count(self, free_area_m2: float) -> int:
+        """How many test poses a map with ``free_area_m2`` of free space gets:
+        ``test_poses_per_m2`` per square metre, at most ``n_test`` (at least 1)."""
+        if self.test_poses_per_m2 is None:
+            return self.n_test
+        return int(np.clip(round(self.test_poses_per_m2 * free_area_m2), 1, self.n_test))
 
 
 @dataclass(frozen=True, eq=False)
@@ -305,8 +317,43 @@ def generate_initial_species(
 def sample_test_poses(
     grid: OccupancyGrid, config: InitialisationConfig, rng: np.random.Generator
 ) -> NDArray[np.float64]:
-    """Step 1 of section 3.1: ``n_test`` poses uniform over free space."""
-    return grid.sample_free_poses(config.n_test, rng)
+    """Step 1 of section 3.1: poses uniform over free space, ``test_poses_per_m2`` per
+    square metre of it, at most ``n_test``."""
+    return grid.sample_free_poses(config.test_pose_count(grid.free_area_m2), rng)
+
+
+def polish(
+    poses: NDArray[np.float64],
+    loglik: NDArray[np.float64],
+    sensor: SensorModel,
+    prepared: PreparedScan | None,
+    config: InitialisationConfig,
+    rng: np.random.Generator,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], int]:
+    """Greedy moves of the chosen initial samples: ``polish_rounds`` rounds, each proposing
+    one Gaussian step per sample (``polish_sigma``, halved each round) and keeping it where
+    the first scan scores it higher (as a motion update may, a move can end a few centimetres
+    inside an obstacle or unknown cell). With fewer test poses the best of a region lies farther
+    from its likelihood peak; a few moves bring it there for a few evaluations a sample
+    (docs/ceamcl.md, "test poses"). Returns the poses, their log-likelihoods and the
+    evaluations spent."""
+    n = poses.shape[0]
+    if config.polish_rounds == 0 or n == 0 or prepared is None or prepared.n_beams == 0:
+        return poses, loglik, 0
+    poses, loglik = poses.copy(), loglik.copy()
+    sxy, sth = config.polish_sigma
+    sigma = np.array([sxy, sxy, sth])
+    evaluations = 0
+    for _ in range(config.polish_rounds):
+        trial = poses + rng.standard_normal((n, 3)) * sigma
+        trial[:, 2] = np.arctan2(np.sin(trial[:, 2]), np.cos(trial[:, 2]))
+        ll = sanitise_log_likelihood(sensor.log_likelihood(trial, prepared))
+        evaluations += n
+        better = ll > loglik
+        poses[better] = trial[better]
+        loglik[better] = ll[better]
+        sigma = sigma / 2
+    return poses, loglik, evaluations
 
 
 def score_test_poses(
