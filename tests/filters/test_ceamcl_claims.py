@@ -235,3 +235,38 @@ def test_a_lone_tracking_species_has_the_tracking_floor_competing_ones_the_paper
     (lone,) = record.species
     assert lone.area_m2 < cfg.tracking_epsilon_m2
     assert lone.resources == pytest.approx(cfg.delta_per_m2 * cfg.tracking_epsilon_m2)
+
+
+def test_a_lone_species_spends_nothing_on_evidence() -> None:
+    """Evidence only compares species: with one species the climb and the wall check would be
+    normalised away, so they are skipped. A tracking run is then the same, bit for bit and in
+    its evaluations, whatever the evidence settings; with a second species they cost."""
+    sc = office_scenario()
+    grid = sc.grid()
+    sim_rng, _ = generators(3)
+    log = sc.simulate(sim_rng, grid)
+    cov = np.diag([0.01, 0.01, 0.005])
+    runs = []
+    for config in (
+        CEAMCLConfig(),
+        CEAMCLConfig(evidence_probes=0, see_through_margin_m=None),
+    ):
+        f = make_filter("ceamcl", grid, np.random.default_rng(4), config=config)
+        assert isinstance(f, CEAMCL)
+        f.initialise_pose(log.true_poses[0], cov)
+        steps = [
+            f.step(increment_between(log.odometry[k - 1], log.odometry[k]), log.scan(k))
+            for k in range(1, 40)
+        ]
+        assert all(s.n_species == 1 for s in steps)
+        runs.append((f.particle_set.poses.copy(), [s.likelihood_evaluations for s in steps]))
+    np.testing.assert_array_equal(runs[0][0], runs[1][0])
+    assert runs[0][1] == runs[1][1]
+    # two species: the climb spends 4 rounds x 6 probes on each
+    two = []
+    for config in (CEAMCLConfig(), CEAMCLConfig(evidence_probes=0)):
+        f = make_filter("ceamcl", grid, np.random.default_rng(4), config=config)
+        assert isinstance(f, CEAMCL)
+        f.initialise_hypotheses([log.true_poses[0], log.true_poses[0] + [0, 0, np.pi]], cov)
+        two.append(f.step(increment_between(log.odometry[0], log.odometry[1]), log.scan(1)))
+    assert two[0].likelihood_evaluations - two[1].likelihood_evaluations == 2 * 4 * 6

@@ -298,11 +298,12 @@ class CEAMCL:
         it the evidence of a species would depend on how close its cloud happened to come to
         the likelihood's peak, noise that grows with the motion between updates, and a small
         species, with fewer samples near the peak, would lose to a large one at the same
-        place (docs/ceamcl.md, "evidence"). Returns the
+        place (docs/ceamcl.md, "evidence"). With a single species there is nothing to
+        compare and nothing is spent. Returns the
         evaluations spent."""
         cfg = self.config
         k = cfg.evidence_probes
-        if k == 0 or cfg.evidence_rounds == 0 or not members:
+        if k == 0 or cfg.evidence_rounds == 0 or len(members) < 2:
             return 0
         ps = self.particle_set
         sids = list(members)
@@ -342,12 +343,13 @@ class CEAMCL:
         species *can* explain the scan, not how well its cloud happens to sit this step
         (docs/ceamcl.md, "evidence"); then the largest is set to 0. With ``see_through`` (and
         ``see_through_margin_m`` set) that best sample also pays for the last scan's readings
-        that pass through the map's walls from it (:mod:`ceamcl.sensors.see_through`)."""
+        that pass through the map's walls from it (:mod:`ceamcl.sensors.see_through`), when
+        at least two species live (one species' evidence is normalised away)."""
         ll = self.particle_set.loglik if best_seen is None else best_seen
         living = {sid: idx for sid, idx in members.items() if idx.size}
         top = {sid: float(np.max(ll[idx])) for sid, idx in living.items()}  # never +inf
         margin = self.config.see_through_margin_m
-        if see_through and margin is not None and self.last_scan is not None and top:
+        if see_through and margin is not None and self.last_scan is not None and len(top) > 1:
             # the samples at each species' best (a crossover pair shares its children's)
             best = [idx[ll[idx] == top[sid]] for sid, idx in living.items()]
             penalty = see_through_penalty(
