@@ -272,8 +272,12 @@ class CEAMCL:
         self._evaluations += evolve(
             ps, groups, cfg.evolution, self.sensor, prepared, self.rng, best_seen
         )
-        self._evaluations += self._probe_peaks(members, best_seen, prepared)
-        self._accumulate_evidence(members, cfg.evidence_memory, best_seen, see_through=True)
+        # Evidence only compares species: a lone species' is normalised away, so it pays for
+        # neither the climb nor the wall check.
+        compared = len(members) > 1
+        if compared:
+            self._evaluations += self._probe_peaks(members, best_seen, prepared)
+        self._accumulate_evidence(members, cfg.evidence_memory, best_seen, see_through=compared)
         # 6. Split and merge.
         self._split_and_merge(members)  # leaves self.stats fresh
         if self._fitness_collapsed():
@@ -298,12 +302,10 @@ class CEAMCL:
         it the evidence of a species would depend on how close its cloud happened to come to
         the likelihood's peak, noise that grows with the motion between updates, and a small
         species, with fewer samples near the peak, would lose to a large one at the same
-        place (docs/ceamcl.md, "evidence"). With a single species there is nothing to
-        compare and nothing is spent. Returns the
-        evaluations spent."""
+        place (docs/ceamcl.md, "evidence"). Returns the evaluations spent."""
         cfg = self.config
         k = cfg.evidence_probes
-        if k == 0 or cfg.evidence_rounds == 0 or len(members) < 2:
+        if k == 0 or cfg.evidence_rounds == 0 or not members:
             return 0
         ps = self.particle_set
         sids = list(members)
@@ -316,7 +318,6 @@ class CEAMCL:
         evaluations = 0
         for _ in range(cfg.evidence_rounds):
             probes = centre[:, None, :] + self.rng.standard_normal((len(sids), k, 3)) * sigma
-            sigma = sigma * cfg.evidence_shrink
             probes[..., 2] = np.arctan2(np.sin(probes[..., 2]), np.cos(probes[..., 2]))
             ll = self.sensor.log_likelihood(probes.reshape(-1, 3), prepared).reshape(len(sids), k)
             ll = np.where(np.isnan(ll), -np.inf, ll)
@@ -326,6 +327,7 @@ class CEAMCL:
             better = ll[rows, j] > best
             centre[better] = probes[rows[better], j[better]]
             best[better] = ll[rows[better], j[better]]
+            sigma = sigma * cfg.evidence_shrink
         np.maximum.at(best_seen, tops, best)
         return evaluations
 
@@ -343,13 +345,12 @@ class CEAMCL:
         species *can* explain the scan, not how well its cloud happens to sit this step
         (docs/ceamcl.md, "evidence"); then the largest is set to 0. With ``see_through`` (and
         ``see_through_margin_m`` set) that best sample also pays for the last scan's readings
-        that pass through the map's walls from it (:mod:`ceamcl.sensors.see_through`), when
-        at least two species live (one species' evidence is normalised away)."""
+        that pass through the map's walls from it (:mod:`ceamcl.sensors.see_through`)."""
         ll = self.particle_set.loglik if best_seen is None else best_seen
         living = {sid: idx for sid, idx in members.items() if idx.size}
         top = {sid: float(np.max(ll[idx])) for sid, idx in living.items()}  # never +inf
         margin = self.config.see_through_margin_m
-        if see_through and margin is not None and self.last_scan is not None and len(top) > 1:
+        if see_through and margin is not None and self.last_scan is not None and top:
             # the samples at each species' best (a crossover pair shares its children's)
             best = [idx[ll[idx] == top[sid]] for sid, idx in living.items()]
             penalty = see_through_penalty(
