@@ -270,3 +270,42 @@ def test_a_lone_species_spends_nothing_on_evidence() -> None:
         f.initialise_hypotheses([log.true_poses[0], log.true_poses[0] + [0, 0, np.pi]], cov)
         two.append(f.step(increment_between(log.odometry[0], log.odometry[1]), log.scan(1)))
     assert two[0].likelihood_evaluations - two[1].likelihood_evaluations == 2 * 4 * 6
+
+
+def test_the_evidence_climb_starts_from_the_last_peak() -> None:
+    """departure 6: after a step that compared species, each species' peak is kept, moved by
+    the next step's odometry and scored as the climb's first candidate (one evaluation per
+    species whose carried peak lies within the gate of its best sample); a lone species keeps
+    no peak."""
+    sc = paper_scenario(0)
+    grid = sc.grid()
+    sim_rng, _ = generators(3)
+    log = sc.simulate(sim_rng, grid)
+    cov = np.diag([0.0004, 0.0004, 0.0001])  # tight: the best sample lies near the peak
+    runs = []
+    for warm in (True, False):
+        f = make_filter(
+            "ceamcl",
+            grid,
+            np.random.default_rng(4),
+            config=CEAMCLConfig(evidence_warm_start=warm),
+        )
+        assert isinstance(f, CEAMCL)
+        f.initialise_hypotheses(symmetric_images(log.true_poses[0]), cov)
+        r1 = f.step(increment_between(log.odometry[0], log.odometry[1]), log.scan(1))
+        peaks = {sid: p.copy() for sid, p in f._peaks.items()}
+        r2 = f.step(increment_between(log.odometry[1], log.odometry[2]), log.scan(2))
+        runs.append((r1, r2, peaks))
+    (w1, w2, peaks), (n1, n2, _) = runs
+    assert w1.n_species == w2.n_species == n2.n_species == 4
+    assert len(peaks) == 4  # one peak per species compared
+    # the first step has no peak to carry: the same cost, the same draws
+    assert w1.likelihood_evaluations == n1.likelihood_evaluations
+    # the second scores up to one carried peak per species on top of the climb
+    assert 1 <= w2.likelihood_evaluations - n2.likelihood_evaluations <= 4
+    # a lone species keeps no peak (its evidence is normalised away)
+    f = make_filter("ceamcl", grid, np.random.default_rng(4))
+    assert isinstance(f, CEAMCL)
+    f.initialise_pose(log.true_poses[0], cov)
+    f.step(increment_between(log.odometry[0], log.odometry[1]), log.scan(1))
+    assert f._peaks == {}

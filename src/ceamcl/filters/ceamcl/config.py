@@ -61,10 +61,18 @@ class CEAMCLConfig:
             species' individuals under the current scan only.
         evidence_memory: exponent on a species' past evidence at each step (1: every past scan
             counts fully; below 1, old scans fade with that factor per step).
+        evidence_memory_step_m, evidence_memory_step_rad: the step the memory is for; a step
+            that moves the robot farther or turns it more (updates paced by ``update_min_d``)
+            applies ``evidence_memory`` once per such length (docs/ceamcl.md, departure 6);
+            ``None``: once per step whatever the motion.
         evidence_probes, evidence_rounds, evidence_shrink: a greedy climb from each
             species' best sample (rounds of probes with the mutation's Sigma, multiplied by
             ``evidence_shrink`` each round) that finds how well the species can explain the
             scan, for its evidence only.
+        evidence_warm_start, evidence_warm_gate: the climb also tries the species' peak of
+            the step before, moved by the odometry, when it lies within ``evidence_warm_gate``
+            mutation Sigmas of the best sample in every coordinate (docs/ceamcl.md, departure
+            6).
         see_through_margin_m, see_through_tolerance: with the likelihood field, each step's
             evidence of a species is taken at its best sample with the readings that pass
             more than ``see_through_margin_m`` through a mapped wall scored as unexplained,
@@ -85,7 +93,7 @@ class CEAMCLConfig:
     """
 
     n_test: int = 1_000_000
-    test_poses_per_m2: float | None = 2000.0
+    test_poses_per_m2: float | None = 1500.0
     init_polish_rounds: int = 3
     cell_m: float = 0.1
     mu: float = 0.85
@@ -109,10 +117,14 @@ class CEAMCLConfig:
     tracking_samples: int = 300
     test_batch: int = 250_000
     competition_fitness: str = "evidence"
-    evidence_memory: float = 0.75
+    evidence_memory: float = 0.9
+    evidence_memory_step_m: float | None = 0.05
+    evidence_memory_step_rad: float | None = 0.1
     evidence_probes: int = 6
     evidence_rounds: int = 4
     evidence_shrink: float = 0.6
+    evidence_warm_start: bool = True
+    evidence_warm_gate: float = 3.0
     see_through_margin_m: float | None = 0.5
     see_through_tolerance: float = 0.1
     recovery: bool = True
@@ -148,6 +160,11 @@ class CEAMCLConfig:
             "evidence_probes": self.evidence_probes >= 0,
             "evidence_rounds": self.evidence_rounds >= 0,
             "evidence_shrink": 0 < self.evidence_shrink <= 1,
+            "evidence_warm_gate": self.evidence_warm_gate > 0,
+            "evidence_memory_step_m": self.evidence_memory_step_m is None
+            or self.evidence_memory_step_m > 0,
+            "evidence_memory_step_rad": self.evidence_memory_step_rad is None
+            or self.evidence_memory_step_rad > 0,
             "test_poses_per_m2": self.test_poses_per_m2 is None or self.test_poses_per_m2 > 0,
             "init_polish_rounds": self.init_polish_rounds >= 0,
             "see_through_margin_m": self.see_through_margin_m is None

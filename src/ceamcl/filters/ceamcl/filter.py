@@ -74,7 +74,7 @@ from ceamcl.filters.state import (
     wall_crossing,
 )
 from ceamcl.maps.grid import OccupancyGrid
-from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel
+from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel, apply_increment
 from ceamcl.sensors.base import SensorModel, fitness
 from ceamcl.sensors.beam_skip import skip_unexplained_beams
 from ceamcl.sensors.scan import LaserScan, PreparedScan
@@ -123,6 +123,9 @@ class CEAMCL:
         self._steps_since_init = 0
         #: log of each species' accumulated evidence, the largest 0 (docs/ceamcl.md)
         self.log_weight: dict[int, float] = {}
+        #: each species' evidence peak at the last step that compared species, carried to the
+        #: next by the odometry as the climb's first candidate (docs/ceamcl.md, departure 6)
+        self._peaks: dict[int, NDArray[np.float64]] = {}
         #: the last scan received, for the state's wall-crossing test (docs/state.md)
         self.last_scan: LaserScan | None = None
 
@@ -141,6 +144,7 @@ class CEAMCL:
         a scan's usable beams (none: the species spread uniformly over free space)."""
         self._fit_fast = self._fit_slow = None
         self._steps_since_init = 0
+        self._peaks = {}
         init, evaluations = initial_species(
             self.grid, self.sensor, prepared, self.config.initialisation, self.rng
         )
@@ -195,6 +199,7 @@ class CEAMCL:
         self._refresh_stats()
         self.competition = Competition({sid: 0.0})
         self.log_weight = {sid: 0.0}
+        self._peaks = {}
 
     def initialise_hypotheses(self, poses: ArrayLike, covariance: ArrayLike) -> None:
         """Several hypotheses at once (e.g. the known symmetric images of a start pose): one
@@ -217,6 +222,7 @@ class CEAMCL:
         self._refresh_stats()
         self.competition = Competition({sid: 0.0 for sid in self.stats})
         self.log_weight = {sid: 0.0 for sid in self.stats}
+        self._peaks = {}
 
     # ================================================================== one step
     def step(self, increment: OdometryIncrement, scan: LaserScan | None) -> CEAMCLRecord:
@@ -276,8 +282,12 @@ class CEAMCL:
         # neither the climb nor the wall check.
         compared = len(members) > 1
         if compared:
-            self._evaluations += self._probe_peaks(members, best_seen, prepared)
-        self._accumulate_evidence(members, cfg.evidence_memory, best_seen, see_through=compared)
+            self._evaluations += self._probe_peaks(members, best_seen, prepared, increment)
+        else:
+            self._peaks = {}
+        self._accumulate_evidence(
+            members, self._memory_for(increment), best_seen, see_through=compared
+        )
         # 6. Split and merge.
         self._split_and_merge(members)  # leaves self.stats fresh
         if self._fitness_collapsed():
@@ -293,6 +303,7 @@ class CEAMCL:
         members: dict[int, NDArray[np.intp]],
         best_seen: NDArray[np.float64],
         prepared: PreparedScan,
+        increment: OdometryIncrement | None = None,
     ) -> int:
         """A short greedy climb from each species' best sample, for its evidence only (the
         samples are not moved): ``evidence_rounds`` rounds of ``evidence_probes`` Gaussian
@@ -302,10 +313,15 @@ class CEAMCL:
         it the evidence of a species would depend on how close its cloud happened to come to
         the likelihood's peak, noise that grows with the motion between updates, and a small
         species, with fewer samples near the peak, would lose to a large one at the same
-        place (docs/ceamcl.md, "evidence"). Returns the evaluations spent."""
+        place (docs/ceamcl.md, "evidence"). With ``evidence_warm_start`` the climb starts
+        from the better of the best sample and the species' last peak moved by ``increment``
+        (when that lies within ``evidence_warm_gate`` mutation Sigmas of the best sample), so
+        the peak found is refined from step to step instead of found again from each
+        species' own samples (docs/ceamcl.md, departure 6). Returns the evaluations spent."""
         cfg = self.config
         k = cfg.evidence_probes
         if k == 0 or cfg.evidence_rounds == 0 or not members:
+            self._peaks = {}
             return 0
         ps = self.particle_set
         sids = list(members)
@@ -316,6 +332,26 @@ class CEAMCL:
         sxy, sth = ev.mutation_sigma_xy_m, ev.mutation_sigma_theta_rad
         sigma = np.array([sxy, sxy, sth])
         evaluations = 0
+        if cfg.evidence_warm_start and increment is not None:
+            held = [r for r, sid in enumerate(sids) if sid in self._peaks]
+            if held:
+                carried = apply_increment(
+                    np.array([self._peaks[sids[r]] for r in held]),
+                    increment.rot1,
+                    increment.trans,
+                    increment.rot2,
+                )
+                gap = np.abs(carried - centre[held])
+                gap[:, 2] = np.abs(np.arctan2(np.sin(gap[:, 2]), np.cos(gap[:, 2])))
+                near = np.all(gap <= cfg.evidence_warm_gate * sigma, axis=1)
+                if near.any():
+                    rows_near = np.asarray(held)[near]
+                    ll = self.sensor.log_likelihood(carried[near], prepared)
+                    ll = np.where(np.isnan(ll), -np.inf, ll)
+                    evaluations += ll.size
+                    better = ll > best[rows_near]
+                    centre[rows_near[better]] = carried[near][better]
+                    best[rows_near[better]] = ll[better]
         for _ in range(cfg.evidence_rounds):
             probes = centre[:, None, :] + self.rng.standard_normal((len(sids), k, 3)) * sigma
             probes[..., 2] = np.arctan2(np.sin(probes[..., 2]), np.cos(probes[..., 2]))
@@ -329,7 +365,30 @@ class CEAMCL:
             best[better] = ll[rows[better], j[better]]
             sigma = sigma * cfg.evidence_shrink
         np.maximum.at(best_seen, tops, best)
+        self._peaks = {sid: centre[r].copy() for r, sid in enumerate(sids)}
         return evaluations
+
+    def _memory_for(self, increment: OdometryIncrement) -> float:
+        """``evidence_memory`` per step of up to ``evidence_memory_step_m`` of travel and
+        ``evidence_memory_step_rad`` of turning; a longer step (updates paced by
+        ``update_min_d``, docs/ceamcl.md departure 6) fades the past as that many steps would:
+        ``memory ** max(1, trans / step_m, |turn| / step_rad)``."""
+        cfg = self.config
+        if cfg.evidence_memory_step_m is None or cfg.evidence_memory_step_rad is None:
+            return cfg.evidence_memory
+        turn = abs(
+            float(
+                np.arctan2(
+                    np.sin(increment.rot1 + increment.rot2), np.cos(increment.rot1 + increment.rot2)
+                )
+            )
+        )
+        steps = max(
+            1.0,
+            abs(increment.trans) / cfg.evidence_memory_step_m,
+            turn / cfg.evidence_memory_step_rad,
+        )
+        return float(cfg.evidence_memory**steps)
 
     def _accumulate_evidence(
         self,
@@ -430,6 +489,7 @@ class CEAMCL:
         for sid, parent in new_ids.items():
             self.competition.dn[sid] = 0.0
             self.log_weight[sid] = self.log_weight.get(parent, 0.0)  # the parent's past
+            self._peaks.pop(parent, None)  # the peak may lie in either part
         self._next_id += len(new_ids)
         self._refresh_stats()
         self._merge()
