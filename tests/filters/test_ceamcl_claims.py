@@ -272,6 +272,30 @@ def test_a_lone_species_spends_nothing_on_evidence() -> None:
     assert two[0].likelihood_evaluations - two[1].likelihood_evaluations == 2 * 4 * 6
 
 
+def test_the_evidence_memory_is_per_distance_not_per_update() -> None:
+    """departure 6: ``evidence_memory`` applies once per 5 cm of travel or 0.1 rad of turning,
+    at least once a step, so an update paced by ``update_min_d`` (0.25 m) fades the past as
+    the five simulator steps it replaces would; ``None`` restores once per step."""
+    from ceamcl.motion.odometry import OdometryIncrement
+
+    grid = office_scenario().grid()
+    f = make_filter("ceamcl", grid, np.random.default_rng(0))
+    assert isinstance(f, CEAMCL)
+    m = f.config.evidence_memory
+    assert f._memory_for(OdometryIncrement(0.0, 0.0, 0.0)) == m
+    assert f._memory_for(OdometryIncrement(0.01, 0.03, -0.01)) == m  # a simulator step
+    assert f._memory_for(OdometryIncrement(0.0, 0.25, 0.0)) == pytest.approx(m**5)
+    assert f._memory_for(OdometryIncrement(0.0, -0.25, 0.0)) == pytest.approx(m**5)
+    assert f._memory_for(OdometryIncrement(0.1, 0.0, 0.1)) == pytest.approx(m**2)
+    # a sideways jitter (rot1 = pi/2, rot2 = -pi/2) turns the robot by nothing
+    assert f._memory_for(OdometryIncrement(np.pi / 2, 0.01, -np.pi / 2)) == m
+    fixed = make_filter(
+        "ceamcl", grid, np.random.default_rng(0), config=CEAMCLConfig(evidence_memory_step_m=None)
+    )
+    assert isinstance(fixed, CEAMCL)
+    assert fixed._memory_for(OdometryIncrement(0.0, 0.25, 0.0)) == m
+
+
 def test_the_evidence_climb_starts_from_the_last_peak() -> None:
     """departure 6: after a step that compared species, each species' peak is kept, moved by
     the next step's odometry and scored as the climb's first candidate (one evaluation per
