@@ -42,6 +42,7 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ceamcl import angles
 from ceamcl.filters.base import Algorithm, Hypothesis, ParticleSnapshot, PoseEstimate
 from ceamcl.filters.ceamcl.config import CEAMCLConfig
 from ceamcl.filters.ceamcl.initialisation import InitialSpecies, initial_species, polish
@@ -124,7 +125,8 @@ class CEAMCL:
         #: log of each species' accumulated evidence, the largest 0 (docs/ceamcl.md)
         self.log_weight: dict[int, float] = {}
         #: each species' evidence peak at the last step that compared species, carried to the
-        #: next by the odometry as the climb's first candidate (docs/ceamcl.md, departure 6)
+        #: next by the odometry as the climb's first candidate (docs/ceamcl.md, departure 6);
+        #: species ids are never reused, so a new species never meets an old peak
         self._peaks: dict[int, NDArray[np.float64]] = {}
         #: the last scan received, for the state's wall-crossing test (docs/state.md)
         self.last_scan: LaserScan | None = None
@@ -144,7 +146,6 @@ class CEAMCL:
         a scan's usable beams (none: the species spread uniformly over free space)."""
         self._fit_fast = self._fit_slow = None
         self._steps_since_init = 0
-        self._peaks = {}
         init, evaluations = initial_species(
             self.grid, self.sensor, prepared, self.config.initialisation, self.rng
         )
@@ -199,7 +200,6 @@ class CEAMCL:
         self._refresh_stats()
         self.competition = Competition({sid: 0.0})
         self.log_weight = {sid: 0.0}
-        self._peaks = {}
 
     def initialise_hypotheses(self, poses: ArrayLike, covariance: ArrayLike) -> None:
         """Several hypotheses at once (e.g. the known symmetric images of a start pose): one
@@ -222,7 +222,6 @@ class CEAMCL:
         self._refresh_stats()
         self.competition = Competition({sid: 0.0 for sid in self.stats})
         self.log_weight = {sid: 0.0 for sid in self.stats}
-        self._peaks = {}
 
     # ================================================================== one step
     def step(self, increment: OdometryIncrement, scan: LaserScan | None) -> CEAMCLRecord:
@@ -303,7 +302,7 @@ class CEAMCL:
         members: dict[int, NDArray[np.intp]],
         best_seen: NDArray[np.float64],
         prepared: PreparedScan,
-        increment: OdometryIncrement | None = None,
+        increment: OdometryIncrement,
     ) -> int:
         """A short greedy climb from each species' best sample, for its evidence only (the
         samples are not moved): ``evidence_rounds`` rounds of ``evidence_probes`` Gaussian
@@ -321,7 +320,6 @@ class CEAMCL:
         cfg = self.config
         k = cfg.evidence_probes
         if k == 0 or cfg.evidence_rounds == 0 or not members:
-            self._peaks = {}
             return 0
         ps = self.particle_set
         sids = list(members)
@@ -332,26 +330,10 @@ class CEAMCL:
         sxy, sth = ev.mutation_sigma_xy_m, ev.mutation_sigma_theta_rad
         sigma = np.array([sxy, sxy, sth])
         evaluations = 0
-        if cfg.evidence_warm_start and increment is not None:
-            held = [r for r, sid in enumerate(sids) if sid in self._peaks]
-            if held:
-                carried = apply_increment(
-                    np.array([self._peaks[sids[r]] for r in held]),
-                    increment.rot1,
-                    increment.trans,
-                    increment.rot2,
-                )
-                gap = np.abs(carried - centre[held])
-                gap[:, 2] = np.abs(np.arctan2(np.sin(gap[:, 2]), np.cos(gap[:, 2])))
-                near = np.all(gap <= cfg.evidence_warm_gate * sigma, axis=1)
-                if near.any():
-                    rows_near = np.asarray(held)[near]
-                    ll = self.sensor.log_likelihood(carried[near], prepared)
-                    ll = np.where(np.isnan(ll), -np.inf, ll)
-                    evaluations += ll.size
-                    better = ll > best[rows_near]
-                    centre[rows_near[better]] = carried[near][better]
-                    best[rows_near[better]] = ll[better]
+        if cfg.evidence_warm_start:
+            evaluations += self._start_from_last_peaks(
+                sids, centre, best, cfg.evidence_warm_gate * sigma, increment, prepared
+            )
         for _ in range(cfg.evidence_rounds):
             probes = centre[:, None, :] + self.rng.standard_normal((len(sids), k, 3)) * sigma
             probes[..., 2] = np.arctan2(np.sin(probes[..., 2]), np.cos(probes[..., 2]))
@@ -368,6 +350,40 @@ class CEAMCL:
         self._peaks = {sid: centre[r].copy() for r, sid in enumerate(sids)}
         return evaluations
 
+    def _start_from_last_peaks(
+        self,
+        sids: list[int],
+        centre: NDArray[np.float64],
+        best: NDArray[np.float64],
+        gate: NDArray[np.float64],
+        increment: OdometryIncrement,
+        prepared: PreparedScan,
+    ) -> int:
+        """Departure 6: each species' last peak, moved by ``increment``, replaces its climb's
+        start (``centre``, ``best``, updated in place) when it lies within ``gate`` of it in
+        every coordinate and scores higher. Returns the evaluations spent."""
+        held = np.array([r for r, sid in enumerate(sids) if sid in self._peaks], dtype=np.intp)
+        if held.size == 0:
+            return 0
+        carried = apply_increment(
+            np.array([self._peaks[sids[r]] for r in held]),
+            increment.rot1,
+            increment.trans,
+            increment.rot2,
+        )
+        gap = np.abs(carried - centre[held])
+        gap[:, 2] = np.abs(angles.diff(carried[:, 2], centre[held, 2]))
+        near = np.all(gap <= gate, axis=1)
+        rows, carried = held[near], carried[near]
+        if rows.size == 0:
+            return 0
+        ll = self.sensor.log_likelihood(carried, prepared)
+        ll = np.where(np.isnan(ll), -np.inf, ll)
+        better = ll > best[rows]
+        centre[rows[better]] = carried[better]
+        best[rows[better]] = ll[better]
+        return int(ll.size)
+
     def _memory_for(self, increment: OdometryIncrement) -> float:
         """``evidence_memory`` per step of up to ``evidence_memory_step_m`` of travel and
         ``evidence_memory_step_rad`` of turning; a longer step (updates paced by
@@ -376,13 +392,7 @@ class CEAMCL:
         cfg = self.config
         if cfg.evidence_memory_step_m is None or cfg.evidence_memory_step_rad is None:
             return cfg.evidence_memory
-        turn = abs(
-            float(
-                np.arctan2(
-                    np.sin(increment.rot1 + increment.rot2), np.cos(increment.rot1 + increment.rot2)
-                )
-            )
-        )
+        turn = abs(float(angles.wrap(increment.rot1 + increment.rot2)))
         steps = max(
             1.0,
             abs(increment.trans) / cfg.evidence_memory_step_m,
