@@ -8,6 +8,15 @@ compares them with ``fingerprints.json``; a change that means to alter behaviour
 the file on purpose, and says so in its commit::
 
     .venv/bin/python -m tests.fingerprint.fingerprints --update
+
+Bits depend on the machine as well as on the code: NumPy picks SIMD kernels for the CPU it
+finds (AVX-512 or AVX2 on x86-64), Numba compiles for the host CPU and OpenBLAS picks its
+kernels at run time, and each rounds differently in the last place, which a particle filter
+then amplifies. Fingerprints are therefore computed in a child process pinned to portable
+code paths (:data:`PORTABLE_ENV`: NumPy's x86-64 baseline, Numba's generic CPU, OpenBLAS's
+Nehalem kernels), so that any x86-64 machine gives the same bits, and ``fingerprints.json``
+records the library versions they were made with (:func:`environment`): with other versions
+the test skips and says which differ, as a new NumPy may round differently.
 """
 
 from __future__ import annotations
@@ -16,7 +25,12 @@ import argparse
 import hashlib
 import json
 import math
+import os
+import platform
+import subprocess
+import sys
 from collections.abc import Iterable
+from importlib import metadata
 from pathlib import Path
 from typing import Any
 
@@ -36,6 +50,56 @@ FILTER_SEED = 11
 JSON_PATH = Path(__file__).with_name("fingerprints.json")
 SHARED_LOG = Path(__file__).resolve().parents[2] / ".." / "shared" / "data" / "carmen"
 FHW = SHARED_LOG / "fhw-corrected.log.gz"
+PROJECT = Path(__file__).resolve().parents[2]
+#: Portable numeric code paths (module docstring); x86-64 only.
+PORTABLE_ENV = {
+    "NPY_DISABLE_CPU_FEATURES": "X86_V3 X86_V4 AVX512_ICL AVX512_SPR",
+    "NUMBA_CPU_NAME": "generic",
+    "OPENBLAS_CORETYPE": "Nehalem",
+}
+PORTABLE_MACHINES = ("x86_64", "AMD64")
+LIBRARIES = ("numpy", "scipy", "numba", "llvmlite")
+#: A bound on the child process that computes the fingerprints (about a minute here).
+CHILD_TIMEOUT_S = 900
+
+
+def environment() -> dict[str, str]:
+    """What the bits depend on besides the code: the machine's architecture, Python's minor
+    version and the numeric libraries' versions."""
+    env = {
+        "machine": platform.machine(),
+        "python": f"{sys.version_info.major}.{sys.version_info.minor}",
+    }
+    env.update({lib: metadata.version(lib) for lib in LIBRARIES})
+    return env
+
+
+def environment_differences(recorded: dict[str, str]) -> list[str]:
+    """How this environment differs from ``recorded`` (``name: recorded -> here``)."""
+    here = environment()
+    return [
+        f"{k}: {recorded.get(k)} -> {here.get(k)}"
+        for k in sorted(set(recorded) | set(here))
+        if recorded.get(k) != here.get(k)
+    ]
+
+
+def compute_portably(scenarios: Iterable[str] = SCENARIOS) -> dict[str, dict[str, str]]:
+    """:func:`compute` in a child process with :data:`PORTABLE_ENV` (bounded in time)."""
+    env = {**os.environ, **PORTABLE_ENV}
+    done = subprocess.run(
+        [sys.executable, "-m", "tests.fingerprint.fingerprints", "--json", *scenarios],
+        cwd=PROJECT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=CHILD_TIMEOUT_S,
+        check=False,
+    )
+    if done.returncode != 0:
+        raise RuntimeError(f"fingerprint child process failed:\n{done.stderr[-4000:]}")
+    got: dict[str, dict[str, str]] = json.loads(done.stdout)
+    return got
 
 
 def _digest(chunks: Iterable[bytes]) -> str:
@@ -138,15 +202,31 @@ def compute(scenarios: Iterable[str] = SCENARIOS) -> dict[str, dict[str, str]]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--update", action="store_true", help="rewrite fingerprints.json")
+    parser.add_argument(
+        "--json",
+        nargs="*",
+        metavar="SCENARIO",
+        help="print the fingerprints of these scenarios (default all) as JSON, as computed in "
+        "this process (the test runs it with PORTABLE_ENV)",
+    )
     args = parser.parse_args()
-    got = compute()
+    if args.json is not None:
+        print(json.dumps(compute(args.json or SCENARIOS), sort_keys=True))
+        return
+    if platform.machine() not in PORTABLE_MACHINES:
+        raise SystemExit(f"fingerprints are recorded on x86-64, not {platform.machine()}")
+    got = compute_portably()
     if args.update:
-        JSON_PATH.write_text(json.dumps(got, indent=1, sort_keys=True) + "\n")
+        record = {"environment": environment(), "fingerprints": got}
+        JSON_PATH.write_text(json.dumps(record, indent=1, sort_keys=True) + "\n")
         print(f"wrote {len(got)} fingerprints to {JSON_PATH}")
         return
-    want = json.loads(JSON_PATH.read_text())
+    recorded = json.loads(JSON_PATH.read_text())
+    want = recorded["fingerprints"]
     bad = [k for k in got if got[k] != want.get(k)]
     print(f"{len(got) - len(bad)} of {len(got)} fingerprints match; differ: {bad}")
+    if diff := environment_differences(recorded["environment"]):
+        print(f"recorded with other libraries: {'; '.join(diff)}")
 
 
 if __name__ == "__main__":
