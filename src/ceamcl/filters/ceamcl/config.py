@@ -90,6 +90,13 @@ class CEAMCLConfig:
         beam_skip: while a single species lives (tracking), the short readings it cannot
             explain (unmapped obstacles) are left out of the step's weighting, as ROS amcl's
             beam skipping does (:mod:`ceamcl.sensors.beam_skip`); ``None`` weighs every beam.
+
+    Not in the paper (the localisation state, docs/state.md):
+        confirm_fit_below: when a lone species' fittest individual scores below this (the
+            state's ``fit_min``), the evidence climb looks for a pose of the species that fits
+            before its fitness is reported; a species that climbed (every species while
+            several compete) reports the better of its fittest individual and the climb's
+            peak. ``None``: a lone species never climbs.
     """
 
     n_test: int = 1_000_000
@@ -133,6 +140,7 @@ class CEAMCLConfig:
     recovery_alpha_slow: float = 0.02
     recovery_warmup_steps: int = 20
     beam_skip: BeamSkipConfig | None = field(default_factory=BeamSkipConfig)
+    confirm_fit_below: float | None = 0.55
 
     def __post_init__(self) -> None:
         checks = {
@@ -170,6 +178,8 @@ class CEAMCLConfig:
             "see_through_margin_m": self.see_through_margin_m is None
             or self.see_through_margin_m >= 0,
             "see_through_tolerance": 0 <= self.see_through_tolerance < 1,
+            "confirm_fit_below": self.confirm_fit_below is None
+            or 0 < self.confirm_fit_below <= 1,
             "recovery_ratio": 0 < self.recovery_ratio < 1,
             "recovery_alpha_fast": 0 < self.recovery_alpha_fast <= 1,
             "recovery_alpha_slow": 0 < self.recovery_alpha_slow < self.recovery_alpha_fast,

@@ -128,6 +128,9 @@ class CEAMCL:
         #: next by the odometry as the climb's first candidate (docs/ceamcl.md, departure 6);
         #: species ids are never reused, so a new species never meets an old peak
         self._peaks: dict[int, NDArray[np.float64]] = {}
+        #: each species' fitness at the peak its evidence climb found this step, when it
+        #: climbed: how well the hypothesis can fit the scan (docs/state.md)
+        self._peak_fitness: dict[int, float] = {}
         #: the last scan received, for the state's wall-crossing test (docs/state.md)
         self.last_scan: LaserScan | None = None
 
@@ -146,6 +149,7 @@ class CEAMCL:
         a scan's usable beams (none: the species spread uniformly over free space)."""
         self._fit_fast = self._fit_slow = None
         self._steps_since_init = 0
+        self._peak_fitness = {}
         init, evaluations = initial_species(
             self.grid, self.sensor, prepared, self.config.initialisation, self.rng
         )
@@ -234,6 +238,7 @@ class CEAMCL:
             self.last_scan = scan
         self._evaluations = 0
         self.events = Events()
+        self._peak_fitness = {}
         prepared = usable(self.sensor, scan)
         # 1. Sample-size determination.
         targets, evaluations = grow(
@@ -284,6 +289,9 @@ class CEAMCL:
             self._evaluations += self._probe_peaks(members, best_seen, prepared, increment)
         else:
             self._peaks = {}
+            if self._fit_in_doubt(members):
+                self._evaluations += self._probe_peaks(members, best_seen, prepared, increment)
+                self._peaks = {}
         self._accumulate_evidence(
             members, self._memory_for(increment), best_seen, see_through=compared
         )
@@ -348,7 +356,19 @@ class CEAMCL:
             sigma = sigma * cfg.evidence_shrink
         np.maximum.at(best_seen, tops, best)
         self._peaks = {sid: centre[r].copy() for r, sid in enumerate(sids)}
+        peak_fit = fitness(best, prepared, self.sensor)
+        self._peak_fitness = {sid: float(peak_fit[r]) for r, sid in enumerate(sids)}
         return evaluations
+
+    def _fit_in_doubt(self, members: dict[int, NDArray[np.intp]]) -> bool:
+        """Whether a lone species' fittest individual scores below ``confirm_fit_below``:
+        before the state calls the robot lost for it, the evidence climb looks for a pose of
+        the species that fits (docs/state.md)."""
+        bar = self.config.confirm_fit_below
+        if bar is None or not members:
+            return False
+        (idx,) = members.values()
+        return bool(idx.size) and float(np.max(self.particle_set.fitness[idx])) < bar
 
     def _start_from_last_peaks(
         self,
@@ -594,7 +614,7 @@ class CEAMCL:
                 covariance=s.covariance.copy(),
                 n_particles=s.n,
                 weight=float(w),
-                fitness=_reported_fitness(s),
+                fitness=max(_reported_fitness(s), self._peak_fitness.get(s.species_id, 0.0)),
                 label=s.species_id,
             )
             for s, w in zip(stats, share, strict=True)
