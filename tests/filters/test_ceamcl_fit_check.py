@@ -9,12 +9,14 @@ import numpy as np
 import pytest
 
 from ceamcl.filters.ceamcl import CEAMCL, CEAMCLConfig
+from ceamcl.filters.state import DEFAULT_THRESHOLDS
 from ceamcl.maps.worlds import get_world
 from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel, OdometryNoise
 from ceamcl.sensors.likelihood_field import LikelihoodFieldModel
 from ceamcl.simulation.scenarios import office_scenario
 
 STILL = OdometryIncrement(0.0, 0.0, 0.0)
+FIT_MIN = DEFAULT_THRESHOLDS.fit_min  # 0.55, the default of confirm_fit_below
 
 
 def one_step(offset: tuple[float, float, float], bar: float | None, seed: int) -> CEAMCL:
@@ -41,9 +43,9 @@ def test_a_poor_fit_is_confirmed_by_a_climb_before_it_is_reported(seed: int) -> 
     plain = one_step(offset, None, seed)
     (lone,) = plain.stats.values()
     best_individual = lone.best_fitness
-    assert best_individual < 0.55  # the case the climb is for
+    assert best_individual < FIT_MIN  # the case the climb is for
     assert plain.hypotheses()[0].fitness == pytest.approx(best_individual)
-    checked = one_step(offset, 0.55, seed)
+    checked = one_step(offset, FIT_MIN, seed)
     (lone,) = checked.stats.values()
     reported = checked.hypotheses()[0].fitness
     # the same samples (the climb moves none of them) ...
@@ -56,7 +58,7 @@ def test_a_poor_fit_is_confirmed_by_a_climb_before_it_is_reported(seed: int) -> 
 def test_a_good_fit_needs_no_climb(seed: int) -> None:
     """Nothing changes where the fittest individual already fits: same bits, same report."""
     plain = one_step((0.0, 0.0, 0.0), None, seed)
-    checked = one_step((0.0, 0.0, 0.0), 0.55, seed)
-    assert checked.hypotheses()[0].fitness >= 0.55
+    checked = one_step((0.0, 0.0, 0.0), FIT_MIN, seed)
+    assert checked.hypotheses()[0].fitness >= FIT_MIN
     np.testing.assert_array_equal(checked.particle_set.poses, plain.particle_set.poses)
     assert checked.hypotheses()[0].fitness == plain.hypotheses()[0].fitness

@@ -10,6 +10,7 @@ import numpy as np
 from ceamcl.filters.ceamcl.initialisation import InitialisationConfig
 from ceamcl.filters.ceamcl.phases import CompetitionConfig, GrowthConfig, SplitMergeConfig
 from ceamcl.filters.evolution import EvolutionConfig
+from ceamcl.filters.state import DEFAULT_THRESHOLDS
 from ceamcl.sensors.beam_skip import BeamSkipConfig
 
 #: What the ``w`` of eqs. 9 and 16 is (``CEAMCLConfig.competition_fitness``).
@@ -140,7 +141,7 @@ class CEAMCLConfig:
     recovery_alpha_slow: float = 0.02
     recovery_warmup_steps: int = 20
     beam_skip: BeamSkipConfig | None = field(default_factory=BeamSkipConfig)
-    confirm_fit_below: float | None = 0.55
+    confirm_fit_below: float | None = DEFAULT_THRESHOLDS.fit_min
 
     def __post_init__(self) -> None:
         checks = {

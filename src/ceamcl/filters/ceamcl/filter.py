@@ -288,10 +288,9 @@ class CEAMCL:
         if compared:
             self._evaluations += self._probe_peaks(members, best_seen, prepared, increment)
         else:
-            self._peaks = {}
-            if self._fit_in_doubt(members):
+            self._peaks = {}  # no warm start for a lone species' climb
+            if self._fit_in_doubt(members):  # for the reported fitness only (docs/state.md)
                 self._evaluations += self._probe_peaks(members, best_seen, prepared, increment)
-                self._peaks = {}
         self._accumulate_evidence(
             members, self._memory_for(increment), best_seen, see_through=compared
         )
@@ -614,7 +613,7 @@ class CEAMCL:
                 covariance=s.covariance.copy(),
                 n_particles=s.n,
                 weight=float(w),
-                fitness=max(_reported_fitness(s), self._peak_fitness.get(s.species_id, 0.0)),
+                fitness=_reported_fitness(s, self._peak_fitness.get(s.species_id)),
                 label=s.species_id,
             )
             for s, w in zip(stats, share, strict=True)
@@ -653,9 +652,11 @@ ALGORITHM = Algorithm(
 )
 
 
-def _reported_fitness(s: SpeciesStats) -> float:
-    """How well a hypothesis fits the scan: its fittest individual's fitness, NaN-safe
-    (docs/state.md). The mean over its individuals depends on how far the motion spread them
-    since the last scan: on intel's corrected log (a scan every 0.67 m) a species on the truth
-    has a median mean fitness of 0.20 and a median best of 0.91."""
-    return s.best_fitness if np.isfinite(s.best_fitness) else s.fitness
+def _reported_fitness(s: SpeciesStats, peak: float | None = None) -> float:
+    """How well a hypothesis fits the scan: its fittest individual's fitness, NaN-safe, or
+    the ``peak`` its evidence climb found this step where that is higher (docs/state.md). The
+    mean over its individuals depends on how far the motion spread them since the last scan:
+    on intel's corrected log (a scan every 0.67 m) a species on the truth has a median mean
+    fitness of 0.20 and a median best of 0.91."""
+    best = s.best_fitness if np.isfinite(s.best_fitness) else s.fitness
+    return best if peak is None else max(best, peak)
