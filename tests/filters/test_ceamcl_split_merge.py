@@ -107,6 +107,50 @@ def test_one_blob_does_not_split(scan: LaserScan) -> None:
     assert len(f.stats) == 1 and not f.events.splits
 
 
+def _weights(f: CEAMCL) -> dict[frozenset[int], float]:
+    """Each species' weight in ``hypotheses()``, keyed by its members (arranged indices)."""
+    by_id = {h.label: h.weight for h in f.hypotheses()}
+    return {
+        frozenset(np.nonzero(f.particle_set.labels == sid)[0].tolist()): by_id[sid]
+        for sid in f.stats
+    }
+
+
+@pytest.mark.parametrize("best_in_child", [False, True])
+def test_a_split_part_holds_the_weight_its_own_samples_earn(
+    scan: LaserScan, best_in_child: bool
+) -> None:
+    """A tracked species splits: its samples at the truth and a group 1 m off and turned
+    1 rad. Each part keeps the species' past evidence but not the evidence of the other
+    part's samples: the part that holds the best sample keeps the species' weight, the other
+    falls behind by its best sample's log-likelihood deficit (docs/ceamcl.md, "a split part's
+    own evidence"). Before, both parts inherited the whole and held 50 % each, and the state
+    experiment scored a wrong place holding half the weight."""
+    rng = np.random.default_rng(9)
+    right = blob(rng, TRUTH, 70)
+    turned = blob(rng, TRUTH + np.array([1.0, 0.0, 1.0]), 40)  # the smaller part: a child
+    poses = np.vstack([turned, right]) if best_in_child else np.vstack([right, turned])
+    f = arranged(scan, poses, np.zeros(110, dtype=np.int64))
+    f.log_weight = {0: 0.0}
+    ll = f.particle_set.loglik.copy()
+    f._split_and_merge(scores=ll)
+    assert f.events.splits == 1.0 and len(f.stats) == 2
+    right_idx = frozenset(range(40, 110) if best_in_child else range(70))
+    turned_idx = frozenset(range(40) if best_in_child else range(70, 110))
+    w = _weights(f)
+    deficit = float(np.max(ll[list(turned_idx)]) - np.max(ll[list(right_idx)]))
+    assert deficit < np.log(0.05)  # the other group fits the room clearly worse
+    np.testing.assert_allclose(w[turned_idx] / w[right_idx], np.exp(deficit), rtol=1e-9)
+    assert w[right_idx] > 0.95
+    assert f.state().n_hypotheses <= 1  # the turned part holds no weight worth a rival
+
+    # Without the step's scores (a split at initialisation), both parts keep the whole's.
+    g = arranged(scan, poses, np.zeros(110, dtype=np.int64))
+    g.log_weight = {0: 0.0}
+    g._split_and_merge()
+    assert sorted(_weights(g).values()) == pytest.approx([0.5, 0.5])
+
+
 # ---------------------------------------------------------------- merge
 def test_overlapping_species_without_a_valley_merge(scan: LaserScan) -> None:
     rng = np.random.default_rng(4)

@@ -295,7 +295,7 @@ class CEAMCL:
             members, self._memory_for(increment), best_seen, see_through=compared
         )
         # 6. Split and merge.
-        self._split_and_merge(members)  # leaves self.stats fresh
+        self._split_and_merge(members, ps.loglik.copy())  # leaves self.stats fresh
         if self._fitness_collapsed():
             self.events.recoveries += 1
             return self._restart(full)  # kidnapped: no species explains the scans
@@ -507,18 +507,37 @@ class CEAMCL:
         return self._record(reinitialised=True)
 
     # ------------------------------------------------------------------ 6. split and merge
-    def _split_and_merge(self, members: dict[int, NDArray[np.intp]] | None = None) -> None:
+    def _split_and_merge(
+        self,
+        members: dict[int, NDArray[np.intp]] | None = None,
+        scores: NDArray[np.float64] | None = None,
+    ) -> None:
         """Split, then merge (``members``: the particles of each species when already known,
         as :func:`~ceamcl.filters.resampling.label_groups` gives them); on return
-        ``self.stats`` describes the current particles."""
+        ``self.stats`` describes the current particles. Each part of a split species keeps
+        the species' past evidence; with ``scores`` (each sample's log-likelihood for the
+        step's scan) a part whose best sample scores below the species' best loses the
+        difference from the step's evidence: the part that holds the best sample (and the
+        climb from it) keeps the species' weight, the others fall behind by what their own
+        samples show (docs/ceamcl.md, "a split part's own evidence")."""
         ps = self.particle_set
         if members is None:
             members = label_groups(ps.labels)
-        new_ids = split(ps, members, self.config.split_merge, self._next_id, self.events)
+        new_ids, shortfall = split(
+            ps, members, self.config.split_merge, self._next_id, self.events, scores
+        )
         for sid, parent in new_ids.items():
             self.competition.dn[sid] = 0.0
             self.log_weight[sid] = self.log_weight.get(parent, 0.0)  # the parent's past
             self._peaks.pop(parent, None)  # the peak may lie in either part
+        for sid, short in shortfall.items():
+            self.log_weight[sid] = self.log_weight.get(sid, 0.0) + short
+        if scores is not None:
+            # the climb's peak belongs to the part that holds the species' best sample
+            for parent in set(new_ids.values()) & set(self._peak_fitness):
+                parts = [parent] + [c for c, p in new_ids.items() if p == parent]
+                holder = next((p for p in parts if p not in shortfall), parent)
+                self._peak_fitness[holder] = self._peak_fitness.pop(parent)
         self._next_id += len(new_ids)
         self._refresh_stats()
         self._merge()

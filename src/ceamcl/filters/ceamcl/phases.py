@@ -156,30 +156,44 @@ def split(
     config: SplitMergeConfig,
     next_id: int,
     events: Events,
-) -> dict[int, int]:
+    scores: NDArray[np.float64] | None = None,
+) -> tuple[dict[int, int], dict[int, float]]:
     """Phase 6a: a species whose particles occupy several connected regions of cells splits,
     one species per region (the first keeps the id, the others get ids from ``next_id``);
     fragments smaller than a viable species are dropped (resampling refills the parent next
     step). ``members``: the particles of each species (:func:`label_groups`). Returns each new
-    id's parent."""
+    id's parent and, with ``scores`` (each particle's log-likelihood for the step's scan),
+    each part's shortfall where it is not 0: the best score in the part minus the best in the
+    whole species (docs/ceamcl.md, "a split part's own evidence")."""
     keep = np.ones(ps.n, dtype=bool)
     new_ids: dict[int, int] = {}
+    shortfall: dict[int, float] = {}
     compact = compact_species(members, ps.poses, config.split_cell_m, config.split_cell_rad)
     for sid, idx in members.items():
         if idx.size < 2 * config.min_species_size or sid in compact:
             continue
         parts = split_parts(idx, ps.poses, config.split_cell_m, config.split_cell_rad)
+        whole = float(np.max(scores[idx])) if scores is not None and len(parts) > 1 else 0.0
+
+        def short(part: NDArray[np.intp], whole: float = whole) -> float:
+            if scores is None or not np.isfinite(whole):
+                return 0.0
+            return float(np.max(scores[part])) - whole  # <= 0; -inf when nothing fits
+
+        if len(parts) > 1:
+            shortfall[sid] = short(parts[0])
         for part in parts[1:]:
             if part.size >= config.min_species_size:
                 ps.labels[part] = next_id
                 new_ids[next_id] = sid
+                shortfall[next_id] = short(part)
                 next_id += 1
                 events.splits += 1
             else:
                 keep[part] = False
     if not keep.all():
         ps.take(keep)
-    return new_ids
+    return new_ids, {k: v for k, v in shortfall.items() if v != 0.0}
 
 
 def merge(
