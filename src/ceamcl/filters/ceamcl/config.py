@@ -32,6 +32,8 @@ class CEAMCLConfig:
         tracking_epsilon_m2: the same while a single species lives (tracking): 1.5 m^2, a floor
             of 120 samples, where the paper's 40 drift off a real robot (docs/ceamcl.md,
             "epsilon"); ``None``: ``epsilon_m2`` throughout.
+        fill_tracking_floor: a lone species below that floor grows to it at once, not by
+            eq. 9's logistic steps (docs/ceamcl.md, departure 8).
         delta_per_m2: resources per square metre of living domain (eq. 15).
         evolution: p_c = 0.85, p_m = 0.15 and the mutation's Sigma.
 
@@ -109,6 +111,7 @@ class CEAMCLConfig:
     growth_rate: float = 0.2
     epsilon_m2: float = 0.5
     tracking_epsilon_m2: float | None = 1.5
+    fill_tracking_floor: bool = True
     delta_per_m2: float = 80.0
     evolution: EvolutionConfig = field(
         default_factory=lambda: EvolutionConfig(selection="metropolis")
@@ -233,5 +236,9 @@ class CEAMCLConfig:
     def competition(self) -> CompetitionConfig:
         """The competition phase's settings (eqs. 9-16)."""
         return CompetitionConfig(
-            self.growth_rate, self.epsilon_m2, self.delta_per_m2, self.tracking_epsilon_m2
+            self.growth_rate,
+            self.epsilon_m2,
+            self.delta_per_m2,
+            self.tracking_epsilon_m2,
+            self.fill_tracking_floor,
         )

@@ -71,6 +71,9 @@ class CompetitionConfig:
     epsilon_m2: float
     delta_per_m2: float
     tracking_epsilon_m2: float | None = None
+    #: a lone species below the tracking floor (``delta * tracking_epsilon_m2``) grows to it at
+    #: once instead of logistically (docs/ceamcl.md, departure 8)
+    fill_tracking_floor: bool = False
 
 
 @dataclass
@@ -285,6 +288,10 @@ def compete(
     fit = np.array([max(_fitness_of(stats, fitness, s), 1e-12) for s in ids])
     cap = np.array([out.capacity[s] for s in ids])
     dn = step_increments(n, cap, competition_coefficients(fit), config.growth_rate)
+    if len(ids) == 1 and config.fill_tracking_floor and config.tracking_epsilon_m2 is not None:
+        # the competition is over: the floor tracking needs holds from now, not in 10-25 steps
+        floor = config.delta_per_m2 * config.tracking_epsilon_m2
+        dn = np.maximum(dn, floor - n)
     out.dn = dict(zip(ids, dn.tolist(), strict=True))
     return out
 
