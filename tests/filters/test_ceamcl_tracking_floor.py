@@ -9,12 +9,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from ceamcl.filters.ceamcl import CEAMCL, CEAMCLConfig
+from ceamcl.filters import make_filter
+from ceamcl.filters.ceamcl import CEAMCLConfig
 from ceamcl.filters.ceamcl.phases import CompetitionConfig, compete, species_stats
+from ceamcl.filters.ceamcl.species import SpeciesStats
 from ceamcl.filters.particles import ParticleSet
 from ceamcl.maps.worlds import get_world
-from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel, OdometryNoise
-from ceamcl.sensors.likelihood_field import LikelihoodFieldModel
+from ceamcl.motion.odometry import OdometryIncrement
 from ceamcl.simulation.scenarios import office_scenario
 
 STILL = OdometryIncrement(0.0, 0.0, 0.0)
@@ -25,13 +26,7 @@ def sizes_after_tracking(fill: bool, steps: int = 3) -> list[int]:
     log = office_scenario().simulate(np.random.default_rng(1))
     world = get_world("small-office")
     config = replace(CEAMCLConfig(), tracking_samples=40, fill_tracking_floor=fill)
-    f = CEAMCL(
-        world,
-        OdometryMotionModel(OdometryNoise()),
-        LikelihoodFieldModel(world),
-        config,
-        rng=np.random.default_rng(0),
-    )
+    f = make_filter("ceamcl", world, np.random.default_rng(0), config=config)
     f.initialise_pose(log.true_poses[0], np.diag([0.01, 0.01, 0.005]))
     sizes = []
     for _ in range(steps):
@@ -52,7 +47,7 @@ def test_a_lone_species_below_the_floor_reaches_it_at_the_next_step() -> None:
     assert logistic[0] == 40 and logistic[-1] < 60
 
 
-def _stats(sizes: list[int]) -> dict:  # type: ignore[type-arg]
+def _stats(sizes: list[int]) -> dict[int, SpeciesStats]:
     rng = np.random.default_rng(3)
     poses = np.vstack(
         [rng.normal([2.0 + 4 * i, 2.0, 0.0], 0.02, (n, 3)) for i, n in enumerate(sizes)]

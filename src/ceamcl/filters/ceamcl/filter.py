@@ -295,7 +295,7 @@ class CEAMCL:
             members, self._memory_for(increment), best_seen, see_through=compared
         )
         # 6. Split and merge.
-        self._split_and_merge(members, ps.loglik.copy())  # leaves self.stats fresh
+        self._split_and_merge(members, ps.loglik)  # leaves self.stats fresh
         if self._fitness_collapsed():
             self.events.recoveries += 1
             return self._restart(full)  # kidnapped: no species explains the scans
@@ -536,7 +536,7 @@ class CEAMCL:
             # the climb's peak belongs to the part that holds the species' best sample
             for parent in set(new_ids.values()) & set(self._peak_fitness):
                 parts = [parent] + [c for c, p in new_ids.items() if p == parent]
-                holder = next((p for p in parts if p not in shortfall), parent)
+                holder = next((p for p in parts if shortfall.get(p) == 0.0), parent)
                 self._peak_fitness[holder] = self._peak_fitness.pop(parent)
         self._next_id += len(new_ids)
         self._refresh_stats()

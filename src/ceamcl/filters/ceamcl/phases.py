@@ -166,8 +166,9 @@ def split(
     fragments smaller than a viable species are dropped (resampling refills the parent next
     step). ``members``: the particles of each species (:func:`label_groups`). Returns each new
     id's parent and, with ``scores`` (each particle's log-likelihood for the step's scan),
-    each part's shortfall where it is not 0: the best score in the part minus the best in the
-    whole species (docs/ceamcl.md, "a split part's own evidence")."""
+    the shortfall of every part of a split species, the kept first one included: the best
+    score in the part minus the best in the whole species, 0 for the part that holds it
+    (docs/ceamcl.md, "a split part's own evidence")."""
     keep = np.ones(ps.n, dtype=bool)
     new_ids: dict[int, int] = {}
     shortfall: dict[int, float] = {}
@@ -176,27 +177,23 @@ def split(
         if idx.size < 2 * config.min_species_size or sid in compact:
             continue
         parts = split_parts(idx, ps.poses, config.split_cell_m, config.split_cell_rad)
-        whole = float(np.max(scores[idx])) if scores is not None and len(parts) > 1 else 0.0
-
-        def short(part: NDArray[np.intp], whole: float = whole) -> float:
-            if scores is None or not np.isfinite(whole):
-                return 0.0
-            return float(np.max(scores[part])) - whole  # <= 0; -inf when nothing fits
-
-        if len(parts) > 1:
-            shortfall[sid] = short(parts[0])
-        for part in parts[1:]:
+        tops = [float(np.max(scores[p])) for p in parts] if scores is not None else []
+        whole = max(tops, default=-np.inf)  # the species' best, fragments included
+        if np.isfinite(whole) and len(parts) > 1:
+            shortfall[sid] = tops[0] - whole
+        for k, part in enumerate(parts[1:], start=1):
             if part.size >= config.min_species_size:
                 ps.labels[part] = next_id
                 new_ids[next_id] = sid
-                shortfall[next_id] = short(part)
+                if np.isfinite(whole):
+                    shortfall[next_id] = tops[k] - whole  # <= 0; -inf when nothing fits
                 next_id += 1
                 events.splits += 1
             else:
                 keep[part] = False
     if not keep.all():
         ps.take(keep)
-    return new_ids, {k: v for k, v in shortfall.items() if v != 0.0}
+    return new_ids, shortfall
 
 
 def merge(
@@ -253,14 +250,19 @@ def allocate_resources(
     ``competition``."""
     ids = list(stats)
     area = np.array([stats[s].area_m2 for s in ids])
-    eps = config.epsilon_m2
-    if len(ids) == 1 and config.tracking_epsilon_m2 is not None:
-        eps = config.tracking_epsilon_m2  # one species tracks the robot (docs/ceamcl.md)
+    tracking = _tracking_epsilon(config, len(ids))
+    eps = config.epsilon_m2 if tracking is None else tracking
     res = resources(area, config.delta_per_m2, eps)
     fit = np.array([_fitness_of(stats, fitness, s) for s in ids])
     cap = carrying_capacity(fit, float(res.sum()))
     competition.resources = dict(zip(ids, res.tolist(), strict=True))
     competition.capacity = dict(zip(ids, cap.tolist(), strict=True))
+
+
+def _tracking_epsilon(config: CompetitionConfig, n_species: int) -> float | None:
+    """``tracking_epsilon_m2`` while a single species tracks the robot (docs/ceamcl.md,
+    "epsilon"), else None."""
+    return config.tracking_epsilon_m2 if n_species == 1 else None
 
 
 def _fitness_of(
@@ -288,10 +290,10 @@ def compete(
     fit = np.array([max(_fitness_of(stats, fitness, s), 1e-12) for s in ids])
     cap = np.array([out.capacity[s] for s in ids])
     dn = step_increments(n, cap, competition_coefficients(fit), config.growth_rate)
-    if len(ids) == 1 and config.fill_tracking_floor and config.tracking_epsilon_m2 is not None:
+    tracking = _tracking_epsilon(config, len(ids))
+    if config.fill_tracking_floor and tracking is not None:
         # the competition is over: the floor tracking needs holds from now, not in 10-25 steps
-        floor = config.delta_per_m2 * config.tracking_epsilon_m2
-        dn = np.maximum(dn, floor - n)
+        dn = np.maximum(dn, config.delta_per_m2 * tracking - n)
     out.dn = dict(zip(ids, dn.tolist(), strict=True))
     return out
 
