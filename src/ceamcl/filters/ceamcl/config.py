@@ -88,6 +88,11 @@ class CEAMCLConfig:
             running average of the fittest species' fitness below ``recovery_ratio`` times the
             slow one.
         recovery_warmup_steps: steps after any initialisation before collapse is tested.
+        recovery_prior: with a number, a recovery keeps the species it had beside the new
+            ones (docs/ceamcl.md, departure 9): each new species starts at ``recovery_prior``
+            times the leading species' weight (the odds that the robot was carried off rather
+            than the scans being poor), then both gather evidence; ``None``: the old species
+            are dropped and the new ones start level.
 
     Not in the paper (unmapped obstacles, docs/ceamcl.md):
         beam_skip: while a single species lives (tracking), the short readings it cannot
@@ -143,6 +148,7 @@ class CEAMCLConfig:
     recovery_alpha_fast: float = 0.3
     recovery_alpha_slow: float = 0.02
     recovery_warmup_steps: int = 20
+    recovery_prior: float | None = 1e-6
     beam_skip: BeamSkipConfig | None = field(default_factory=BeamSkipConfig)
     confirm_fit_below: float | None = DEFAULT_THRESHOLDS.fit_min
 
@@ -188,6 +194,7 @@ class CEAMCLConfig:
             "recovery_alpha_fast": 0 < self.recovery_alpha_fast <= 1,
             "recovery_alpha_slow": 0 < self.recovery_alpha_slow < self.recovery_alpha_fast,
             "recovery_warmup_steps": self.recovery_warmup_steps >= 0,
+            "recovery_prior": self.recovery_prior is None or 0 < self.recovery_prior <= 1,
         }
         for name, ok in checks.items():
             if not ok:

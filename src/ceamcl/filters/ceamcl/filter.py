@@ -64,6 +64,7 @@ from ceamcl.filters.particles import (
     gaussian,
     propagate,
     resample_within_labels,
+    uniform_log_weights,
     usable,
     weigh,
 )
@@ -144,9 +145,18 @@ class CEAMCL:
         self._initialise_from(usable(self.sensor, scan))
         return self._record(reinitialised=False)
 
-    def _initialise_from(self, prepared: PreparedScan | None) -> None:
+    def _initialise_from(
+        self,
+        prepared: PreparedScan | None,
+        *,
+        kept: tuple[ParticleSet, dict[int, float]] | None = None,
+        prior: float = 1.0,
+    ) -> None:
         """Section 3.1 (:func:`~ceamcl.filters.ceamcl.initialisation.initial_species`) with
-        a scan's usable beams (none: the species spread uniformly over free space)."""
+        a scan's usable beams (none: the species spread uniformly over free space). ``kept``:
+        particles of earlier species to keep beside the new ones, with each species' log
+        evidence in the scale of the new species' log-likelihoods; the new species then start
+        at ``prior`` times their own evidence (:meth:`_recover`)."""
         self._fit_fast = self._fit_slow = None
         self._steps_since_init = 0
         self._peak_fitness = {}
@@ -183,6 +193,17 @@ class CEAMCL:
         # each species' evidence so far: the first scan's mean likelihood over its samples
         self.log_weight = {}
         self._accumulate_evidence(label_groups(labels), memory=0.0)
+        if kept is not None:
+            old, evidence = kept
+            finite = loglik[np.isfinite(loglik)]
+            # back to the log-likelihoods' scale (the largest new species' evidence is 0 now)
+            shift = (float(np.max(finite)) if finite.size else -np.inf) + float(np.log(prior))
+            self.log_weight = {sid: v + shift for sid, v in self.log_weight.items()}
+            self.log_weight.update(evidence)
+            self.particle_set.extend(old)
+            self.particle_set.log_weights = uniform_log_weights(self.particle_set.n)
+            self.competition.dn.update({sid: 0.0 for sid in evidence})
+            self._normalise_weights()
         # The paper clusters initial species in x-y only; one x-y region can hold a pose and
         # its mirror image (same place, other heading). Splitting now, before the first
         # resampling, keeps both as species instead of letting resampling pick one.
@@ -298,6 +319,8 @@ class CEAMCL:
         self._split_and_merge(members, ps.loglik)  # leaves self.stats fresh
         if self._fitness_collapsed():
             self.events.recoveries += 1
+            if cfg.recovery_prior is not None:
+                return self._recover(full, increment)  # a second opinion (departure 9)
             return self._restart(full)  # kidnapped: no species explains the scans
         # 7. Competition: dN of every species for the next step.
         self.competition = compete(self.stats, cfg.competition, self._competition_fitness())
@@ -497,6 +520,37 @@ class CEAMCL:
             and self._steps_since_init > cfg.recovery_warmup_steps
             and self._fit_fast < cfg.recovery_ratio * self._fit_slow
         )
+
+    def _recover(self, prepared: PreparedScan, increment: OdometryIncrement) -> CEAMCLRecord:
+        """The kidnap test fired: global initialisation from the step's scan, the species the
+        filter had kept beside the new ones (docs/ceamcl.md, departure 9). The old species are
+        scored with the whole scan (a lone species was weighed without the beams it skipped)
+        and climb from their best samples, as the new species' test poses were polished; each
+        keeps its accumulated evidence, and each new species starts at ``recovery_prior``
+        times the leading old species' weight before this scan's evidence. A robot that was
+        carried off is found again within a few scans, as the old species keep failing; a
+        scan or two that the map explains poorly no longer hands the estimate to whichever
+        place of the building fits that one scan best."""
+        prior = self.config.recovery_prior
+        assert prior is not None
+        old = self.particle_set
+        members = label_groups(old.labels)
+        weigh(old, self.sensor, prepared)
+        old.fitness = fitness(old.loglik, prepared, self.sensor)
+        spent = old.n
+        best_seen = old.loglik.copy()
+        spent += self._probe_peaks(members, best_seen, prepared, increment)
+        gains = {sid: float(np.max(best_seen[idx])) for sid, idx in members.items() if idx.size}
+        past = {sid: self.log_weight.get(sid, 0.0) for sid in gains}
+        lead = max(past, key=lambda sid: past[sid], default=None)
+        kept = None
+        if lead is not None and np.isfinite(gains[lead]):
+            # evidence in the new species' scale: the leader's relative weight is 0
+            kept = (old, {sid: v + gains[lead] for sid, v in past.items()})
+        self._initialise_from(prepared, kept=kept, prior=prior)
+        self._evaluations += spent
+        self.events.restarts += 1
+        return self._record(reinitialised=True)
 
     def _restart(self, prepared: PreparedScan | None) -> CEAMCLRecord:
         """Every species died out (or every particle is impossible, or the robot was
