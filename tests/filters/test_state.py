@@ -110,12 +110,28 @@ def test_every_filter_reports_a_state_initialising_then_localised_when_tracking(
     assert 0.0 <= s.confidence <= 1.0
 
 
+def test_a_lighter_fitting_hypothesis_does_not_vouch_for_the_estimate() -> None:
+    # the estimate comes from the heaviest hypothesis; it does not fit (a restart's first step
+    # after a kidnap: the old place keeps its weight while a new species fits)
+    s = read_hypotheses([hyp(0.6, 0.31), hyp(0.2, 0.82, x=5.0), hyp(0.2, 0.35, x=9.0)])
+    assert s.state is State.LOST and "leading hypothesis (60%" in s.reason
+    assert s.n_hypotheses == 0 and 0.0 < s.confidence < 1.0
+    # once the fitting one leads, it is LOCALISED
+    s = read_hypotheses([hyp(0.2, 0.31), hyp(0.6, 0.82, x=5.0), hyp(0.2, 0.35, x=9.0)])
+    assert s.state is State.LOCALISED and s.weights == pytest.approx((0.6,))
+
+
 # ------------------------------------------------------------------ the wall-crossing test
 def test_a_fitting_hypothesis_whose_scan_goes_through_walls_does_not_count() -> None:
     lead, rival = hyp(0.7, 0.9), hyp(0.3, 0.9, x=5.0)
-    through = {0.0: 0.5, 5.0: 0.0}  # share of readings through walls, by x
+    through = {0.0: 0.0, 5.0: 0.5}  # share of readings through walls, by x
     s = read_hypotheses([lead, rival], crossing=lambda pose: through[float(pose[0])])
-    assert s.state is State.LOCALISED and s.weights == pytest.approx((0.3,))
+    assert s.state is State.LOCALISED and s.weights == pytest.approx((0.7,))
+    # the estimate's own hypothesis sees through the walls: the lighter rival that does not is
+    # no reason to trust the estimate
+    through = {0.0: 0.5, 5.0: 0.0}
+    s = read_hypotheses([lead, rival], crossing=lambda pose: through[float(pose[0])])
+    assert s.state is State.LOST and "lighter" in s.reason
     alone = read_hypotheses([hyp(1.0, 0.95)], crossing=lambda pose: 0.5)
     assert alone.state is State.LOST and "walls" in alone.reason and alone.confidence == 1.0
     t = DEFAULT_THRESHOLDS.max_wall_crossing

@@ -190,7 +190,8 @@ def read_hypotheses(
 
     Candidates are the hypotheses that hold weight and fit the scan: fitness at least
     ``fit_min`` and, when ``crossing`` is given (:func:`wall_crossing` of the last scan), no
-    more than ``max_wall_crossing`` of the readings through the map's walls. None: LOST. One:
+    more than ``max_wall_crossing`` of the readings through the map's walls. None, or none
+    that is the heaviest hypothesis (where the estimate comes from): LOST. One:
     LOCALISED, unless its pose is spread wider than ``max_position_std_m`` (LOST). Several:
     AMBIGUOUS (a rival holding ``weight_min`` is a real alternative, as the experiment's true
     state counts it). NaN weights or fitness count as 0.
@@ -220,6 +221,19 @@ def read_hypotheses(
             f"the scan passes through the map's walls from every fitting hypothesis "
             f"({crossed[lead]:.0%} of the readings at the leading one > "
             f"{t.max_wall_crossing:.0%})",
+        )
+    heaviest = int(order[0])
+    if candidates and candidates[0] != heaviest:
+        # the estimate comes from the heaviest hypothesis, and it does not fit: a lighter one
+        # that fits is where the filter may be going, not where it says the robot is
+        return LocalisationState(
+            State.LOST,
+            _clip01(1.0 - float(fit[heaviest]) / t.fit_min),
+            0,
+            (),
+            f"the leading hypothesis ({weights[heaviest]:.0%} of the weight) does not fit the "
+            f"scan (fitness {fit[heaviest]:.2f}); a lighter one ({weights[candidates[0]]:.0%}) "
+            f"does",
         )
     if not candidates:
         best = float(fit[holds].max()) if holds.any() else float(fit.max())
