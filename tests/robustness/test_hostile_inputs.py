@@ -37,6 +37,14 @@ def _cap_memory() -> None:
     resource.setrlimit(resource.RLIMIT_AS, (MEMORY_CAP, MEMORY_CAP))
 
 
+def _cap_memory_with_ctrl_c() -> None:
+    """:func:`_cap_memory`, and Ctrl-C back to its default: a shell that starts a job in the
+    background (``make test &``) starts it with SIGINT ignored, which its children inherit,
+    and Python then never raises KeyboardInterrupt."""
+    _cap_memory()
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _env(extra: dict[str, str] | None = None) -> dict[str, str]:
     env = {k: v for k, v in os.environ.items() if k != "CEAMCL_MEMORY_BUDGET"}
     env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
@@ -180,7 +188,7 @@ def test_ctrl_c_exits_130_with_one_line_and_removes_the_new_output_folder(
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
-        preexec_fn=_cap_memory,
+        preexec_fn=_cap_memory_with_ctrl_c,
     )
     deadline = time.monotonic() + 60
     while not (tmp_path / "new" / "out").exists() and time.monotonic() < deadline:
