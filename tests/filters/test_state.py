@@ -132,6 +132,7 @@ def test_a_fitting_hypothesis_whose_scan_goes_through_walls_does_not_count() -> 
     through = {0.0: 0.5, 5.0: 0.0}
     s = read_hypotheses([lead, rival], crossing=lambda pose: through[float(pose[0])])
     assert s.state is State.LOST and "lighter" in s.reason
+    assert "walls" in s.reason and s.confidence == 1.0  # as for a lone leader, below
     alone = read_hypotheses([hyp(1.0, 0.95)], crossing=lambda pose: 0.5)
     assert alone.state is State.LOST and "walls" in alone.reason and alone.confidence == 1.0
     t = DEFAULT_THRESHOLDS.max_wall_crossing

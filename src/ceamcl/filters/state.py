@@ -226,14 +226,19 @@ def read_hypotheses(
     if candidates and candidates[0] != heaviest:
         # the estimate comes from the heaviest hypothesis, and it does not fit: a lighter one
         # that fits is where the filter may be going, not where it says the robot is
+        if heaviest in crossed:  # it fits the scan, but the scan passes through walls from it
+            confidence = crossed[heaviest] / (2.0 * t.max_wall_crossing)
+            why = f"{crossed[heaviest]:.0%} of the readings pass through the map's walls"
+        else:
+            confidence = 1.0 - float(fit[heaviest]) / t.fit_min
+            why = f"fitness {fit[heaviest]:.2f}"
         return LocalisationState(
             State.LOST,
-            _clip01(1.0 - float(fit[heaviest]) / t.fit_min),
+            _clip01(confidence),
             0,
             (),
             f"the leading hypothesis ({weights[heaviest]:.0%} of the weight) does not fit the "
-            f"scan (fitness {fit[heaviest]:.2f}); a lighter one ({weights[candidates[0]]:.0%}) "
-            f"does",
+            f"scan ({why}); a lighter one ({weights[candidates[0]]:.0%}) does",
         )
     if not candidates:
         best = float(fit[holds].max()) if holds.any() else float(fit.max())
