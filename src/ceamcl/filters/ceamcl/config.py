@@ -93,6 +93,12 @@ class CEAMCLConfig:
             times the leading species' weight (the odds that the robot was carried off rather
             than the scans being poor), then both gather evidence; ``None``: the old species
             are dropped and the new ones start level.
+        recovery_lost_updates: a recovery also fires when the filter's own state
+            (:meth:`~ceamcl.filters.ceamcl.filter.CEAMCL.state`) has said LOST at this many
+            consecutive updates with a scan (docs/ceamcl.md, departure 10): the kidnap test sees
+            a fall, not a filter that stays lost. Each further recovery fired this way before
+            the state leaves LOST waits twice as long, so a place the map does not hold costs
+            a bounded share of the time. ``None``: the kidnap test alone.
 
     Not in the paper (unmapped obstacles, docs/ceamcl.md):
         beam_skip: while a single species lives (tracking), the short readings it cannot
@@ -149,6 +155,7 @@ class CEAMCLConfig:
     recovery_alpha_slow: float = 0.02
     recovery_warmup_steps: int = 20
     recovery_prior: float | None = 1e-6
+    recovery_lost_updates: int | None = 3
     beam_skip: BeamSkipConfig | None = field(default_factory=BeamSkipConfig)
     confirm_fit_below: float | None = DEFAULT_THRESHOLDS.fit_min
 
@@ -195,6 +202,8 @@ class CEAMCLConfig:
             "recovery_alpha_slow": 0 < self.recovery_alpha_slow < self.recovery_alpha_fast,
             "recovery_warmup_steps": self.recovery_warmup_steps >= 0,
             "recovery_prior": self.recovery_prior is None or 0 < self.recovery_prior <= 1,
+            "recovery_lost_updates": self.recovery_lost_updates is None
+            or self.recovery_lost_updates >= 1,
         }
         for name, ok in checks.items():
             if not ok:

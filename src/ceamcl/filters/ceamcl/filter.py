@@ -71,6 +71,7 @@ from ceamcl.filters.particles import (
 from ceamcl.filters.resampling import label_groups
 from ceamcl.filters.state import (
     LocalisationState,
+    State,
     initialising,
     read_hypotheses,
     wall_crossing,
@@ -123,6 +124,10 @@ class CEAMCL:
         self._fit_fast: float | None = None
         self._fit_slow: float | None = None
         self._steps_since_init = 0
+        #: consecutive updates the state has said LOST, and how many a recovery waits for
+        #: (doubled after each one it fires until the state leaves LOST; departure 10)
+        self._lost_streak = 0
+        self._lost_wait = self.config.recovery_lost_updates or 0
         #: log of each species' accumulated evidence, the largest 0 (docs/ceamcl.md)
         self.log_weight: dict[int, float] = {}
         #: each species' evidence peak at the last step that compared species, carried to the
@@ -159,6 +164,7 @@ class CEAMCL:
         at ``prior`` times their own evidence (:meth:`_recover`)."""
         self._fit_fast = self._fit_slow = None
         self._steps_since_init = 0
+        self._lost_streak = 0
         self._peak_fitness = {}
         init, evaluations = initial_species(
             self.grid, self.sensor, prepared, self.config.initialisation, self.rng
@@ -317,7 +323,9 @@ class CEAMCL:
         )
         # 6. Split and merge.
         self._split_and_merge(members, ps.loglik)  # leaves self.stats fresh
-        if self._fitness_collapsed():
+        collapsed = self._fitness_collapsed()  # both run: each keeps its own running record
+        lost = self._lost_too_long()
+        if collapsed or lost:
             self.events.recoveries += 1
             if cfg.recovery_prior is not None:
                 return self._recover(full, increment)  # a second opinion (departure 9)
@@ -520,6 +528,23 @@ class CEAMCL:
             and self._steps_since_init > cfg.recovery_warmup_steps
             and self._fit_fast < cfg.recovery_ratio * self._fit_slow
         )
+
+    def _lost_too_long(self) -> bool:
+        """Has the state said LOST at ``recovery_lost_updates`` consecutive updates (the
+        wait doubled after each recovery this fired, until the state leaves LOST)?
+        (docs/ceamcl.md, departure 10.) Read after split and merge, as the runner reads it."""
+        cfg = self.config
+        if cfg.recovery_lost_updates is None or not cfg.recovery:
+            return False
+        if self.state().state is not State.LOST:
+            self._lost_streak = 0
+            self._lost_wait = cfg.recovery_lost_updates
+            return False
+        self._lost_streak += 1
+        if self._lost_streak < self._lost_wait:
+            return False
+        self._lost_wait *= 2
+        return True
 
     def _recover(self, prepared: PreparedScan, increment: OdometryIncrement) -> CEAMCLRecord:
         """The kidnap test fired: global initialisation from the step's scan, the species the

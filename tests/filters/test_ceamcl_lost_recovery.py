@@ -1,0 +1,65 @@
+"""A filter that stays lost looks again (``recovery_lost_updates``, docs/ceamcl.md departure
+10). The kidnap test sees a *fall* of the fitness; a filter that is wrong from the start, or
+that a recovery left on a wrong place, never shows one, while its own state says LOST at every
+update. After ``recovery_lost_updates`` such updates CEAMCL recovers (a second opinion, as
+departure 9) and finds the robot."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from ceamcl.filters import make_filter
+from ceamcl.filters.ceamcl import CEAMCL, CEAMCLConfig
+from ceamcl.filters.state import State
+from ceamcl.runner import RunResult, run_filter
+from ceamcl.simulation.scenarios import office_scenario
+
+#: a pose in the north-east room of small-office, far from the tour's start
+WRONG = np.array([5.5, 6.5, 0.0])
+SECONDS_LOST = 10  # what the kidnap test alone leaves a filter started wrong (below)
+
+
+def started_wrong(seed: int, config: CEAMCLConfig) -> RunResult:
+    sc = office_scenario()
+    grid = sc.grid()
+    log = sc.simulate(np.random.default_rng(seed))
+    f = make_filter("ceamcl", grid, np.random.default_rng(seed + 100), config=config)
+    assert isinstance(f, CEAMCL)
+    cov = np.diag([0.1**2, 0.1**2, 0.05**2])
+    return run_filter(f, log, initial_pose=(WRONG, cov))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_filter_that_stays_lost_looks_again_and_finds_the_robot(seed: int) -> None:
+    config = CEAMCLConfig()
+    n = config.recovery_lost_updates
+    assert n is not None
+    result = started_wrong(seed, config)
+    err = result.position_errors
+    assert err is not None
+    states = [d.state.state if d.state else None for d in result.diagnostics]
+    recoveries = [k for k, d in enumerate(result.diagnostics) if d.reinitialised]
+    assert recoveries, "no recovery in a filter that said LOST"
+    first = recoveries[0]
+    # it fired at the n-th update in a row that said LOST (step 0 is the first: the tracking
+    # start's update with the first scan), not before
+    assert first >= n - 1
+    assert all(s is State.LOST for s in states[first - n + 1 : first])
+    assert err[:first].min() > 2.0  # the start was wrong until then
+    assert err[-10:].max() < 0.5  # found, and held to the end
+    assert all(s is State.LOCALISED for s in states[-5:])
+
+
+def test_without_it_a_filter_started_wrong_stays_lost_for_seconds() -> None:
+    """The kidnap test alone: no fall to see, so the filter says LOST and stays wrong (in this
+    run for 25.6 s, until the wrong place's fitness falls further as the robot drives on)."""
+    result = started_wrong(0, replace(CEAMCLConfig(), recovery_lost_updates=None))
+    err = result.position_errors
+    assert err is not None
+    early = result.diagnostics[: SECONDS_LOST * 10]
+    assert not any(d.reinitialised for d in early)
+    assert err[: len(early)].min() > 2.0
+    assert all(d.state and d.state.state is State.LOST for d in early[1:])
