@@ -3,6 +3,7 @@ and the three commands end to end. Skipped, saying why, where the data is absent
 
 from __future__ import annotations
 
+import csv
 import json
 from pathlib import Path
 
@@ -150,5 +151,8 @@ def test_evaluate_log_cli_small(tmp_path: Path) -> None:
     rows = (out / "evaluate.csv").read_text().splitlines()
     assert len(rows) == 3 and rows[0].startswith("algorithm,start_index")
     assert [r.split(",")[1] for r in rows[1:]] == ["0", "904"]
+    # every pose scored, the initialisation's included: 5000 at the start, 5000 an update
+    for row in csv.DictReader(rows):
+        assert float(row["likelihood_evaluations"]) == 5000 * (1 + int(row["updates"]))
     assert "| mcl | 2 |" in (out / "evaluate.md").read_text()
     assert (out / "errors.png").is_file() and (out / "success.png").is_file()

@@ -27,6 +27,7 @@ from ceamcl.experiments.metrics import (
     GATHERED_SHARE,
     HOLD_STEPS,
     final_error,
+    likelihood_evaluations,
     score_errors,
     within,
 )
@@ -76,6 +77,9 @@ class LogTrialResult:
     initialisation_ms: float
     updates: int
     mean_update_ms: float
+    #: poses scored against a scan over the run, the global initialisation included (NaN for
+    #: a filter that does not count them: the Nav2 peer)
+    likelihood_evaluations: float
     elapsed_s: NDArray[np.float64] = field(repr=False)
     position_errors: NDArray[np.float64] = field(repr=False)
     heading_errors: NDArray[np.float64] = field(repr=False)
@@ -119,11 +123,17 @@ def run_log_trial(trial: LogTrial) -> LogTrialResult:
         initialisation_ms=float(result.diagnostics[0].step_ms),
         updates=result.updates,
         mean_update_ms=float(result.update_ms.mean()),
+        likelihood_evaluations=_evaluations(result),
         # the scans with truth only (all of a corrected log's; a raw log's matched scans)
         elapsed_s=(result.times - result.times[0])[known],
         position_errors=pos[known],
         heading_errors=head[known],
     )
+
+
+def _evaluations(result: RunResult) -> float:
+    counts = likelihood_evaluations(result.diagnostics)
+    return math.nan if counts is None else float(counts.sum())
 
 
 def confidently_wrong(result: RunResult, share: float = GATHERED_SHARE) -> bool:
@@ -189,6 +199,7 @@ def aggregate(results: Sequence[LogTrialResult], algorithms: Sequence[str]) -> l
                 "mean_update_ms": mean([r.mean_update_ms for r in rs]),
                 "updates_per_run": mean([float(r.updates) for r in rs]),
                 "initialisation_ms": mean([r.initialisation_ms for r in rs]),
+                "likelihood_evaluations": mean([r.likelihood_evaluations for r in rs]),
             }
         )
     return rows

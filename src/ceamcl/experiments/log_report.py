@@ -36,6 +36,7 @@ _CSV_FIELDS = (
     "initialisation_ms",
     "updates",
     "mean_update_ms",
+    "likelihood_evaluations",
 )
 
 
@@ -85,14 +86,17 @@ def evaluation_markdown(
         + (f"{hold} steps" if hold_m is None else f"{hold_m:g} m of travel")
         + "; times, distances and RMSEs over successful runs; RMSE from first: from the first "
         "scan inside the tolerances to the end, excursions included (runs ever inside); "
-        "confidently wrong: runs ending with >= 90 % of the weight on one wrong hypothesis",
+        "confidently wrong: runs ending with >= 90 % of the weight on one wrong hypothesis; "
+        "likelihood evaluations: poses scored against a scan, the global initialisation "
+        "included (- where the filter does not count them)",
         f"- windows: {ev.window}",
         "",
         "| algorithm | runs | success | confidently wrong | time to converge [s] | "
         "scans to converge | distance to converge [m] | position RMSE [m] | "
         "RMSE from first [m] | heading RMSE [rad] | mean particles | mean step [ms] | "
-        "initialisation [ms] | updates per run | mean update [ms] |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "initialisation [ms] | updates per run | mean update [ms] | "
+        "likelihood evaluations per run |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     digits = {
         "time_to_converge_s": 1,
@@ -106,6 +110,7 @@ def evaluation_markdown(
         "initialisation_ms": 0,
         "updates_per_run": 0,
         "mean_update_ms": 1,
+        "likelihood_evaluations": 0,
     }
     for row in ev.table:
         cells = [fmt(row[key], d, "-") for key, d in digits.items()]
