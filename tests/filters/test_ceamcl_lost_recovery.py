@@ -14,6 +14,7 @@ import pytest
 from ceamcl.filters import make_filter
 from ceamcl.filters.ceamcl import CEAMCL, CEAMCLConfig
 from ceamcl.filters.state import State
+from ceamcl.motion.odometry import increment_between
 from ceamcl.runner import RunResult, run_filter
 from ceamcl.simulation.scenarios import office_scenario
 
@@ -63,3 +64,26 @@ def test_without_it_a_filter_started_wrong_stays_lost_for_seconds() -> None:
     assert not any(d.reinitialised for d in early)
     assert err[: len(early)].min() > 2.0
     assert all(d.state and d.state.state is State.LOST for d in early[1:])
+
+
+def test_the_read_made_during_a_step_is_the_one_callers_get_after_it() -> None:
+    """The step reads the state to count LOST updates; the runner's read after the step gets
+    the same hypotheses and state as a fresh read would, and a new start clears it."""
+    sc = office_scenario()
+    log = sc.simulate(np.random.default_rng(0))
+    f = make_filter("ceamcl", sc.grid(), np.random.default_rng(1))
+    assert isinstance(f, CEAMCL)
+    f.initialise_pose(log.true_poses[0], np.diag([0.05**2, 0.05**2, 0.03**2]))
+    for k in range(1, 6):
+        f.step(increment_between(log.odometry[k - 1], log.odometry[k]), log.scan(k))
+        given = f.hypotheses()
+        said = f.state(given)
+        f._read = None  # a fresh read
+        fresh = f.hypotheses()
+        assert [(h.label, h.weight, h.fitness) for h in given] == [
+            (h.label, h.weight, h.fitness) for h in fresh
+        ]
+        assert all(np.array_equal(a.pose, b.pose) for a, b in zip(given, fresh, strict=True))
+        assert f.state(fresh) == said
+    f.initialise_pose(WRONG, np.diag([0.1**2, 0.1**2, 0.05**2]))
+    assert f.state().state is State.INITIALISING

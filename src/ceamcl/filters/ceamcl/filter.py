@@ -128,6 +128,9 @@ class CEAMCL:
         #: (doubled after each one it fires until the state leaves LOST; departure 10)
         self._lost_streak = 0
         self._lost_wait = self.config.recovery_lost_updates or 0
+        #: the hypotheses and state read during this step (departure 10), handed to callers
+        #: that ask again before anything changes; cleared by every step and initialisation
+        self._read: tuple[list[Hypothesis], LocalisationState] | None = None
         #: log of each species' accumulated evidence, the largest 0 (docs/ceamcl.md)
         self.log_weight: dict[int, float] = {}
         #: each species' evidence peak at the last step that compared species, carried to the
@@ -165,6 +168,7 @@ class CEAMCL:
         self._fit_fast = self._fit_slow = None
         self._steps_since_init = 0
         self._lost_streak = 0
+        self._read = None
         self._peak_fitness = {}
         init, evaluations = initial_species(
             self.grid, self.sensor, prepared, self.config.initialisation, self.rng
@@ -223,6 +227,7 @@ class CEAMCL:
     def initialise_pose(self, pose: ArrayLike, covariance: ArrayLike) -> None:
         """Pose tracking: one species of ``tracking_samples`` around a known pose."""
         sid = self._next_id
+        self._read = None
         self.particle_set = gaussian(pose, covariance, self.config.tracking_samples, self.rng)
         self.particle_set.labels[:] = sid
         self._next_id = sid + 1
@@ -238,6 +243,7 @@ class CEAMCL:
         centres = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
         if centres.shape[0] == 0:
             raise ValueError("poses: expected at least one pose")
+        self._read = None
         parts = []
         for pose in centres:
             part = gaussian(pose, covariance, self.config.tracking_samples, self.rng)
@@ -261,6 +267,7 @@ class CEAMCL:
         cfg = self.config
         ps = self.particle_set
         self.t += 1
+        self._read = None
         if scan is not None:
             self.last_scan = scan
         self._evaluations = 0
@@ -536,7 +543,10 @@ class CEAMCL:
         cfg = self.config
         if cfg.recovery_lost_updates is None or not cfg.recovery:
             return False
-        if self.state().state is not State.LOST:
+        hyps = self.hypotheses()
+        state = self.state(hyps)
+        self._read = (hyps, state)  # what the runner (or a node) asks for next, unchanged
+        if state.state is not State.LOST:
             self._lost_streak = 0
             self._lost_wait = cfg.recovery_lost_updates
             return False
@@ -704,6 +714,11 @@ class CEAMCL:
         return stats, share
 
     def hypotheses(self) -> list[Hypothesis]:
+        if self._read is not None:  # read this step; fresh arrays, as a new read gives
+            return [
+                replace(h, pose=h.pose.copy(), covariance=h.covariance.copy())
+                for h in self._read[0]
+            ]
         stats, share = self._ranked_shares()
         return [
             Hypothesis(
@@ -722,6 +737,10 @@ class CEAMCL:
         (:func:`ceamcl.filters.state.read_hypotheses`); INITIALISING until the first step."""
         if not self.stats or self.t == 0:
             return initialising()
+        if self._read is not None and (
+            hypotheses is None or _same_hypotheses(hypotheses, self._read[0])
+        ):
+            return self._read[1]
         hyps = self.hypotheses() if hypotheses is None else hypotheses
         return read_hypotheses(hyps, crossing=wall_crossing(self.grid, self.last_scan))
 
@@ -748,6 +767,22 @@ ALGORITHM = Algorithm(
     CEAMCL,
     summary="coevolution-based adaptive MCL: species, Lotka-Volterra competition, evolution",
 )
+
+
+def _same_hypotheses(a: Sequence[Hypothesis], b: Sequence[Hypothesis]) -> bool:
+    """Do two lists hold the same hypotheses (the same objects, or equal values)?"""
+    return len(a) == len(b) and all(
+        x is y
+        or (
+            x.label == y.label
+            and x.weight == y.weight
+            and x.fitness == y.fitness
+            and x.n_particles == y.n_particles
+            and np.array_equal(x.pose, y.pose)
+            and np.array_equal(x.covariance, y.covariance)
+        )
+        for x, y in zip(a, b, strict=True)
+    )
 
 
 def _reported_fitness(s: SpeciesStats, peak: float | None = None) -> float:
