@@ -7,14 +7,16 @@ import pytest
 from numpy.typing import ArrayLike, NDArray
 
 from ceamcl.errors import CeamclError
-from ceamcl.filters import ALGORITHMS
+from ceamcl.filters import ALGORITHMS, registry
+from ceamcl.filters.base import LocalisationFilter
 from ceamcl.filters.ceamcl import CEAMCL, CEAMCLConfig
 from ceamcl.filters.particles import gaussian_poses
 from ceamcl.filters.resampling import normalise_log_weights, sanitise_log_likelihood, systematic
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel
+from ceamcl.sensors.base import SensorModel
 from ceamcl.sensors.scan import LaserGeometry, LaserScan, PreparedScan
-from tests.robustness._filters import assert_all_finite, small_filter, small_sensor
+from tests.robustness._filters import SMALL_CEAMCL, assert_all_finite, small_filter, small_sensor
 from tests.robustness.conftest import box_grid
 
 GEOM = LaserGeometry.covering(np.pi, 9, 4.0, range_min=0.1)
@@ -34,6 +36,21 @@ def algorithms_expected_to(what: str) -> list[object]:
 
 GOOD = GEOM.scan([1.0, 2.0, 1.5, 0.7, 2.5, 3.0, 1.2, 0.9, 2.2])
 MOVE = OdometryIncrement(0.1, 0.2, -0.05)
+
+
+def numerics_filter(
+    algorithm: str, grid: OccupancyGrid, rng: np.random.Generator, sensor: SensorModel
+) -> LocalisationFilter:
+    """:func:`small_filter` for the tests that count re-initialisations caused by numbers.
+    CEAMCL's recovery of a filter that stays LOST (docs/ceamcl.md, departure 10) is off here: it
+    is behaviour, not numerics (a sensor scoring every pose -1e300 leaves every hypothesis
+    unfit, and the 9-beam toy scan in a box fits poorly), and it has its own tests
+    (``tests/filters/test_ceamcl_lost_recovery.py``); the kidnap test's warm-up keeps that one
+    out of these few steps as well."""
+    config = None
+    if algorithm == "ceamcl":
+        config = registry.with_config("ceamcl", **SMALL_CEAMCL, recovery_lost_updates=None)
+    return small_filter(algorithm, grid, rng, sensor, ceamcl_config=config)
 
 
 class BrokenSensor:
@@ -57,7 +74,6 @@ class BrokenSensor:
     temper = 1.0
     scoring = "product"
 
-
     def max_log_beam_likelihood(self, prepared: PreparedScan) -> float:
         return self.inner.max_log_beam_likelihood(prepared)
 
@@ -69,7 +85,7 @@ class BrokenSensor:
 def test_every_particle_impossible_reinitialises_globally(algorithm: str, value: float) -> None:
     grid = box_grid()
     sensor = BrokenSensor(grid, value)
-    f = small_filter(algorithm, grid, np.random.default_rng(11), sensor)
+    f = numerics_filter(algorithm, grid, np.random.default_rng(11), sensor)
     f.initialise_global(GOOD)
     f.step(MOVE, GOOD)
     sensor.broken = True
@@ -90,7 +106,7 @@ def test_underflowing_likelihoods_do_not_reinitialise(algorithm: str) -> None:
     """exp(-1e300) is 0 in floating point, but log weights keep the ranking: no NaN, no reset."""
     grid = box_grid()
     sensor = BrokenSensor(grid, -1e300)
-    f = small_filter(algorithm, grid, np.random.default_rng(12), sensor)
+    f = numerics_filter(algorithm, grid, np.random.default_rng(12), sensor)
     f.initialise_global(GOOD)
     sensor.broken = True
     for _ in range(3):
