@@ -6,6 +6,7 @@ CEAMCL's splitting rule (a species whose occupied cells form several regions spl
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import ndimage, sparse
@@ -48,8 +49,137 @@ def pose_cluster_labels(
     ``cell_m x cell_m x cell_rad`` cells, with the heading axis wrapping around at +-pi.
 
     Two groups at the same place but with headings far apart get different labels: this is
-    how a species holding two heading modes (a pose and its mirror image) splits.
+    how a species holding two heading modes (a pose and its mirror image) splits. Regions are
+    numbered in the order of their first cell in the bounding box (x, then y, then heading), as
+    ``scipy.ndimage.label`` numbers them (:func:`pose_cluster_labels_reference`). Compiled: a
+    union-find over the occupied cells only (sorted keys, binary search for the neighbours), so
+    the cost depends on the number of poses, not on their bounding box; it runs at every step
+    for every species (docs/performance.md).
     """
+    p = np.ascontiguousarray(poses, dtype=np.float64).reshape(-1, 3)
+    if p.shape[0] == 0:
+        return np.zeros(0, dtype=np.int64), 0
+    n_theta = max(1, int(np.floor(2.0 * np.pi / cell_rad)))
+    labels, count = _label_poses(p, float(cell_m), n_theta)
+    if count == -2:
+        raise ValueError("pose_cluster_labels: a pose is not finite")
+    if count < 0:
+        raise ValueError("pose_cluster_labels: poses spread too far for the cell size")
+    return labels, int(count)
+
+
+@numba.njit(cache=True)
+def _label_poses(
+    p: NDArray[np.float64], cell_m: float, n_theta: int
+) -> tuple[NDArray[np.int64], int]:
+    """The cells of the poses (as :func:`pose_cluster_labels_reference` computes them), then
+    :func:`_label_cells`; count -1 when the bounding box has too many cells for the keys, -2
+    when a pose is not finite."""
+    n = p.shape[0]
+    cx = np.empty(n, np.int64)
+    cy = np.empty(n, np.int64)
+    ct = np.empty(n, np.int64)
+    for i in range(n):
+        if not (np.isfinite(p[i, 0]) and np.isfinite(p[i, 1]) and np.isfinite(p[i, 2])):
+            return np.zeros(0, np.int64), -2
+        fx, fy = np.floor(p[i, 0] / cell_m), np.floor(p[i, 1] / cell_m)
+        if abs(fx) > 2.0**40 or abs(fy) > 2.0**40:
+            return np.zeros(0, np.int64), -1
+        cx[i], cy[i] = np.int64(fx), np.int64(fy)
+        ct[i] = np.int64(np.floor((p[i, 2] + np.pi) / (2.0 * np.pi) * n_theta)) % n_theta
+    cx -= cx.min()
+    cy -= cy.min()
+    nx, ny = cx.max() + 1, cy.max() + 1
+    if float(nx) * float(ny) * float(n_theta) > 2.0**62 / 27.0:
+        return np.zeros(0, np.int64), -1
+    return _label_cells(cx, cy, ct, ny, n_theta)
+
+
+@numba.njit(cache=True)
+def _find(parent: NDArray[np.int64], i: int) -> int:
+    root = i
+    while parent[root] != root:
+        root = parent[root]
+    while parent[i] != root:  # path compression
+        nxt = parent[i]
+        parent[i] = root
+        i = nxt
+    return root
+
+
+@numba.njit(cache=True)
+def _label_cells(
+    cx: NDArray[np.int64], cy: NDArray[np.int64], ct: NDArray[np.int64], ny: int, n_theta: int
+) -> tuple[NDArray[np.int64], int]:
+    """Connected regions (26-neighbourhood, heading periodic when ``n_theta > 2``) of the
+    occupied cells ``(cx, cy, ct)``; each point's region, numbered by the region's lowest
+    cell key ``(cx * ny + cy) * n_theta + ct`` (the raster order of ``ndimage.label``)."""
+    n = cx.shape[0]
+    keys = (cx * ny + cy) * n_theta + ct
+    order = np.argsort(keys)
+    cells = np.empty(n, np.int64)  # the distinct keys, ascending
+    cell_of = np.empty(n, np.int64)  # each point's index into cells
+    m = 0
+    for r in range(n):
+        i = order[r]
+        if m == 0 or keys[i] != cells[m - 1]:
+            cells[m] = keys[i]
+            m += 1
+        cell_of[i] = m - 1
+    cells = cells[:m]
+    parent = np.arange(m)
+    wrap = n_theta > 2
+    for c in range(m):
+        k = cells[c]
+        t = k % n_theta
+        y = (k // n_theta) % ny
+        x = k // (n_theta * ny)
+        for dx in range(-1, 2):
+            xx = x + dx
+            if xx < 0:
+                continue
+            for dy in range(-1, 2):
+                yy = y + dy
+                if yy < 0 or yy >= ny:
+                    continue
+                for dt in range(-1, 2):
+                    tt = t + dt
+                    if tt < 0 or tt >= n_theta:
+                        if not wrap:
+                            continue
+                        tt %= n_theta
+                    key = (xx * ny + yy) * n_theta + tt
+                    if key <= k:
+                        continue  # each pair once, from its lower key
+                    j = np.searchsorted(cells, key)
+                    if j < m and cells[j] == key:
+                        a, b = _find(parent, c), _find(parent, j)
+                        if a != b:
+                            if a < b:
+                                parent[b] = a
+                            else:
+                                parent[a] = b
+    # Number the regions by their lowest cell (the root is the lowest: unions keep the lower).
+    region = np.full(m, -1, np.int64)
+    count = 0
+    for c in range(m):
+        r = _find(parent, c)
+        if region[r] < 0:
+            region[r] = count
+            count += 1
+        region[c] = region[r]
+    labels = np.empty(n, np.int64)
+    for i in range(n):
+        labels[i] = region[cell_of[i]]
+    return labels, count
+
+
+def pose_cluster_labels_reference(
+    poses: ArrayLike, cell_m: float, cell_rad: float
+) -> tuple[NDArray[np.int64], int]:
+    """:func:`pose_cluster_labels` with SciPy's ``ndimage.label`` on a dense grid of the
+    poses' bounding box, the heading wrap joined through a graph: the reference the compiled
+    labelling is tested against (same labels, same numbering)."""
     p = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
     if p.shape[0] == 0:
         return np.zeros(0, dtype=np.int64), 0
@@ -59,7 +189,7 @@ def pose_cluster_labels(
     th = np.floor((p[:, 2] + np.pi) / (2.0 * np.pi) * n_theta).astype(np.int64) % n_theta
     shape = (int(xy[:, 0].max()) + 1, int(xy[:, 1].max()) + 1, n_theta)
     if shape[0] * shape[1] * shape[2] > 50_000_000:
-        raise ValueError("pose_cluster_labels: poses spread too far for the cell size")
+        raise ValueError("pose_cluster_labels_reference: poses spread too far for the cell size")
     occ = np.zeros(shape, dtype=bool)
     occ[xy[:, 0], xy[:, 1], th] = True
     lab, count = ndimage.label(occ, structure=_TWENTY_SIX)
