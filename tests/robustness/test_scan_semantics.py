@@ -31,6 +31,8 @@ def test_each_reading_class_follows_rep_117() -> None:
     dropped = prepare_scan(scan, 100, keep_max_range=False)
     assert dropped.source_indices.tolist() == [0, 9, 10]
     assert dropped.n_beams == 3 and dropped.informative
+    for prepared in (kept, dropped, prepare_scan(scan, 4, keep_max_range=True)):
+        np.testing.assert_array_equal(prepared.bearings, scan.angles[prepared.source_indices])
 
 
 @pytest.mark.parametrize("model", ["likelihood-field", "beam"])

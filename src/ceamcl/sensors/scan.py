@@ -26,6 +26,7 @@ leave their weights unchanged on it (see ``docs/robustness.md``).
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -154,14 +155,23 @@ class PreparedScan:
 
 
 def select_beam_indices(n_total: int, max_beams: int) -> NDArray[np.intp]:
-    """At most ``max_beams`` beam indices evenly spread over ``n_total`` (first and last kept)."""
+    """At most ``max_beams`` beam indices evenly spread over ``n_total`` (first and last kept).
+    The same few pairs come at every scan, so the answer is cached (read-only)."""
     if max_beams <= 0:
         raise ValueError(f"max_beams: expected a positive count, got {max_beams}")
+    return _beam_indices(int(n_total), int(max_beams))
+
+
+@functools.lru_cache(maxsize=64)
+def _beam_indices(n_total: int, max_beams: int) -> NDArray[np.intp]:
     if n_total <= max_beams:
-        return np.arange(n_total, dtype=np.intp)
-    if max_beams == 1:
-        return np.array([n_total // 2], dtype=np.intp)
-    return np.unique(np.round(np.linspace(0, n_total - 1, max_beams)).astype(np.intp))
+        idx = np.arange(n_total, dtype=np.intp)
+    elif max_beams == 1:
+        idx = np.array([n_total // 2], dtype=np.intp)
+    else:
+        idx = np.unique(np.round(np.linspace(0, n_total - 1, max_beams)).astype(np.intp))
+    idx.setflags(write=False)
+    return idx
 
 
 def classify_ranges(
@@ -188,24 +198,29 @@ def prepare_scan(scan: LaserScan, max_beams: int, *, keep_max_range: bool) -> Pr
     """
     idx = select_beam_indices(scan.n_beams, max_beams)
     r = scan.ranges[idx]
-    bearings = scan.angles[idx]
     usable, is_max = classify_ranges(r, scan.range_min, scan.range_max)
-    nan = np.isnan(r)
-    too_close = r == -np.inf
+    n_nan = int(np.count_nonzero(np.isnan(r)))
+    n_too_close = int(np.count_nonzero(r == -np.inf))
     keep = usable if keep_max_range else usable & ~is_max
-    r = np.where(is_max, scan.range_max, r)[keep]
+    kept = idx[keep]
+    n_max = int(np.count_nonzero(is_max))
+    r = r[keep]
+    is_max_kept = is_max[keep]
+    if n_max:
+        r[is_max_kept] = scan.range_max
     return PreparedScan(
-        ranges=np.ascontiguousarray(r),
-        bearings=np.ascontiguousarray(bearings[keep]),
-        is_max=np.ascontiguousarray(is_max[keep]),
+        ranges=r,
+        # the bearings of LaserScan.angles at those indices, computed for the kept ones only
+        bearings=scan.angle_min + scan.angle_increment * kept.astype(np.float64),
+        is_max=is_max_kept,
         range_max=scan.range_max,
         laser_pose=scan.pose,
-        n_beams=int(keep.sum()),
-        source_indices=idx[keep],
-        n_nan=int(nan.sum()),
-        n_too_close=int(too_close.sum()),
-        n_invalid=int((~usable & ~nan & ~too_close).sum()),
-        n_max_range=int(is_max.sum()),
+        n_beams=int(kept.size),
+        source_indices=kept,
+        n_nan=n_nan,
+        n_too_close=n_too_close,
+        n_invalid=idx.size - int(np.count_nonzero(usable)) - n_nan - n_too_close,
+        n_max_range=n_max,
     )
 
 
