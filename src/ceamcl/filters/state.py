@@ -181,6 +181,20 @@ def wall_crossing(
     return share
 
 
+_FLOAT_MAX = float(np.finfo(np.float64).max)
+
+
+def _nan_to_num(x: float) -> float:
+    """``np.nan_to_num`` of one number (NaN -> 0, +-inf -> +-the largest float), without its
+    array machinery: the state is read after every update."""
+    x = float(x)
+    if math.isnan(x):
+        return 0.0
+    if math.isinf(x):
+        return _FLOAT_MAX if x > 0 else -_FLOAT_MAX
+    return x
+
+
 def read_hypotheses(
     hypotheses: Sequence[Hypothesis],
     thresholds: StateThresholds = DEFAULT_THRESHOLDS,
@@ -199,8 +213,8 @@ def read_hypotheses(
     t = thresholds
     if not hypotheses:
         return LocalisationState(State.LOST, 1.0, 0, (), "no hypothesis left")
-    weights = np.nan_to_num(np.array([h.weight for h in hypotheses], dtype=np.float64))
-    fit = np.nan_to_num(np.array([h.fitness for h in hypotheses], dtype=np.float64))
+    weights = np.array([_nan_to_num(h.weight) for h in hypotheses], dtype=np.float64)
+    fit = np.array([_nan_to_num(h.fitness) for h in hypotheses], dtype=np.float64)
     total = weights.sum()
     if total > 0:
         weights = weights / total
