@@ -60,39 +60,68 @@ def pose_cluster_labels(
     if p.shape[0] == 0:
         return np.zeros(0, dtype=np.int64), 0
     n_theta = max(1, int(np.floor(2.0 * np.pi / cell_rad)))
-    labels, count = _label_poses(p, float(cell_m), n_theta)
-    if count == -2:
+    keys, ny, status = _cell_keys(p, float(cell_m), n_theta)
+    if status == -2:
         raise ValueError("pose_cluster_labels: a pose is not finite")
-    if count < 0:
+    if status < 0:
         raise ValueError("pose_cluster_labels: poses spread too far for the cell size")
+    # Sorting stays in NumPy: numba's own sort takes seconds to compile on a fresh machine.
+    labels, count = _label_sorted(keys, np.argsort(keys), ny, n_theta)
     return labels, int(count)
 
 
 @numba.njit(cache=True)
-def _label_poses(
-    p: NDArray[np.float64], cell_m: float, n_theta: int
+def _label_sorted(
+    keys: NDArray[np.int64], order: NDArray[np.intp], ny: int, n_theta: int
 ) -> tuple[NDArray[np.int64], int]:
-    """The cells of the poses (as :func:`pose_cluster_labels_reference` computes them), then
-    :func:`_label_cells`; count -1 when the bounding box has too many cells for the keys, -2
-    when a pose is not finite."""
+    """Each pose's region from its cell key and the order that sorts the keys: the distinct
+    keys, then :func:`_label_cells`."""
+    n = keys.shape[0]
+    cells = np.empty(n, np.int64)  # the distinct keys, ascending
+    cell_of = np.empty(n, np.int64)  # each pose's index into cells
+    m = 0
+    for r in range(n):
+        i = order[r]
+        if m == 0 or keys[i] != cells[m - 1]:
+            cells[m] = keys[i]
+            m += 1
+        cell_of[i] = m - 1
+    region, count = _label_cells(cells[:m], ny, n_theta)
+    labels = np.empty(n, np.int64)
+    for i in range(n):
+        labels[i] = region[cell_of[i]]
+    return labels, count
+
+
+@numba.njit(cache=True)
+def _cell_keys(
+    p: NDArray[np.float64], cell_m: float, n_theta: int
+) -> tuple[NDArray[np.int64], int, int]:
+    """Each pose's cell (as :func:`pose_cluster_labels_reference` computes it) as the key
+    ``(cx * ny + cy) * n_theta + ct`` in its bounding box, ``ny`` and a status: 0, or -1 when
+    the box has too many cells for the keys, -2 when a pose is not finite."""
     n = p.shape[0]
     cx = np.empty(n, np.int64)
     cy = np.empty(n, np.int64)
     ct = np.empty(n, np.int64)
     for i in range(n):
         if not (np.isfinite(p[i, 0]) and np.isfinite(p[i, 1]) and np.isfinite(p[i, 2])):
-            return np.zeros(0, np.int64), -2
+            return cx, 0, -2
         fx, fy = np.floor(p[i, 0] / cell_m), np.floor(p[i, 1] / cell_m)
         if abs(fx) > 2.0**40 or abs(fy) > 2.0**40:
-            return np.zeros(0, np.int64), -1
+            return cx, 0, -1
         cx[i], cy[i] = np.int64(fx), np.int64(fy)
         ct[i] = np.int64(np.floor((p[i, 2] + np.pi) / (2.0 * np.pi) * n_theta)) % n_theta
-    cx -= cx.min()
-    cy -= cy.min()
-    nx, ny = cx.max() + 1, cy.max() + 1
+    lo_x, hi_x, lo_y, hi_y = cx[0], cx[0], cy[0], cy[0]
+    for i in range(1, n):
+        lo_x, hi_x = min(lo_x, cx[i]), max(hi_x, cx[i])
+        lo_y, hi_y = min(lo_y, cy[i]), max(hi_y, cy[i])
+    nx, ny = hi_x - lo_x + 1, hi_y - lo_y + 1
     if float(nx) * float(ny) * float(n_theta) > 2.0**62 / 27.0:
-        return np.zeros(0, np.int64), -1
-    return _label_cells(cx, cy, ct, ny, n_theta)
+        return cx, 0, -1
+    for i in range(n):
+        cx[i] = ((cx[i] - lo_x) * ny + (cy[i] - lo_y)) * n_theta + ct[i]
+    return cx, ny, 0
 
 
 @numba.njit(cache=True)
@@ -108,26 +137,15 @@ def _find(parent: NDArray[np.int64], i: int) -> int:
 
 
 @numba.njit(cache=True)
-def _label_cells(
-    cx: NDArray[np.int64], cy: NDArray[np.int64], ct: NDArray[np.int64], ny: int, n_theta: int
-) -> tuple[NDArray[np.int64], int]:
+def _label_cells(cells: NDArray[np.int64], ny: int, n_theta: int) -> tuple[NDArray[np.int64], int]:
     """Connected regions (26-neighbourhood, heading periodic when ``n_theta > 2``) of the
-    occupied cells ``(cx, cy, ct)``; each point's region, numbered by the region's lowest
-    cell key ``(cx * ny + cy) * n_theta + ct`` (the raster order of ``ndimage.label``)."""
-    n = cx.shape[0]
-    keys = (cx * ny + cy) * n_theta + ct
-    order = np.argsort(keys)
-    cells = np.empty(n, np.int64)  # the distinct keys, ascending
-    cell_of = np.empty(n, np.int64)  # each point's index into cells
-    m = 0
-    for r in range(n):
-        i = order[r]
-        if m == 0 or keys[i] != cells[m - 1]:
-            cells[m] = keys[i]
-            m += 1
-        cell_of[i] = m - 1
-    cells = cells[:m]
-    parent = np.arange(m)
+    occupied cells, given by their distinct keys ``cells`` (ascending, see :func:`_cell_keys`);
+    each cell's region, numbered by the region's lowest key (the raster order of
+    ``ndimage.label``). Union-find; neighbours found by binary search in ``cells``."""
+    m = cells.shape[0]
+    parent = np.empty(m, np.int64)
+    for c in range(m):
+        parent[c] = c
     wrap = n_theta > 2
     for c in range(m):
         k = cells[c]
@@ -151,16 +169,24 @@ def _label_cells(
                     key = (xx * ny + yy) * n_theta + tt
                     if key <= k:
                         continue  # each pair once, from its lower key
-                    j = np.searchsorted(cells, key)
-                    if j < m and cells[j] == key:
-                        a, b = _find(parent, c), _find(parent, j)
+                    lo, hi = c + 1, m  # binary search: the first cell >= key
+                    while lo < hi:
+                        mid = (lo + hi) // 2
+                        if cells[mid] < key:
+                            lo = mid + 1
+                        else:
+                            hi = mid
+                    if lo < m and cells[lo] == key:
+                        a, b = _find(parent, c), _find(parent, lo)
                         if a != b:
                             if a < b:
                                 parent[b] = a
                             else:
                                 parent[a] = b
     # Number the regions by their lowest cell (the root is the lowest: unions keep the lower).
-    region = np.full(m, -1, np.int64)
+    region = np.empty(m, np.int64)
+    for c in range(m):
+        region[c] = -1
     count = 0
     for c in range(m):
         r = _find(parent, c)
@@ -168,10 +194,7 @@ def _label_cells(
             region[r] = count
             count += 1
         region[c] = region[r]
-    labels = np.empty(n, np.int64)
-    for i in range(n):
-        labels[i] = region[cell_of[i]]
-    return labels, count
+    return region, count
 
 
 def pose_cluster_labels_reference(
