@@ -61,13 +61,17 @@ def pose_cluster_labels(
         return np.zeros(0, dtype=np.int64), 0
     n_theta = max(1, int(np.floor(2.0 * np.pi / cell_rad)))
     keys, ny, status = _cell_keys(p, float(cell_m), n_theta)
-    if status == -2:
+    if status == _NOT_FINITE:
         raise ValueError("pose_cluster_labels: a pose is not finite")
-    if status < 0:
+    if status == _TOO_FAR:
         raise ValueError("pose_cluster_labels: poses spread too far for the cell size")
     # Sorting stays in NumPy: numba's own sort takes seconds to compile on a fresh machine.
     labels, count = _label_sorted(keys, np.argsort(keys), ny, n_theta)
     return labels, int(count)
+
+
+#: :func:`_cell_keys`'s status codes (module constants, frozen into the compiled code)
+_OK, _TOO_FAR, _NOT_FINITE = 0, -1, -2
 
 
 @numba.njit(cache=True)
@@ -98,18 +102,20 @@ def _cell_keys(
     p: NDArray[np.float64], cell_m: float, n_theta: int
 ) -> tuple[NDArray[np.int64], int, int]:
     """Each pose's cell (as :func:`pose_cluster_labels_reference` computes it) as the key
-    ``(cx * ny + cy) * n_theta + ct`` in its bounding box, ``ny`` and a status: 0, or -1 when
-    the box has too many cells for the keys, -2 when a pose is not finite."""
+    ``(cx * ny + cy) * n_theta + ct`` in its bounding box, ``ny`` and a status: ``_OK``, or
+    ``_TOO_FAR`` when the box has too many cells for the keys, ``_NOT_FINITE`` when a pose is
+    not finite (the keys are then meaningless)."""
     n = p.shape[0]
+    keys = np.empty(n, np.int64)
     cx = np.empty(n, np.int64)
     cy = np.empty(n, np.int64)
     ct = np.empty(n, np.int64)
     for i in range(n):
         if not (np.isfinite(p[i, 0]) and np.isfinite(p[i, 1]) and np.isfinite(p[i, 2])):
-            return cx, 0, -2
+            return keys, 0, _NOT_FINITE
         fx, fy = np.floor(p[i, 0] / cell_m), np.floor(p[i, 1] / cell_m)
         if abs(fx) > 2.0**40 or abs(fy) > 2.0**40:
-            return cx, 0, -1
+            return keys, 0, _TOO_FAR
         cx[i], cy[i] = np.int64(fx), np.int64(fy)
         ct[i] = np.int64(np.floor((p[i, 2] + np.pi) / (2.0 * np.pi) * n_theta)) % n_theta
     lo_x, hi_x, lo_y, hi_y = cx[0], cx[0], cy[0], cy[0]
@@ -118,10 +124,10 @@ def _cell_keys(
         lo_y, hi_y = min(lo_y, cy[i]), max(hi_y, cy[i])
     nx, ny = hi_x - lo_x + 1, hi_y - lo_y + 1
     if float(nx) * float(ny) * float(n_theta) > 2.0**62 / 27.0:
-        return cx, 0, -1
+        return keys, 0, _TOO_FAR
     for i in range(n):
-        cx[i] = ((cx[i] - lo_x) * ny + (cy[i] - lo_y)) * n_theta + ct[i]
-    return cx, ny, 0
+        keys[i] = ((cx[i] - lo_x) * ny + (cy[i] - lo_y)) * n_theta + ct[i]
+    return keys, ny, _OK
 
 
 @numba.njit(cache=True)
