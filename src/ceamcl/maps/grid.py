@@ -14,10 +14,10 @@ from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import ndimage
 
 from ceamcl.angles import wrap
 from ceamcl.errors import MapFormatError
+from ceamcl.maps.distance import distance_from_squared, squared_distance_cells
 
 FREE = 0
 OCCUPIED = 100
@@ -114,12 +114,24 @@ class OccupancyGrid:
 
     # ------------------------------------------------------------------ distance fields
     @cached_property
+    def squared_cells_to_occupied(self) -> NDArray[np.int32] | None:
+        """Squared Euclidean distance in cells from each cell centre to the nearest occupied
+        cell centre (exact, integer; :mod:`ceamcl.maps.distance`); ``None`` without obstacles.
+        Computed once per map; the likelihood field tabulates its per-cell values from it."""
+        if not self.occupied_mask.any():
+            return None
+        return squared_distance_cells(self.occupied_mask)
+
+    @cached_property
     def distance_to_occupied(self) -> NDArray[np.float64]:
         """Euclidean distance in metres from each cell centre to the nearest occupied cell centre.
 
         Computed once per map (exact EDT). A map without obstacles gets +inf everywhere.
         """
-        return _edt_metres(self.occupied_mask, self.resolution)
+        sq = self.squared_cells_to_occupied
+        if sq is None:
+            return np.full(self.occupied_mask.shape, np.inf)
+        return distance_from_squared(sq, self.resolution)
 
     @cached_property
     def distance_to_blocking(self) -> NDArray[np.float64]:
@@ -223,5 +235,4 @@ class OccupancyGrid:
 def _edt_metres(obstacles: NDArray[np.bool_], resolution: float) -> NDArray[np.float64]:
     if not obstacles.any():
         return np.full(obstacles.shape, np.inf)
-    dist: NDArray[np.float64] = ndimage.distance_transform_edt(~obstacles)
-    return dist * resolution
+    return distance_from_squared(squared_distance_cells(obstacles), resolution)

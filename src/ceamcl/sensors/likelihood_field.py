@@ -135,12 +135,35 @@ class LikelihoodFieldModel(CombinedBeams):
 
     def _log_p_table(self, range_max: float) -> NDArray[np.float64]:
         """Per-cell :meth:`_beam_value` for an end point in that cell (depends on ``range_max``
-        through ``z_rand / range_max``); computed once per map and range limit."""
+        through ``z_rand / range_max``); computed once per map and range limit.
+
+        A cell's distance is ``sqrt(s) * resolution`` for an integer ``s`` (the squared
+        distance in cells), capped at ``max_occ_dist_m``: the table takes the value of each
+        ``s`` up to the cap from a short list (1,601 entries at 5 cm and 2 m) instead of an
+        ``exp`` and a ``log`` per cell (0.4 s on a 7.8-million-cell map), with the same
+        numbers."""
         table = self._tables.get(range_max)
         if table is None:
-            table = np.ascontiguousarray(self._beam_value(self._dist, range_max))
-            self._tables[range_max] = table
+            sq = self.grid.squared_cells_to_occupied
+            if sq is None:  # no obstacle: every end point is at the cap
+                table = np.full(self.grid.occupied_mask.shape, self._cap_value(range_max))
+            else:
+                res = self.grid.resolution
+                cap = self.config.max_occ_dist_m
+                # the first s whose distance reaches the cap (every larger s is capped too)
+                top = math.ceil((cap / res) ** 2)
+                while top > 0 and math.sqrt(float(top - 1)) * res >= cap:
+                    top -= 1
+                while math.sqrt(float(top)) * res < cap:
+                    top += 1
+                d = np.minimum(np.sqrt(np.arange(top + 1, dtype=np.float64)) * res, cap)
+                table = np.take(self._beam_value(d, range_max), sq, mode="clip")
+            self._tables[range_max] = np.ascontiguousarray(table)
+            table = self._tables[range_max]
         return table
+
+    def _cap_value(self, range_max: float) -> float:
+        return float(self._beam_value(np.array([self.config.max_occ_dist_m]), range_max)[0])
 
     def prepare(self, scan: LaserScan) -> PreparedScan:
         return prepare_scan(scan, self.config.max_beams, keep_max_range=False)
@@ -163,8 +186,7 @@ class LikelihoodFieldModel(CombinedBeams):
         if prepared.n_beams == 0:
             return np.zeros(mp.shape[0])
         lx, ly, lyaw = prepared.laser_pose
-        off_map = np.array([self.config.max_occ_dist_m])
-        value_off = float(self._beam_value(off_map, prepared.range_max)[0])
+        value_off = self._cap_value(prepared.range_max)  # an end point off the map
         angles = prepared.bearings + lyaw
         kernel = _lf_kernel_parallel if mp.shape[0] >= PARALLEL_MIN_POSES else _lf_kernel_serial
         out: NDArray[np.float64] = kernel(
