@@ -51,6 +51,7 @@ def test_targets_read_the_maps_nearest_1000_and_4000_m2() -> None:
                 "pace": "p",
                 "algorithm": "ceamcl",
                 "median_update_ms": 1.2,
+                "median_update_state_ms": 1.3,
             },
             {
                 "log": "a",
@@ -58,6 +59,7 @@ def test_targets_read_the_maps_nearest_1000_and_4000_m2() -> None:
                 "pace": "p",
                 "algorithm": "mcl-tuned",
                 "median_update_ms": 1.5,
+                "median_update_state_ms": 2.6,
             },
             {
                 "log": "a",
@@ -73,6 +75,8 @@ def test_targets_read_the_maps_nearest_1000_and_4000_m2() -> None:
     assert got["init_4000"] == (3.2, False)
     assert got["step_ms"] == (1.2, True)  # the every-scan run is not the paced target
     assert got["step_vs_mcl"][0] == pytest.approx(0.8)
+    assert got["step_state_vs_mcl"][0] == pytest.approx(0.5)
+    assert got["step_state_vs_mcl"][1] is True
     result["settings"]["quick"] = True
     assert all(t["pass"] is None for t in evaluate_targets(result))
 
@@ -108,6 +112,8 @@ def test_quick_run_on_the_real_logs(tmp_path: Path) -> None:
         every = s["pace"] == "every scan"
         assert s["updates"] == s["scans"] - 1 if every else 0 < s["updates"] < s["scans"] - 1
         assert s["median_update_ms"] > 0 and np.isfinite(s["ape_rmse_m"])
+        # reading the state after an update costs something, and is not in the update
+        assert s["median_update_state_ms"] > s["median_update_ms"]
         if s["mode"] == "tracking" and s["algorithm"] != "ceamcl":
             # the peers run with CEAMCL's mean sample size of the same run
             ours = next(

@@ -89,6 +89,15 @@ class RunResult:
         policy, a held-back scan costs nothing and :attr:`step_ms` counts it as 0."""
         return np.array([d.step_ms for d in self.diagnostics[1:] if d.stepped] or [0.0])
 
+    @property
+    def update_state_ms(self) -> NDArray[np.float64]:
+        """:attr:`update_ms` with the reading of the filter's state after each update, what
+        a user who asks where the robot is and whether to trust it pays per update (the
+        runner and the ROS node read it after every update; ``[0.0]`` when none)."""
+        return np.array(
+            [d.step_ms + d.state_ms for d in self.diagnostics[1:] if d.stepped] or [0.0]
+        )
+
 
 def _hypothesis_array(hyps: Sequence[Hypothesis]) -> NDArray[np.float64]:
     if not hyps:
@@ -112,11 +121,14 @@ def _measure(
     start = time.perf_counter()
     record = act()
     step_ms = (time.perf_counter() - start) * 1e3
-    w = f.particle_weights()
-    ess = effective_sample_size(w) if np.all(np.isfinite(w)) else float("nan")
+    start = time.perf_counter()
     hyps = f.hypotheses() if with_hypotheses else []
     state = f.state(hyps) if with_hypotheses else f.state()
-    return StepDiagnostics(k, int(w.size), ess, step_ms, record, state=state), hyps
+    state_ms = (time.perf_counter() - start) * 1e3
+    w = f.particle_weights()
+    ess = effective_sample_size(w) if np.all(np.isfinite(w)) else float("nan")
+    diag = StepDiagnostics(k, int(w.size), ess, step_ms, record, state=state, state_ms=state_ms)
+    return diag, hyps
 
 
 def timed_step(
@@ -208,9 +220,7 @@ def run_filter(
         else:
             last = diagnostics[-1]
             diagnostics.append(
-                StepDiagnostics(
-                    k, last.n_particles, last.ess, 0.0, StepRecord(), False, last.state
-                )
+                StepDiagnostics(k, last.n_particles, last.ess, 0.0, StepRecord(), False, last.state)
             )
             estimates[k] = _carried(estimates[k - 1][None, :], log.odometry[k - 1], odom)[0]
             covariances[k] = covariances[k - 1]

@@ -104,7 +104,13 @@ class StepDiagnostics:
     :class:`StepRecord`.
 
     state: the filter's :class:`~ceamcl.filters.state.LocalisationState` after the step (the
-    last update's when the step was held back); ``None`` when not asked."""
+    last update's when the step was held back); ``None`` when not asked.
+
+    state_ms: the time of reading that state after the step (the filter's hypotheses and
+    ``state()``), which ``step_ms`` does not include; 0 when not read. CEAMCL reads its state
+    inside its step (docs/ceamcl.md, departure 10) and hands it over, a particle filter
+    clusters its particles here: a comparison of update times that leaves this out compares
+    unequal work (docs/performance.md)."""
 
     step: int
     n_particles: int
@@ -113,6 +119,7 @@ class StepDiagnostics:
     record: StepRecord
     stepped: bool = True
     state: LocalisationState | None = None
+    state_ms: float = 0.0
 
     @property
     def resampled(self) -> bool:
