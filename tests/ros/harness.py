@@ -134,18 +134,23 @@ class Driver:
         self.states: list[DiagnosticArray] = []
         self.map_to_odom: dict[float, Pose2] = {}
         # transient local like the node's publisher, with room for every pose of a run
-        deep = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
-                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        deep = QoSProfile(
+            depth=1000,
+            reliability=ReliabilityPolicy.RELIABLE,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL,
+        )
         n.create_subscription(PoseWithCovarianceStamped, "amcl_pose", self.poses.append, deep)
         n.create_subscription(PoseArray, "amcl/hypotheses", self.hypotheses.append, 10)
         n.create_subscription(MarkerArray, "amcl/hypotheses/markers", self.markers.append, 10)
         n.create_subscription(DiagnosticArray, "amcl/state", self.states.append, LATCHED)
-        n.create_subscription(PoseArray, "particle_cloud", self.clouds.append,
-                              qos_profile_sensor_data)
+        n.create_subscription(
+            PoseArray, "particle_cloud", self.clouds.append, qos_profile_sensor_data
+        )
         n.create_subscription(TFMessage, "/tf", self._on_tf, 100)
         self.truth: dict[float, Pose2] = {}
         n.create_subscription(
-            PoseStamped, "ground_truth",
+            PoseStamped,
+            "ground_truth",
             lambda msg: self.truth.__setitem__(
                 m.seconds(msg.header.stamp), m.pose2_from_msg(msg.pose)
             ),
@@ -179,11 +184,25 @@ class Driver:
             self.executor.spin_once(timeout_sec=0.02)
         return done()
 
-    def call(self, client: Any, request: Any, timeout_s: float = 20.0) -> Any:
+    def call(
+        self, client: Any, request: Any, timeout_s: float = 20.0, resend_s: float | None = None
+    ) -> Any:
+        """The service's answer to ``request``. With ``resend_s`` (idempotent requests only)
+        the request is sent again every ``resend_s`` seconds until one is answered: right after
+        a node starts, ``wait_for_service`` can report the service before the node has matched
+        this client's response reader, and Fast DDS then drops the answer ("failed to send
+        response (timeout): client will not receive response" in the node's log; the discovery
+        race of ros2/rmw_fastrtps#238), so a single request can wait for ever."""
         assert client.wait_for_service(timeout_sec=timeout_s), f"{client.srv_name} not offered"
-        future = client.call_async(request)
-        assert self.spin_until(future.done, timeout_s), f"{client.srv_name}: no answer"
-        return future.result()
+        end = time.monotonic() + timeout_s
+        futures = [client.call_async(request)]
+        while True:
+            slice_s = end - time.monotonic() if resend_s is None else resend_s
+            slice_s = min(slice_s, end - time.monotonic())
+            if self.spin_until(lambda: any(f.done() for f in futures), max(slice_s, 0.0)):
+                return next(f for f in futures if f.done()).result()
+            assert time.monotonic() < end, f"{client.srv_name}: no answer"
+            futures.append(client.call_async(request))
 
     def transition(self, transition_id: int) -> bool:
         req = ChangeState.Request()
@@ -191,7 +210,8 @@ class Driver:
         return bool(self.call(self.change_state, req).success)
 
     def state(self) -> str:
-        return str(self.call(self.get_state, GetState.Request()).current_state.label)
+        answer = self.call(self.get_state, GetState.Request(), resend_s=2.0)
+        return str(answer.current_state.label)
 
     def configure_and_activate(self) -> None:
         assert self.transition(Transition.TRANSITION_CONFIGURE)
@@ -255,5 +275,6 @@ def pose_error(a: Sequence[float], b: Sequence[float]) -> tuple[float, float]:
 
 
 def composed(map_T_odom: Pose2, odom_T_base: Sequence[float]) -> Pose2:
-    return compose(map_T_odom, (float(odom_T_base[0]), float(odom_T_base[1]),
-                                float(odom_T_base[2])))
+    return compose(
+        map_T_odom, (float(odom_T_base[0]), float(odom_T_base[1]), float(odom_T_base[2]))
+    )
