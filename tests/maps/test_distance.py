@@ -102,3 +102,19 @@ def test_likelihood_table_without_obstacles_is_the_cap() -> None:
     table = model._log_p_table(10.0)
     assert table.shape == (6, 8)
     assert np.all(table == model._cap_value(10.0))
+
+
+def test_likelihood_table_of_a_long_thin_map_with_a_far_cap() -> None:
+    """A 1 x 40 corridor with one wall cell at its end and a cap beyond every distance: the
+    list of values would be longer than the map, so the table is computed per cell, with the
+    same numbers."""
+    data = np.zeros((1, 40), np.int8)
+    data[0, 0] = OCCUPIED
+    g = OccupancyGrid(data, 0.05)
+    assert int(g.squared_cells_to_occupied.max()) >= data.size  # type: ignore[union-attr]
+    config = LikelihoodFieldConfig(max_occ_dist_m=100.0)
+    model = LikelihoodFieldModel(g, config)
+    per_cell = model._beam_value(
+        np.minimum(distance_cells_reference(g.occupied_mask) * g.resolution, 100.0), 8.0
+    )
+    assert np.array_equal(model._log_p_table(8.0), per_cell)

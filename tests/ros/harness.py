@@ -197,8 +197,8 @@ class Driver:
         end = time.monotonic() + timeout_s
         futures = [client.call_async(request)]
         while True:
-            slice_s = end - time.monotonic() if resend_s is None else resend_s
-            slice_s = min(slice_s, end - time.monotonic())
+            left = end - time.monotonic()
+            slice_s = left if resend_s is None else min(resend_s, left)
             if self.spin_until(lambda: any(f.done() for f in futures), max(slice_s, 0.0)):
                 return next(f for f in futures if f.done()).result()
             assert time.monotonic() < end, f"{client.srv_name}: no answer"

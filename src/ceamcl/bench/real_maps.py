@@ -362,18 +362,20 @@ def evaluate_targets(result: dict[str, Any]) -> list[dict[str, Any]]:
         r for r in result.get("steps", []) if r["mode"] == "global" and r["pace"] != "every scan"
     ]
     ours = {r["log"]: r["median_update_ms"] for r in glob if r["algorithm"] == "ceamcl"}
-    mcl = {r["log"]: r["median_update_ms"] for r in glob if r["algorithm"] == "mcl-tuned"}
     if ours:
         vals["step_ms"] = float(max(ours.values()))
-    ratios = [ours[log] / mcl[log] for log in ours if log in mcl]
-    if ratios:
-        vals["step_vs_mcl"] = float(max(ratios))
-    key = "median_update_state_ms"  # absent from results written before it was measured
-    ours = {r["log"]: r[key] for r in glob if r["algorithm"] == "ceamcl" and key in r}
-    mcl = {r["log"]: r[key] for r in glob if r["algorithm"] == "mcl-tuned" and key in r}
-    ratios = [ours[log] / mcl[log] for log in ours if log in mcl and mcl[log] > 0]
-    if ratios:
-        vals["step_state_vs_mcl"] = float(max(ratios))
+    for target, column in (
+        ("step_vs_mcl", "median_update_ms"),
+        ("step_state_vs_mcl", "median_update_state_ms"),
+    ):
+        by = {(r["algorithm"], r["log"]): r[column] for r in glob}
+        ratios = [
+            by["ceamcl", log] / by["mcl-tuned", log]
+            for algo, log in by
+            if algo == "ceamcl" and ("mcl-tuned", log) in by
+        ]
+        if ratios:
+            vals[target] = float(max(ratios))
     quick = bool(result.get("settings", {}).get("quick", False))
     return [
         {
@@ -511,7 +513,7 @@ def render_markdown(r: dict[str, Any]) -> str:
             _f(st["scan_rate_hz"], 1),
             _f(st["median_update_ms"]),
             _f(st["p95_update_ms"]),
-            _f(st.get("median_update_state_ms")),
+            _f(st["median_update_state_ms"]),
             _f(st["mean_ms_per_scan"]),
             f"{100 * st['load']:.2f} %",
             _f(st["max_scan_rate_hz"], 0),

@@ -107,17 +107,17 @@ def squared_distance_cells(obstacles: NDArray[np.bool_]) -> NDArray[np.int32]:
 def distance_from_squared(squared: NDArray[np.int32], scale: float = 1.0) -> NDArray[np.float64]:
     """``sqrt(squared) * scale`` in float64, as SciPy's distances times a cell size."""
     dist = np.sqrt(squared.astype(np.float64))
-    if scale != 1.0:
-        dist *= scale
+    dist *= scale
     return dist
 
 
-def distance_cells(obstacles: NDArray[np.bool_]) -> NDArray[np.float64]:
-    """Euclidean distance in cells to the nearest obstacle; ``+inf`` everywhere without one."""
+def distance_cells(obstacles: NDArray[np.bool_], scale: float = 1.0) -> NDArray[np.float64]:
+    """Euclidean distance to the nearest obstacle, in cells times ``scale`` (a cell size gives
+    metres); ``+inf`` everywhere without one."""
     mask = np.asarray(obstacles, dtype=np.bool_)
     if not mask.any():
         return np.full(mask.shape, np.inf)
-    return distance_from_squared(squared_distance_cells(mask))
+    return distance_from_squared(squared_distance_cells(mask), scale)
 
 
 def distance_cells_reference(obstacles: NDArray[np.bool_]) -> NDArray[np.float64]:

@@ -17,7 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ceamcl.angles import wrap
 from ceamcl.errors import MapFormatError
-from ceamcl.maps.distance import distance_from_squared, squared_distance_cells
+from ceamcl.maps.distance import distance_cells, distance_from_squared, squared_distance_cells
 
 FREE = 0
 OCCUPIED = 100
@@ -136,7 +136,7 @@ class OccupancyGrid:
     @cached_property
     def distance_to_blocking(self) -> NDArray[np.float64]:
         """Distance to the nearest occupied or unknown cell; the ray caster marches on it."""
-        return _edt_metres(self.blocking_mask, self.resolution)
+        return distance_cells(self.blocking_mask, self.resolution)
 
     # ------------------------------------------------------------------ transforms
     def world_to_map(
@@ -230,9 +230,3 @@ class OccupancyGrid:
             self.origin,
             name=self.name if name is None else name,
         )
-
-
-def _edt_metres(obstacles: NDArray[np.bool_], resolution: float) -> NDArray[np.float64]:
-    if not obstacles.any():
-        return np.full(obstacles.shape, np.inf)
-    return distance_from_squared(squared_distance_cells(obstacles), resolution)

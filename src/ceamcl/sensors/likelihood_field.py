@@ -119,6 +119,7 @@ class LikelihoodFieldModel(CombinedBeams):
         self.grid = grid
         self.config = config or LikelihoodFieldConfig()
         self._tables: dict[float, NDArray[np.float64]] = {}
+        self._caps: dict[float, float] = {}
 
     @cached_property
     def _dist(self) -> NDArray[np.float64]:
@@ -141,7 +142,7 @@ class LikelihoodFieldModel(CombinedBeams):
         distance in cells), capped at ``max_occ_dist_m``: the table takes the value of each
         ``s`` up to the cap from a short list (1,601 entries at 5 cm and 2 m) instead of an
         ``exp`` and a ``log`` per cell (0.4 s on a 7.8-million-cell map), with the same
-        numbers."""
+        numbers; never a list longer than the map (a cap far beyond the map's distances)."""
         table = self._tables.get(range_max)
         if table is None:
             sq = self.grid.squared_cells_to_occupied
@@ -150,20 +151,28 @@ class LikelihoodFieldModel(CombinedBeams):
             else:
                 res = self.grid.resolution
                 cap = self.config.max_occ_dist_m
-                # the first s whose distance reaches the cap (every larger s is capped too)
+                # an s at or past the cap (np.take clips every larger s to it), or the
+                # largest s of the map when no cell reaches the cap
                 top = math.ceil((cap / res) ** 2)
-                while top > 0 and math.sqrt(float(top - 1)) * res >= cap:
-                    top -= 1
                 while math.sqrt(float(top)) * res < cap:
                     top += 1
-                d = np.minimum(np.sqrt(np.arange(top + 1, dtype=np.float64)) * res, cap)
-                table = np.take(self._beam_value(d, range_max), sq, mode="clip")
-            self._tables[range_max] = np.ascontiguousarray(table)
-            table = self._tables[range_max]
+                top = min(top, int(sq.max()))
+                if top >= sq.size:  # a list longer than the map: per cell is cheaper
+                    table = self._beam_value(self._dist, range_max)
+                else:
+                    d = np.minimum(np.sqrt(np.arange(top + 1, dtype=np.float64)) * res, cap)
+                    table = np.take(self._beam_value(d, range_max), sq, mode="clip")
+            self._tables[range_max] = table
         return table
 
     def _cap_value(self, range_max: float) -> float:
-        return float(self._beam_value(np.array([self.config.max_occ_dist_m]), range_max)[0])
+        """The value of an end point at the cap or off the map (cached: every likelihood
+        call needs it)."""
+        value = self._caps.get(range_max)
+        if value is None:
+            d = np.array([self.config.max_occ_dist_m])
+            value = self._caps[range_max] = float(self._beam_value(d, range_max)[0])
+        return value
 
     def prepare(self, scan: LaserScan) -> PreparedScan:
         return prepare_scan(scan, self.config.max_beams, keep_max_range=False)
