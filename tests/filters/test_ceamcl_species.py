@@ -9,7 +9,11 @@ from numpy.typing import NDArray
 
 from ceamcl.angles import circular_variance, wrap
 from ceamcl.filters.ceamcl.competition import living_domain
-from ceamcl.filters.ceamcl.species import all_species_stats, compact_species
+from ceamcl.filters.ceamcl.species import (
+    all_species_stats,
+    all_species_stats_reference,
+    compact_species,
+)
 from ceamcl.filters.resampling import (
     label_groups,
     normalise_log_weights,
@@ -92,6 +96,57 @@ def test_all_species_stats_agree_with_single_species_functions(seed: int) -> Non
         sd = np.sqrt(min(circular_variance(p[:, 2]), np.pi**2))
         assert s.heading_sd == pytest.approx(sd, abs=1e-9)
         assert s.fitness == pytest.approx(float(np.mean(fit[idx])))
+
+
+def _hard_case(rng: np.random.Generator) -> tuple[NDArray[np.int64], ...]:
+    """Species of 1 to 300 particles (the pairwise sum's branches at 8 and 128 and its halving
+    above), ids unsorted and sparse, with NaN, -inf and equal log-likelihoods, species whose
+    every log-likelihood is -inf or NaN, headings at +-pi and zero, negative zeros, NaN fitness."""
+    sizes = rng.integers(1, 300, rng.integers(1, 7))
+    ids = rng.choice(10_000, sizes.size, replace=False)
+    species = rng.permutation(np.repeat(ids, sizes)).astype(np.int64)
+    n = species.size
+    scale = 10.0 ** rng.integers(-3, 2)
+    poses = np.column_stack(
+        [rng.normal(0, scale, n), rng.normal(0, 1, n), rng.uniform(-np.pi, np.pi, n)]
+    )
+    kind = rng.integers(0, 6)
+    if kind == 1:
+        poses[:, 2] = rng.choice([np.pi, -np.pi, 0.0, -0.0], n)
+    elif kind == 2:
+        poses[:, :2] = -0.0
+    loglik = rng.normal(-50, 20, n)
+    loglik[rng.random(n) < 0.1] = np.nan
+    loglik[rng.random(n) < 0.1] = -np.inf
+    if kind == 3:
+        loglik[species == ids[0]] = -np.inf
+    elif kind == 4:
+        loglik[species == ids[0]] = np.nan
+    elif kind == 5:
+        loglik[:] = 0.0
+    fit = rng.uniform(0.0, 1.0, n)
+    if rng.random() < 0.2:
+        fit[rng.integers(0, n)] = np.nan
+    return species, poses, loglik, fit
+
+
+def test_all_species_stats_equals_its_numpy_reference_bit_for_bit() -> None:
+    rng = np.random.default_rng(11)
+    fields = ("weights", "mean", "covariance", "cov_xy", "domain_variances", "domain_axes")
+    for _ in range(400):
+        species, poses, loglik, fit = _hard_case(rng)
+        got = all_species_stats(species, poses, loglik, fit)
+        want = all_species_stats_reference(species, poses, loglik, fit)
+        assert list(got) == list(want)
+        for sid, g in got.items():
+            r = want[sid]
+            np.testing.assert_array_equal(g.members, r.members)
+            for name in fields:
+                a, b = getattr(g, name), getattr(r, name)
+                assert a.tobytes() == b.tobytes(), name  # same bits, signed zeros and NaN too
+            for name in ("heading_sd", "fitness", "best_fitness", "area_m2"):
+                a, b = np.float64(getattr(g, name)), np.float64(getattr(r, name))
+                assert a.tobytes() == b.tobytes(), name
 
 
 def test_compact_species_are_those_spanning_less_than_one_cell() -> None:

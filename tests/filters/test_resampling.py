@@ -8,6 +8,7 @@ import pytest
 from ceamcl.filters.resampling import (
     RESAMPLERS,
     effective_sample_size,
+    label_segments,
     multinomial,
     normalise_log_weights,
     resampler,
@@ -125,3 +126,19 @@ def test_resamplers_are_found_by_name() -> None:
     assert set(RESAMPLERS) == {"systematic", "multinomial"}
     with pytest.raises(ValueError, match="unknown 'stratified'"):
         resampler("stratified")
+
+
+def test_label_segments_is_the_stable_sort_with_one_label_or_many() -> None:
+    """One label takes a shortcut (a lone species); every case gives the stable sort's arrays,
+    dtypes included."""
+    rng = np.random.default_rng(3)
+    cases = [np.full(n, v, dtype=np.int64) for n in (1, 2, 120) for v in (0, 5, 10**9)]
+    cases += [rng.integers(0, k, n).astype(np.int64) for k in (2, 5) for n in (2, 50, 300)]
+    cases += [np.array([4, 1, 4], dtype=np.int64), np.array([3, 3, 3, 2], dtype=np.int64)]
+    for labels in cases:
+        order = np.argsort(labels, kind="stable")
+        ids, starts = np.unique(labels[order], return_index=True)
+        want = (order, ids, starts, np.diff(np.append(starts, order.size)))
+        for got, ref in zip(label_segments(labels), want, strict=True):
+            assert got.dtype == ref.dtype
+            np.testing.assert_array_equal(got, ref)

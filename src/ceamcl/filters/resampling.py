@@ -108,6 +108,10 @@ def label_segments(
 ) -> tuple[NDArray[np.intp], NDArray[np.int64], NDArray[np.intp], NDArray[np.intp]]:
     """The particles sorted by label: ``(order, ids, starts, counts)``, so that label
     ``ids[k]`` (ascending) owns ``order[starts[k] : starts[k] + counts[k]]``."""
+    if labels.size and labels[0] == labels[-1] and bool(np.all(labels == labels[0])):
+        # one label (a lone species: CEAMCL tracking), the stable sort's answer without it
+        first = np.zeros(1, dtype=np.intp)
+        return np.arange(labels.size), labels[:1].copy(), first, np.array([labels.size])
     order = np.argsort(labels, kind="stable")
     ids, starts = np.unique(labels[order], return_index=True)
     counts = np.diff(np.append(starts, order.size))

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -47,12 +48,242 @@ def all_species_stats(
 ) -> dict[int, SpeciesStats]:
     """:class:`SpeciesStats` of every species, in ascending id order.
 
-    Computed with segment sums over the particles sorted by species instead of one NumPy pass
-    per species (whose Python overhead was most of a CEAMCL step, docs/performance.md); the
-    results agree to rounding with ``pose_mean``, ``pose_covariance``, ``np.cov``,
-    :func:`~ceamcl.filters.ceamcl.competition.living_domain` and ``circular_variance`` applied
-    to each species alone.
+    Every species' sums come from one compiled pass over the particles sorted by species
+    (:func:`_species_moments`), which adds in the order ``np.add.reduceat`` does, so the
+    numbers are those of :func:`all_species_stats_reference`, its NumPy form, to the last bit
+    (docs/performance.md); they agree to rounding with ``pose_mean``, ``pose_covariance``,
+    ``np.cov``, :func:`~ceamcl.filters.ceamcl.competition.living_domain` and
+    ``circular_variance`` applied to each species alone.
     """
+    if species.size == 0:
+        return {}
+    order, ids, starts, counts = label_segments(species)
+    w, mean, cov, cov_xy, heading_sd, fit, best = _species_moments(
+        np.ascontiguousarray(poses[order], dtype=np.float64),
+        np.ascontiguousarray(loglik[order], dtype=np.float64),
+        np.ascontiguousarray(fitness[order], dtype=np.float64),
+        starts.astype(np.intp),
+        counts.astype(np.intp),
+    )
+    return _collect(ids, order, starts, counts, w, mean, cov, cov_xy, heading_sd, fit, best)
+
+
+def _collect(
+    ids: NDArray[np.int64],
+    order: NDArray[np.intp],
+    starts: NDArray[np.intp],
+    counts: NDArray[np.intp],
+    w: NDArray[np.float64],
+    mean: NDArray[np.float64],
+    cov: NDArray[np.float64],
+    cov_xy: NDArray[np.float64],
+    heading_sd: NDArray[np.float64],
+    fit: NDArray[np.float64],
+    best: NDArray[np.float64],
+) -> dict[int, SpeciesStats]:
+    dv, axes, area = living_domains(cov_xy)
+    out: dict[int, SpeciesStats] = {}
+    for k, sid in enumerate(ids.tolist()):
+        a, b = int(starts[k]), int(starts[k] + counts[k])
+        out[int(sid)] = SpeciesStats(
+            species_id=int(sid),
+            members=order[a:b],
+            weights=w[a:b],
+            mean=mean[k],
+            covariance=cov[k],
+            cov_xy=cov_xy[k],
+            heading_sd=float(heading_sd[k]),
+            fitness=float(fit[k]),
+            best_fitness=float(best[k]),
+            domain_variances=dv[k],
+            domain_axes=axes[k],
+            area_m2=float(area[k]),
+        )
+    return out
+
+
+_PI_SQUARED = float(np.pi**2)
+
+
+@numba.njit(cache=True)
+def _pairwise_sum(a: NDArray[np.float64], lo: int, n: int) -> float:  # pragma: no cover
+    """NumPy's pairwise summation of ``a[lo : lo + n]`` (numpy/_core/src/umath/loops_utils.h:
+    eight running sums in blocks of up to 128, halves above), operation for operation."""
+    if n < 8:
+        res = -0.0  # NumPy 2 keeps the sign of a sum of negative zeros
+        for i in range(n):
+            res += a[lo + i]
+        return res
+    if n <= 128:
+        r0, r1, r2, r3 = a[lo], a[lo + 1], a[lo + 2], a[lo + 3]
+        r4, r5, r6, r7 = a[lo + 4], a[lo + 5], a[lo + 6], a[lo + 7]
+        i = 8
+        stop = n - n % 8
+        while i < stop:
+            j = lo + i
+            r0 += a[j]
+            r1 += a[j + 1]
+            r2 += a[j + 2]
+            r3 += a[j + 3]
+            r4 += a[j + 4]
+            r5 += a[j + 5]
+            r6 += a[j + 6]
+            r7 += a[j + 7]
+            i += 8
+        res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+        while i < n:
+            res += a[lo + i]
+            i += 1
+        return res
+    n2 = n // 2
+    n2 -= n2 % 8
+    return _pairwise_sum(a, lo, n2) + _pairwise_sum(a, lo + n2, n - n2)
+
+
+@numba.njit(cache=True)
+def _segment_sum(a: NDArray[np.float64], s: int, e: int) -> float:  # pragma: no cover
+    """``np.add.reduceat``'s sum of ``a[s:e]``: the first value plus the pairwise sum of the
+    rest."""
+    return a[s] + _pairwise_sum(a, s + 1, e - s - 1)
+
+
+@numba.njit(cache=True)
+def _segment_max(a: NDArray[np.float64], s: int, e: int) -> float:  # pragma: no cover
+    """``np.maximum.reduceat``'s maximum of ``a[s:e]`` (NaN propagates)."""
+    m = a[s]
+    for i in range(s + 1, e):
+        v = a[i]
+        if not (m >= v or np.isnan(m)):
+            m = v
+    return m
+
+
+@numba.njit(cache=True)
+def _species_moments(p, ll, fitness, starts, counts):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The sums of :func:`all_species_stats_reference` for particles sorted by species
+    (``p``, ``ll``, ``fitness``; species ``k`` owns ``[starts[k], starts[k] + counts[k])``):
+    in-species weights, weighted mean pose and covariance, unweighted x-y covariance, circular
+    heading spread, mean and best fitness. Every elementwise operation is the reference's,
+    in its order, and every sum is a :func:`_segment_sum`."""
+    n_all = p.shape[0]
+    n_species = starts.size
+    w = np.empty(n_all)
+    buf = np.empty(n_all)
+    dx = np.empty(n_all)
+    dy = np.empty(n_all)
+    dth = np.empty(n_all)
+    mean = np.empty((n_species, 3))
+    cov = np.empty((n_species, 3, 3))
+    cov_xy = np.empty((n_species, 2, 2))
+    heading_sd = np.empty(n_species)
+    fit = np.empty(n_species)
+    best = np.empty(n_species)
+    two_pi = 2.0 * np.pi
+    for k in range(n_species):
+        s = starts[k]
+        e = s + counts[k]
+        n = float(counts[k])
+        # in-species weights (resampling.segment_weights)
+        for i in range(s, e):
+            v = ll[i]
+            buf[i] = -np.inf if np.isnan(v) else v
+        top = _segment_max(buf, s, e)
+        if np.isfinite(top):
+            for i in range(s, e):
+                buf[i] = np.exp(buf[i] - top)
+        else:
+            for i in range(s, e):
+                buf[i] = 1.0
+        total = _segment_sum(buf, s, e)
+        for i in range(s, e):
+            w[i] = buf[i] / total
+        # weighted mean pose, circular heading
+        for i in range(s, e):
+            buf[i] = w[i] * np.sin(p[i, 2])
+        sw = _segment_sum(buf, s, e)
+        for i in range(s, e):
+            buf[i] = w[i] * np.cos(p[i, 2])
+        cw = _segment_sum(buf, s, e)
+        for i in range(s, e):
+            buf[i] = w[i] * p[i, 0]
+        mx = _segment_sum(buf, s, e)
+        for i in range(s, e):
+            buf[i] = w[i] * p[i, 1]
+        my = _segment_sum(buf, s, e)
+        mth = 0.0 if (sw == 0.0 and cw == 0.0) else np.arctan2(sw, cw)
+        mean[k, 0] = mx
+        mean[k, 1] = my
+        mean[k, 2] = mth
+        # weighted covariance, heading deviations wrapped to (-pi, pi]
+        for i in range(s, e):
+            dx[i] = p[i, 0] - mx
+            dy[i] = p[i, 1] - my
+            dth[i] = np.pi - np.mod(np.pi - (p[i, 2] - mth), two_pi)
+        for a in range(3):
+            da = dx if a == 0 else (dy if a == 1 else dth)
+            for b in range(a, 3):
+                db = dx if b == 0 else (dy if b == 1 else dth)
+                for i in range(s, e):
+                    buf[i] = w[i] * da[i] * db[i]
+                c = _segment_sum(buf, s, e)
+                cov[k, a, b] = c
+                cov[k, b, a] = c
+        # unweighted x-y covariance of the individuals (np.cov, ddof 1)
+        for i in range(s, e):
+            buf[i] = p[i, 0]
+        ux = _segment_sum(buf, s, e) / n
+        for i in range(s, e):
+            buf[i] = p[i, 1]
+        uy = _segment_sum(buf, s, e) / n
+        for i in range(s, e):
+            dx[i] = p[i, 0] - ux
+            dy[i] = p[i, 1] - uy
+        dof = max(n - 1.0, 1.0)
+        if counts[k] < 2:
+            cov_xy[k, 0, 0] = cov_xy[k, 0, 1] = cov_xy[k, 1, 0] = cov_xy[k, 1, 1] = 0.0
+        else:
+            for i in range(s, e):
+                buf[i] = dx[i] * dx[i]
+            cov_xy[k, 0, 0] = _segment_sum(buf, s, e) / dof
+            for i in range(s, e):
+                buf[i] = dy[i] * dy[i]
+            cov_xy[k, 1, 1] = _segment_sum(buf, s, e) / dof
+            for i in range(s, e):
+                buf[i] = dx[i] * dy[i]
+            c = _segment_sum(buf, s, e) / dof
+            cov_xy[k, 0, 1] = c
+            cov_xy[k, 1, 0] = c
+        # unweighted circular spread of the headings
+        for i in range(s, e):
+            buf[i] = np.sin(p[i, 2])
+        ss = _segment_sum(buf, s, e)
+        for i in range(s, e):
+            buf[i] = np.cos(p[i, 2])
+        cs = _segment_sum(buf, s, e)
+        r = np.hypot(ss, cs) / n
+        if r < 1e-300:
+            r = 1e-300
+        if r > 1.0:
+            r = 1.0
+        v = -2.0 * np.log(r)
+        if v > _PI_SQUARED:
+            v = _PI_SQUARED
+        heading_sd[k] = np.sqrt(v)
+        for i in range(s, e):
+            buf[i] = fitness[i]
+        fit[k] = _segment_sum(buf, s, e) / n
+        best[k] = _segment_max(fitness, s, e)
+    return w, mean, cov, cov_xy, heading_sd, fit, best
+
+
+def all_species_stats_reference(
+    species: NDArray[np.int64],
+    poses: NDArray[np.float64],
+    loglik: NDArray[np.float64],
+    fitness: NDArray[np.float64],
+) -> dict[int, SpeciesStats]:
+    """:func:`all_species_stats` in NumPy segment sums (``np.add.reduceat``): the reference
+    the compiled version equals bit for bit (``tests/filters/test_ceamcl_species.py``)."""
     if species.size == 0:
         return {}
     order, ids, starts, counts = label_segments(species)
@@ -85,30 +316,12 @@ def all_species_stats(
     cov_xy[:, 1, 1] = total(ey * ey) / dof
     cov_xy[:, 0, 1] = cov_xy[:, 1, 0] = total(ex * ey) / dof
     cov_xy[counts < 2] = 0.0
-    dv, axes, area = living_domains(cov_xy)
     # Unweighted circular spread of the headings (circular_variance).
     resultant = np.clip(np.hypot(total(np.sin(th)), total(np.cos(th))) / n, 1e-300, 1.0)
     heading_sd = np.sqrt(np.minimum(-2.0 * np.log(resultant), np.pi**2))
     fit = total(fitness[order]) / n
     best = np.maximum.reduceat(fitness[order], starts)
-    out: dict[int, SpeciesStats] = {}
-    for k, sid in enumerate(ids.tolist()):
-        a, b = int(starts[k]), int(starts[k] + counts[k])
-        out[int(sid)] = SpeciesStats(
-            species_id=int(sid),
-            members=order[a:b],
-            weights=w[a:b],
-            mean=mean[k],
-            covariance=cov[k],
-            cov_xy=cov_xy[k],
-            heading_sd=float(heading_sd[k]),
-            fitness=float(fit[k]),
-            best_fitness=float(best[k]),
-            domain_variances=dv[k],
-            domain_axes=axes[k],
-            area_m2=float(area[k]),
-        )
-    return out
+    return _collect(ids, order, starts, counts, w, mean, cov, cov_xy, heading_sd, fit, best)
 
 
 def living_domains(
