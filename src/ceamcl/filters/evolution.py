@@ -24,6 +24,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -72,7 +73,181 @@ def crossover(
     best_seen: NDArray[np.float64] | None = None,
 ) -> int:
     """Eq. 17 on the disjoint pairs ``(first[k], second[k])``, in place; returns how many poses
-    were evaluated."""
+    were evaluated. The arithmetic is compiled (:func:`_crossover_children`,
+    :func:`_crossover_select`); the random numbers are drawn here, in the order and sizes
+    :func:`crossover_reference` draws them, so both give the same bits."""
+    mate = rng.random(first.size) < p_crossover
+    xi = rng.random(first.size)
+    a, b, xi = first[mate], second[mate], xi[mate]
+    if a.size == 0:
+        return 0
+    a, b = a.astype(np.intp), b.astype(np.intp)
+    children = _crossover_children(poses, a, b, xi)
+    ll_children = np.asarray(evaluate(children), dtype=np.float64)
+    metropolis = selection == "metropolis"
+    u = rng.random(a.size) if metropolis else _NONE
+    track = best_seen is not None
+    _crossover_select(
+        poses, loglik, a, b, children, ll_children, u, metropolis,
+        best_seen if best_seen is not None else _NONE, track,
+    )  # fmt: skip
+    return 2 * int(a.size)
+
+
+def mutation(
+    poses: NDArray[np.float64],
+    loglik: NDArray[np.float64],
+    candidates: NDArray[np.intp],
+    p_mutation: float,
+    sigma: NDArray[np.float64],
+    evaluate: Evaluator,
+    rng: np.random.Generator,
+    selection: str = "best",
+    best_seen: NDArray[np.float64] | None = None,
+) -> int:
+    """Eq. 18 (corrected) on each index of ``candidates`` with probability ``p_mutation``, in
+    place; returns how many poses were evaluated. Compiled like :func:`crossover`, with the
+    random numbers of :func:`mutation_reference`."""
+    chosen = candidates[rng.random(candidates.size) < p_mutation]
+    z = rng.standard_normal((chosen.size, 3))
+    if chosen.size == 0:
+        return 0
+    chosen = chosen.astype(np.intp)
+    child = _mutants(poses, chosen, z, np.asarray(sigma, dtype=np.float64))
+    ll_child = np.asarray(evaluate(child), dtype=np.float64)
+    metropolis = selection == "metropolis"
+    u = rng.random(chosen.size) if metropolis else _NONE
+    track = best_seen is not None
+    _mutation_select(
+        poses, loglik, chosen, child, ll_child, u, metropolis,
+        best_seen if best_seen is not None else _NONE, track,
+    )  # fmt: skip
+    return int(chosen.size)
+
+
+_NONE = np.zeros(0)  # an absent array argument of the kernels
+
+
+@numba.njit(cache=True)
+def _wrap(a: float) -> float:  # pragma: no cover
+    """:func:`ceamcl.angles.wrap` of one angle, the same operations."""
+    return np.pi - np.mod(np.pi - a, 2.0 * np.pi)
+
+
+@numba.njit(cache=True)
+def _max(x: float, y: float) -> float:  # pragma: no cover
+    """``np.maximum(x, y)``: NaN propagates, ties keep ``x``."""
+    return x if (x >= y or np.isnan(x)) else y
+
+
+@numba.njit(cache=True)
+def _crossover_children(poses, a, b, xi):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """``vstack([c1, c2])`` of eq. 17: positions blended, headings along the shorter arc
+    (:func:`ceamcl.angles.interpolate`), operation for operation as the reference."""
+    m = a.size
+    out = np.empty((2 * m, 3))
+    for k in range(m):
+        x = xi[k]
+        pa, pb = poses[a[k]], poses[b[k]]
+        for j in range(2):
+            out[k, j] = x * pa[j] + (1.0 - x) * pb[j]
+            out[m + k, j] = (1.0 - x) * pa[j] + x * pb[j]
+        out[k, 2] = _wrap(pb[2] + x * _wrap(pa[2] - pb[2]))
+        out[m + k, 2] = _wrap(pa[2] + x * _wrap(pb[2] - pa[2]))
+    return out
+
+
+@numba.njit(cache=True)
+def _crossover_select(  # type: ignore[no-untyped-def]  # pragma: no cover
+    poses, loglik, a, b, children, ll_children, u, metropolis, best_seen, track
+):
+    """Which two of parents and children take the parents' places (module docstring), in
+    place; NaN log-likelihoods count as -inf; ``best_seen`` raised at both parents."""
+    m = a.size
+    cand_ll = np.empty(4)
+    cand = np.empty((4, 3))
+    for k in range(m):
+        i, j = a[k], b[k]
+        cand_ll[0], cand_ll[1] = loglik[i], loglik[j]
+        cand_ll[2], cand_ll[3] = ll_children[k], ll_children[m + k]
+        for c in range(4):
+            if np.isnan(cand_ll[c]):
+                cand_ll[c] = -np.inf
+        for d in range(3):
+            cand[0, d], cand[1, d] = poses[i, d], poses[j, d]
+            cand[2, d], cand[3, d] = children[k, d], children[m + k, d]
+        if track:
+            top = max(max(cand_ll[0], cand_ll[1]), max(cand_ll[2], cand_ll[3]))
+            best_seen[i] = _max(best_seen[i], top)
+            best_seen[j] = _max(best_seen[j], top)
+        if metropolis:
+            log_ratio = cand_ll[2] + cand_ll[3] - cand_ll[0] - cand_ll[1]
+            if np.isnan(log_ratio):
+                log_ratio = -np.inf
+            first, second = (2, 3) if np.log(u[k]) < log_ratio else (0, 1)
+        else:  # the best two, ties to the earlier (a stable sort of -log-likelihood)
+            first = 0
+            for c in range(1, 4):
+                if cand_ll[c] > cand_ll[first]:
+                    first = c
+            second = -1
+            for c in range(4):
+                if c != first and (second < 0 or cand_ll[c] > cand_ll[second]):
+                    second = c
+        for d in range(3):
+            poses[i, d] = cand[first, d]
+            poses[j, d] = cand[second, d]
+        loglik[i] = cand_ll[first]
+        loglik[j] = cand_ll[second]
+
+
+@numba.njit(cache=True)
+def _mutants(poses, chosen, z, sigma):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """``poses[chosen] + z * sigma``, headings wrapped."""
+    child = np.empty((chosen.size, 3))
+    for k in range(chosen.size):
+        for d in range(3):
+            child[k, d] = poses[chosen[k], d] + z[k, d] * sigma[d]
+        child[k, 2] = _wrap(child[k, 2])
+    return child
+
+
+@numba.njit(cache=True)
+def _mutation_select(  # type: ignore[no-untyped-def]  # pragma: no cover
+    poses, loglik, chosen, child, ll_child, u, metropolis, best_seen, track
+):
+    """A mutant replaces its parent when better (or by the Metropolis rule), in place."""
+    for k in range(chosen.size):
+        i = chosen[k]
+        ll = ll_child[k]
+        if track:
+            best_seen[i] = _max(best_seen[i], -np.inf if np.isnan(ll) else ll)
+        if metropolis:
+            log_ratio = ll - loglik[i]
+            if np.isnan(log_ratio):
+                log_ratio = -np.inf
+            keep = np.log(u[k]) < log_ratio
+        else:
+            keep = ll > loglik[i]
+        if keep:
+            for d in range(3):
+                poses[i, d] = child[k, d]
+            loglik[i] = ll
+
+
+def crossover_reference(
+    poses: NDArray[np.float64],
+    loglik: NDArray[np.float64],
+    first: NDArray[np.intp],
+    second: NDArray[np.intp],
+    p_crossover: float,
+    evaluate: Evaluator,
+    rng: np.random.Generator,
+    selection: str = "best",
+    best_seen: NDArray[np.float64] | None = None,
+) -> int:
+    """:func:`crossover` in NumPy, the reference it equals bit for bit
+    (``tests/filters/test_evolution.py``)."""
     mate = rng.random(first.size) < p_crossover
     xi = rng.random(first.size)
     a, b, xi = first[mate], second[mate], xi[mate]
@@ -108,7 +283,7 @@ def crossover(
     return 2 * m
 
 
-def mutation(
+def mutation_reference(
     poses: NDArray[np.float64],
     loglik: NDArray[np.float64],
     candidates: NDArray[np.intp],
@@ -119,8 +294,7 @@ def mutation(
     selection: str = "best",
     best_seen: NDArray[np.float64] | None = None,
 ) -> int:
-    """Eq. 18 (corrected) on each index of ``candidates`` with probability ``p_mutation``, in
-    place; returns how many poses were evaluated."""
+    """:func:`mutation` in NumPy, the reference it equals bit for bit."""
     chosen = candidates[rng.random(candidates.size) < p_mutation]
     noise = rng.standard_normal((chosen.size, 3)) * sigma
     if chosen.size == 0:
