@@ -13,6 +13,8 @@ from ceamcl.filters.resampling import (
     normalise_log_weights,
     resampler,
     systematic,
+    systematic_within_labels,
+    systematic_within_labels_reference,
 )
 
 
@@ -142,3 +144,30 @@ def test_label_segments_is_the_stable_sort_with_one_label_or_many() -> None:
         for got, ref in zip(label_segments(labels), want, strict=True):
             assert got.dtype == ref.dtype
             np.testing.assert_array_equal(got, ref)
+
+
+def test_systematic_within_labels_equals_its_numpy_reference_bit_for_bit() -> None:
+    """Labels unsorted and sparse, 1 to 300 particles each, targets of 0, 1, fewer and more,
+    log-likelihoods with NaN, -inf, ties and whole labels impossible: the same ancestors,
+    members and random stream afterwards."""
+    rng = np.random.default_rng(8)
+    for _ in range(300):
+        sizes = rng.integers(1, 300, rng.integers(1, 6))
+        ids = rng.choice(5_000, sizes.size, replace=False)
+        labels = rng.permutation(np.repeat(ids, sizes)).astype(np.int64)
+        loglik = np.round(rng.normal(-30, 10, labels.size), int(rng.integers(0, 2)))
+        loglik[rng.random(labels.size) < 0.1] = np.nan
+        loglik[rng.random(labels.size) < 0.1] = -np.inf
+        if rng.random() < 0.3:
+            loglik[labels == ids[0]] = -np.inf
+        targets = {int(i): int(rng.choice([0, 1, 7, 40, 500])) for i in ids if rng.random() < 0.8}
+        seed = int(rng.integers(0, 2**32))
+        r1, r2 = np.random.default_rng(seed), np.random.default_rng(seed)
+        a1, m1 = systematic_within_labels(labels, loglik, targets, r1)
+        a2, m2 = systematic_within_labels_reference(labels, loglik, targets, r2)
+        assert a1.dtype == a2.dtype
+        np.testing.assert_array_equal(a1, a2)
+        assert list(m1) == list(m2)
+        for sid in m1:
+            np.testing.assert_array_equal(m1[sid], m2[sid])
+        assert r1.random() == r2.random()

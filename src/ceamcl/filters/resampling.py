@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -152,8 +153,41 @@ def systematic_within_labels(
 
     Returns ``(ancestors, members)``: the ancestors' indices, grouped by label in ascending
     order, and the members of each surviving label among the resampled particles (contiguous
-    ranges, what :func:`label_groups` would return for them).
+    ranges, what :func:`label_groups` would return for them). The weights, cumulative sums
+    and searches are compiled (:func:`_systematic_positions`) and give the bits of
+    :func:`systematic_within_labels_reference`, its NumPy form.
     """
+    if labels.size == 0:
+        return np.zeros(0, dtype=np.intp), {}
+    order, ids, starts, counts = label_segments(labels)
+    n = np.array([targets.get(int(sid), int(c)) for sid, c in zip(ids, counts, strict=True)])
+    n = np.maximum(n, 0)
+    u = np.zeros(ids.size)
+    u[n > 0] = rng.random(int(np.count_nonzero(n > 0)))
+    pos = _systematic_positions(
+        np.ascontiguousarray(loglik[order], dtype=np.float64),
+        starts.astype(np.intp),
+        counts.astype(np.intp),
+        n.astype(np.intp),
+        u,
+    )
+    first = np.cumsum(n) - n
+    members = {
+        int(sid): np.arange(a, a + c, dtype=np.intp)
+        for sid, a, c in zip(ids, first, n, strict=True)
+        if c > 0
+    }
+    return order[pos].astype(np.intp), members
+
+
+def systematic_within_labels_reference(
+    labels: NDArray[np.int64],
+    loglik: NDArray[np.float64],
+    targets: dict[int, int],
+    rng: np.random.Generator,
+) -> tuple[NDArray[np.intp], dict[int, NDArray[np.intp]]]:
+    """:func:`systematic_within_labels` in NumPy, the reference it equals bit for bit
+    (``tests/filters/test_resampling.py``)."""
     if labels.size == 0:
         return np.zeros(0, dtype=np.intp), {}
     order, ids, starts, counts = label_segments(labels)
@@ -181,3 +215,121 @@ def systematic_within_labels(
         if c > 0
     }
     return order[pos].astype(np.intp), members
+
+
+# ------------------------------------------------------------ compiled segment sums
+@numba.njit(cache=True)
+def _pairwise_sum(a: NDArray[np.float64], lo: int, n: int) -> float:  # pragma: no cover
+    """NumPy's pairwise summation of ``a[lo : lo + n]`` (numpy/_core/src/umath/loops_utils.h:
+    eight running sums in blocks of up to 128, halves above), operation for operation."""
+    if n < 8:
+        res = -0.0  # NumPy 2 keeps the sign of a sum of negative zeros
+        for i in range(n):
+            res += a[lo + i]
+        return res
+    if n <= 128:
+        r0, r1, r2, r3 = a[lo], a[lo + 1], a[lo + 2], a[lo + 3]
+        r4, r5, r6, r7 = a[lo + 4], a[lo + 5], a[lo + 6], a[lo + 7]
+        i = 8
+        stop = n - n % 8
+        while i < stop:
+            j = lo + i
+            r0 += a[j]
+            r1 += a[j + 1]
+            r2 += a[j + 2]
+            r3 += a[j + 3]
+            r4 += a[j + 4]
+            r5 += a[j + 5]
+            r6 += a[j + 6]
+            r7 += a[j + 7]
+            i += 8
+        res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+        while i < n:
+            res += a[lo + i]
+            i += 1
+        return res
+    n2 = n // 2
+    n2 -= n2 % 8
+    return _pairwise_sum(a, lo, n2) + _pairwise_sum(a, lo + n2, n - n2)
+
+
+@numba.njit(cache=True)
+def segment_sum(a: NDArray[np.float64], s: int, e: int) -> float:  # pragma: no cover
+    """``np.add.reduceat``'s sum of ``a[s:e]``: the first value plus the pairwise sum of the
+    rest."""
+    return a[s] + _pairwise_sum(a, s + 1, e - s - 1)
+
+
+@numba.njit(cache=True)
+def segment_max(a: NDArray[np.float64], s: int, e: int) -> float:  # pragma: no cover
+    """``np.maximum.reduceat``'s maximum of ``a[s:e]`` (NaN propagates)."""
+    m = a[s]
+    for i in range(s + 1, e):
+        v = a[i]
+        if not (m >= v or np.isnan(m)):
+            m = v
+    return m
+
+
+@numba.njit(cache=True)
+def segment_weights_into(ll, s, e, buf, out):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """:func:`segment_weights` of the one segment ``[s, e)`` of ``ll`` into ``out[s:e]``, the
+    same operations and sums (``buf``: scratch of the same length)."""
+    for i in range(s, e):
+        v = ll[i]
+        buf[i] = -np.inf if np.isnan(v) else v
+    top = segment_max(buf, s, e)
+    if np.isfinite(top):
+        for i in range(s, e):
+            buf[i] = np.exp(buf[i] - top)
+    else:
+        for i in range(s, e):
+            buf[i] = 1.0
+    total = segment_sum(buf, s, e)
+    for i in range(s, e):
+        out[i] = buf[i] / total
+
+
+@numba.njit(cache=True)
+def _systematic_positions(ll, starts, counts, n, u):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """The reference's searches: each label's in-label weights (:func:`segment_weights`), their
+    running sum over all labels (``np.cumsum``) less the labels before, normalised by the
+    label's total, and for pointer ``j`` of the ``n[k]`` of label ``k`` the position of
+    ``2 k + (u[k] + j) / n[k]`` among the keys ``2 k + cdf`` (``np.searchsorted``, side
+    right), at most the label's last particle."""
+    n_all = ll.size
+    w = np.empty(n_all)
+    buf = np.empty(n_all)
+    for k in range(starts.size):
+        segment_weights_into(ll, starts[k], starts[k] + counts[k], buf, w)
+    cum = np.empty(n_all)
+    cum[0] = w[0]
+    for i in range(1, n_all):
+        cum[i] = cum[i - 1] + w[i]
+    keys = np.empty(n_all)
+    for k in range(starts.size):
+        s = starts[k]
+        e = s + counts[k]
+        before = 0.0 if s == 0 else cum[s - 1]
+        last = cum[e - 1] - before
+        for i in range(s, e):
+            keys[i] = 2.0 * k + (cum[i] - before) / last
+    total = 0
+    for k in range(n.size):
+        total += n[k]
+    pos = np.empty(total, dtype=np.intp)
+    j = 0
+    for k in range(n.size):
+        end = starts[k] + counts[k] - 1
+        for m in range(n[k]):
+            q = 2.0 * k + (u[k] + m) / n[k]
+            lo, hi = 0, n_all  # the first key > q (side right)
+            while lo < hi:
+                mid = (lo + hi) >> 1
+                if keys[mid] <= q:
+                    lo = mid + 1
+                else:
+                    hi = mid
+            pos[j] = min(lo, end)
+            j += 1
+    return pos

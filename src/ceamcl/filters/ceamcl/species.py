@@ -15,7 +15,13 @@ from numpy.typing import NDArray
 
 from ceamcl.angles import wrap
 from ceamcl.filters.clustering import pose_cluster_labels
-from ceamcl.filters.resampling import label_segments, segment_weights
+from ceamcl.filters.resampling import (
+    label_segments,
+    segment_max,
+    segment_sum,
+    segment_weights,
+    segment_weights_into,
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -106,59 +112,6 @@ _PI_SQUARED = float(np.pi**2)
 
 
 @numba.njit(cache=True)
-def _pairwise_sum(a: NDArray[np.float64], lo: int, n: int) -> float:  # pragma: no cover
-    """NumPy's pairwise summation of ``a[lo : lo + n]`` (numpy/_core/src/umath/loops_utils.h:
-    eight running sums in blocks of up to 128, halves above), operation for operation."""
-    if n < 8:
-        res = -0.0  # NumPy 2 keeps the sign of a sum of negative zeros
-        for i in range(n):
-            res += a[lo + i]
-        return res
-    if n <= 128:
-        r0, r1, r2, r3 = a[lo], a[lo + 1], a[lo + 2], a[lo + 3]
-        r4, r5, r6, r7 = a[lo + 4], a[lo + 5], a[lo + 6], a[lo + 7]
-        i = 8
-        stop = n - n % 8
-        while i < stop:
-            j = lo + i
-            r0 += a[j]
-            r1 += a[j + 1]
-            r2 += a[j + 2]
-            r3 += a[j + 3]
-            r4 += a[j + 4]
-            r5 += a[j + 5]
-            r6 += a[j + 6]
-            r7 += a[j + 7]
-            i += 8
-        res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
-        while i < n:
-            res += a[lo + i]
-            i += 1
-        return res
-    n2 = n // 2
-    n2 -= n2 % 8
-    return _pairwise_sum(a, lo, n2) + _pairwise_sum(a, lo + n2, n - n2)
-
-
-@numba.njit(cache=True)
-def _segment_sum(a: NDArray[np.float64], s: int, e: int) -> float:  # pragma: no cover
-    """``np.add.reduceat``'s sum of ``a[s:e]``: the first value plus the pairwise sum of the
-    rest."""
-    return a[s] + _pairwise_sum(a, s + 1, e - s - 1)
-
-
-@numba.njit(cache=True)
-def _segment_max(a: NDArray[np.float64], s: int, e: int) -> float:  # pragma: no cover
-    """``np.maximum.reduceat``'s maximum of ``a[s:e]`` (NaN propagates)."""
-    m = a[s]
-    for i in range(s + 1, e):
-        v = a[i]
-        if not (m >= v or np.isnan(m)):
-            m = v
-    return m
-
-
-@numba.njit(cache=True)
 def _species_moments(p, ll, fitness, starts, counts):  # type: ignore[no-untyped-def]  # pragma: no cover
     """The sums of :func:`all_species_stats_reference` for particles sorted by species
     (``p``, ``ll``, ``fitness``; species ``k`` owns ``[starts[k], starts[k] + counts[k])``):
@@ -183,33 +136,20 @@ def _species_moments(p, ll, fitness, starts, counts):  # type: ignore[no-untyped
         s = starts[k]
         e = s + counts[k]
         n = float(counts[k])
-        # in-species weights (resampling.segment_weights)
-        for i in range(s, e):
-            v = ll[i]
-            buf[i] = -np.inf if np.isnan(v) else v
-        top = _segment_max(buf, s, e)
-        if np.isfinite(top):
-            for i in range(s, e):
-                buf[i] = np.exp(buf[i] - top)
-        else:
-            for i in range(s, e):
-                buf[i] = 1.0
-        total = _segment_sum(buf, s, e)
-        for i in range(s, e):
-            w[i] = buf[i] / total
+        segment_weights_into(ll, s, e, buf, w)  # in-species weights
         # weighted mean pose, circular heading
         for i in range(s, e):
             buf[i] = w[i] * np.sin(p[i, 2])
-        sw = _segment_sum(buf, s, e)
+        sw = segment_sum(buf, s, e)
         for i in range(s, e):
             buf[i] = w[i] * np.cos(p[i, 2])
-        cw = _segment_sum(buf, s, e)
+        cw = segment_sum(buf, s, e)
         for i in range(s, e):
             buf[i] = w[i] * p[i, 0]
-        mx = _segment_sum(buf, s, e)
+        mx = segment_sum(buf, s, e)
         for i in range(s, e):
             buf[i] = w[i] * p[i, 1]
-        my = _segment_sum(buf, s, e)
+        my = segment_sum(buf, s, e)
         mth = 0.0 if (sw == 0.0 and cw == 0.0) else np.arctan2(sw, cw)
         mean[k, 0] = mx
         mean[k, 1] = my
@@ -225,16 +165,16 @@ def _species_moments(p, ll, fitness, starts, counts):  # type: ignore[no-untyped
                 db = dx if b == 0 else (dy if b == 1 else dth)
                 for i in range(s, e):
                     buf[i] = w[i] * da[i] * db[i]
-                c = _segment_sum(buf, s, e)
+                c = segment_sum(buf, s, e)
                 cov[k, a, b] = c
                 cov[k, b, a] = c
         # unweighted x-y covariance of the individuals (np.cov, ddof 1)
         for i in range(s, e):
             buf[i] = p[i, 0]
-        ux = _segment_sum(buf, s, e) / n
+        ux = segment_sum(buf, s, e) / n
         for i in range(s, e):
             buf[i] = p[i, 1]
-        uy = _segment_sum(buf, s, e) / n
+        uy = segment_sum(buf, s, e) / n
         for i in range(s, e):
             dx[i] = p[i, 0] - ux
             dy[i] = p[i, 1] - uy
@@ -244,22 +184,22 @@ def _species_moments(p, ll, fitness, starts, counts):  # type: ignore[no-untyped
         else:
             for i in range(s, e):
                 buf[i] = dx[i] * dx[i]
-            cov_xy[k, 0, 0] = _segment_sum(buf, s, e) / dof
+            cov_xy[k, 0, 0] = segment_sum(buf, s, e) / dof
             for i in range(s, e):
                 buf[i] = dy[i] * dy[i]
-            cov_xy[k, 1, 1] = _segment_sum(buf, s, e) / dof
+            cov_xy[k, 1, 1] = segment_sum(buf, s, e) / dof
             for i in range(s, e):
                 buf[i] = dx[i] * dy[i]
-            c = _segment_sum(buf, s, e) / dof
+            c = segment_sum(buf, s, e) / dof
             cov_xy[k, 0, 1] = c
             cov_xy[k, 1, 0] = c
         # unweighted circular spread of the headings
         for i in range(s, e):
             buf[i] = np.sin(p[i, 2])
-        ss = _segment_sum(buf, s, e)
+        ss = segment_sum(buf, s, e)
         for i in range(s, e):
             buf[i] = np.cos(p[i, 2])
-        cs = _segment_sum(buf, s, e)
+        cs = segment_sum(buf, s, e)
         r = np.hypot(ss, cs) / n
         if r < 1e-300:
             r = 1e-300
@@ -271,8 +211,8 @@ def _species_moments(p, ll, fitness, starts, counts):  # type: ignore[no-untyped
         heading_sd[k] = np.sqrt(v)
         for i in range(s, e):
             buf[i] = fitness[i]
-        fit[k] = _segment_sum(buf, s, e) / n
-        best[k] = _segment_max(fitness, s, e)
+        fit[k] = segment_sum(buf, s, e) / n
+        best[k] = segment_max(fitness, s, e)
     return w, mean, cov, cov_xy, heading_sd, fit, best
 
 
