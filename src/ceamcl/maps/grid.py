@@ -165,8 +165,10 @@ class OccupancyGrid:
     def poses_to_map(self, poses: ArrayLike) -> NDArray[np.float64]:
         """``(N, 3)`` world poses to the grid frame (heading relative to the grid's x axis)."""
         p = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
-        mx, my = self.world_to_map(p[:, 0], p[:, 1])
-        return np.column_stack([mx, my, wrap(p[:, 2] - self.origin[2])])
+        out = np.empty_like(p)
+        out[:, 0], out[:, 1] = self.world_to_map(p[:, 0], p[:, 1])
+        out[:, 2] = wrap(p[:, 2] - self.origin[2])
+        return out
 
     def world_to_cell(
         self, x: ArrayLike, y: ArrayLike
