@@ -50,14 +50,34 @@ def test_nav2_particle_filter_settings_reach_kld_amcl() -> None:
 
 def test_settings_an_algorithm_lacks_are_warned_and_others_kept_aside() -> None:
     p = parse({"recovery_alpha_fast": 0.1, "ceamcl.delta_per_m2": 40, "gmcl.cluster_cell_m": 0.3,
-               "do_beamskip": True})
+               "save_pose_rate": 1.0})
     assert p.config.delta_per_m2 == 40
     assert "recovery_alpha_fast: ceamcl has no such setting; ignored" in p.warnings
-    assert "do_beamskip: not implemented by this node; ignored" in p.warnings
+    assert "save_pose_rate: not implemented by this node; ignored" in p.warnings
     with pytest.raises(ConfigError, match=r"unknown parameter: ceamcl.no_such_field"):
         parse({"ceamcl.no_such_field": 1})
     with pytest.raises(ConfigError, match=r"ceamcl.delta_per_m2: expected a number"):
         parse({"ceamcl.delta_per_m2": "many"})
+
+
+def test_nav2_beam_skipping_reaches_ceamcls_and_is_warned_elsewhere() -> None:
+    """CEAMCL skips beams while one species tracks (on by default): Nav2's distance and error
+    threshold set its test, and do_beamskip adds amcl's vote at beam_skip_threshold."""
+    default = parse({}).config.beam_skip
+    assert (default.distance_m, default.error_threshold, default.threshold) == (0.5, 0.9, None)
+    p = parse({"do_beamskip": True, "beam_skip_distance": 0.3, "beam_skip_threshold": 0.4,
+               "beam_skip_error_threshold": 0.8})
+    skip = p.config.beam_skip
+    assert (skip.distance_m, skip.error_threshold, skip.threshold) == (0.3, 0.8, 0.4)
+    assert p.warnings == ()
+    off = parse({"beam_skip_distance": 0.3, "beam_skip_threshold": 0.4}).config.beam_skip
+    assert (off.distance_m, off.threshold) == (0.3, None)  # no vote without do_beamskip
+    mcl = parse({"algorithm": "kld-amcl", "do_beamskip": True})
+    assert "do_beamskip: kld-amcl skips no beams; ignored" in mcl.warnings
+    with pytest.raises(ConfigError) as err:
+        parse({"beam_skip_distance": 0.0, "beam_skip_threshold": 1.5})
+    assert "beam_skip_distance: expected a positive distance in metres, got 0.0" in str(err.value)
+    assert "beam_skip_threshold: expected a share in (0, 1], got 1.5" in str(err.value)
 
 
 def test_yaml_file_sections_and_nesting(tmp_path: Path) -> None:

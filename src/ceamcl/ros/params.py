@@ -83,7 +83,15 @@ IGNORED = frozenset(
 LASER_MODELS = {"likelihood_field": "likelihood-field", "beam": "beam"}
 DIFFERENTIAL = ("nav2_amcl::DifferentialMotionModel", "differential")
 #: Nav2 parameters this node reads but does not (yet) act on: a warning is logged when set.
-NOT_IMPLEMENTED = ("do_beamskip", "save_pose_rate", "always_reset_initial_pose")
+NOT_IMPLEMENTED = ("save_pose_rate", "always_reset_initial_pose")
+#: Nav2's beam-skipping parameters, for an algorithm that skips beams (``beam_skip`` in its
+#: config: CEAMCL, docs/ros.md).
+BEAM_SKIP = (
+    "do_beamskip",
+    "beam_skip_distance",
+    "beam_skip_threshold",
+    "beam_skip_error_threshold",
+)
 
 
 @dataclass(frozen=True)
@@ -183,6 +191,9 @@ def _check_ranges(p: dict[str, Any]) -> list[str]:
     for name in ("z_hit", "z_rand", "z_short", "z_max", "pf_err"):
         need(0 <= p[name] <= 1, name, "a number in [0, 1]")
     need(p["pf_z"] > 0, "pf_z", "a positive number (the normal quantile z)")
+    need(p["beam_skip_distance"] > 0, "beam_skip_distance", "a positive distance in metres")
+    for name in ("beam_skip_threshold", "beam_skip_error_threshold"):
+        need(0 < p[name] <= 1, name, "a share in (0, 1]")
     need(p["sigma_hit"] > 0, "sigma_hit", "a positive number")
     need(p["max_beams"] >= 2, "max_beams", "at least 2")
     need(p["resample_interval"] >= 1, "resample_interval", "at least 1")
@@ -220,6 +231,21 @@ def _nav2_to_config(algorithm: str, p: dict[str, Any], config: Any) -> tuple[Any
             changes[field_name] = value
         elif p[nav2_name] != NAV2_DEFAULTS[nav2_name] and not nav2_name.startswith("update_"):
             warnings.append(f"{nav2_name}: {algorithm} has no such setting; ignored")
+    skip = getattr(config, "beam_skip", None) if "beam_skip" in names else None
+    if skip is not None:
+        # CEAMCL's own beam skipping (on while one species tracks) takes Nav2's distance and
+        # error threshold; do_beamskip adds amcl's vote (docs/ros.md)
+        changes["beam_skip"] = dataclasses.replace(
+            skip,
+            distance_m=p["beam_skip_distance"],
+            error_threshold=p["beam_skip_error_threshold"],
+            threshold=p["beam_skip_threshold"] if p["do_beamskip"] else None,
+        )
+    else:
+        for name in BEAM_SKIP:
+            if p[name] != NAV2_DEFAULTS[name]:
+                why = "skips no beams" if "beam_skip" not in names else "has beam skipping off"
+                warnings.append(f"{name}: {algorithm} {why}; ignored")
     return dataclasses.replace(config, **changes), warnings
 
 
