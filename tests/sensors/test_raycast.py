@@ -9,6 +9,7 @@ import pytest
 
 from ceamcl.maps.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
 from ceamcl.maps.worlds import get_world
+from ceamcl.sensors import raycast
 from ceamcl.sensors.raycast import cast_fan, cast_rays, cast_rays_reference
 
 MAX_RANGE = 8.0
@@ -125,6 +126,25 @@ def test_cast_fan_equals_cast_rays(name: str) -> None:
     rays = cast_rays(grid, origins, angles, MAX_RANGE).reshape(200, 37)
     # Same rays; the two paths only differ in how the heading is wrapped (round-off).
     np.testing.assert_allclose(fan, rays, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("n", [1, 4, 5, 200])
+def test_cast_fan_gives_the_same_bits_on_one_thread_or_two(n: int) -> None:
+    """Small fans (fewer than PARALLEL_MIN_RAYS rays) are cast on one thread; both variants
+    give the same ranges, so the switch changes no result."""
+    grid = GRIDS["random-blocks"]()
+    poses = grid.sample_free_poses(n, np.random.default_rng(n))
+    bearings = np.linspace(-np.pi, np.pi, 60, endpoint=False)
+    mp = np.ascontiguousarray(grid.poses_to_map(poses))
+    for blocking, dist in ((grid.occupied_mask, grid.distance_to_occupied),
+                           (grid.blocking_mask, grid.distance_to_blocking)):  # fmt: skip
+        args = (mp, bearings, blocking, dist, grid.resolution, MAX_RANGE)
+        serial, parallel = raycast._cast_fan_serial(*args), raycast._cast_fan_parallel(*args)
+        assert serial.tobytes() == parallel.tobytes()
+    expected = raycast._cast_fan_serial(
+        mp, bearings, grid.blocking_mask, grid.distance_to_blocking, grid.resolution, MAX_RANGE
+    )
+    assert cast_fan(grid, poses, bearings, MAX_RANGE).tobytes() == expected.tobytes()
 
 
 def test_axis_aligned_rays_from_cell_boundaries_do_not_stall() -> None:

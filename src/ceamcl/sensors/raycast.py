@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ceamcl.maps.grid import OccupancyGrid
+from ceamcl.sensors._compile import serial_and_parallel
 
 _EPS_M = 1e-9
 
@@ -109,8 +110,7 @@ def _cast_many(
     return out
 
 
-@numba.njit(cache=True, parallel=True)
-def _cast_fan(
+def _cast_fan_py(
     poses: NDArray[np.float64],
     bearings: NDArray[np.float64],
     blocking: NDArray[np.bool_],
@@ -127,6 +127,12 @@ def _cast_fan(
                 poses[i, 0], poses[i, 1], poses[i, 2] + bearings[j], blocking, dist, res, max_range
             )
     return out
+
+
+_cast_fan_serial, _cast_fan_parallel = serial_and_parallel(_cast_fan_py)
+#: Fewer rays than this are cast on one thread: a parallel launch costs more than it saves
+#: (the crossing point on 2 cores: about five poses of 60 readings).
+PARALLEL_MIN_RAYS = 256
 
 
 def cast_rays(
@@ -167,9 +173,11 @@ def cast_fan(
         blocking, dist = grid.occupied_mask, grid.distance_to_occupied
     else:
         blocking, dist = grid.blocking_mask, grid.distance_to_blocking
-    return _cast_fan(
+    b = np.ascontiguousarray(np.asarray(bearings, dtype=np.float64).reshape(-1))
+    kernel = _cast_fan_parallel if mp.shape[0] * b.size >= PARALLEL_MIN_RAYS else _cast_fan_serial
+    return kernel(
         np.ascontiguousarray(mp),
-        np.ascontiguousarray(np.asarray(bearings, dtype=np.float64).reshape(-1)),
+        b,
         blocking,
         dist,
         grid.resolution,
