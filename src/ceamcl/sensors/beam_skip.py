@@ -39,6 +39,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -75,7 +76,60 @@ def near_obstacle(
     distance_m: float,
 ) -> NDArray[np.bool_]:
     """``(N, M)``: whether beam ``m`` seen from pose ``n`` ends within ``distance_m`` of an
-    obstacle of ``grid`` (end points off the map are near nothing)."""
+    obstacle of ``grid`` (end points off the map are near nothing). Compiled
+    (:func:`_near_obstacle`), with the operations of :func:`near_obstacle_reference`, its
+    NumPy form, which it equals."""
+    p = np.ascontiguousarray(np.asarray(poses, dtype=np.float64).reshape(-1, 3))
+    result: NDArray[np.bool_] = _near_obstacle(
+        p,
+        np.asarray(prepared.laser_pose, dtype=np.float64).reshape(3),
+        np.ascontiguousarray(prepared.bearings, dtype=np.float64),
+        np.ascontiguousarray(prepared.ranges, dtype=np.float64),
+        np.asarray(grid.origin, dtype=np.float64).reshape(3),
+        float(grid.resolution),
+        grid.distance_to_occupied,
+        float(distance_m),
+    )
+    return result
+
+
+@numba.njit(cache=True)
+def _near_obstacle(  # type: ignore[no-untyped-def]  # pragma: no cover
+    poses, laser, bearings, ranges, origin, res, dist, distance_m
+):
+    """Each beam's end point from each pose (``laser_poses``, then ``grid.world_to_cell``),
+    operation for operation as the reference, and whether the map's distance there is below
+    ``distance_m``."""
+    n, m = poses.shape[0], bearings.size
+    lx, ly, lyaw = laser[0], laser[1], laser[2]
+    ox, oy, oyaw = origin[0], origin[1], origin[2]
+    co, so = np.cos(oyaw), np.sin(oyaw)
+    height, width = dist.shape
+    out = np.zeros((n, m), dtype=np.bool_)
+    for i in range(n):
+        c, s = np.cos(poses[i, 2]), np.sin(poses[i, 2])
+        x0 = poses[i, 0] + c * lx - s * ly
+        y0 = poses[i, 1] + s * lx + c * ly
+        heading = poses[i, 2] + lyaw
+        for j in range(m):
+            ang = heading + bearings[j]
+            dx = x0 + ranges[j] * np.cos(ang) - ox
+            dy = y0 + ranges[j] * np.sin(ang) - oy
+            if oyaw != 0.0:
+                dx, dy = co * dx + so * dy, -so * dx + co * dy
+            fx, fy = np.floor(dx / res), np.floor(dy / res)
+            if 0.0 <= fx < width and 0.0 <= fy < height:  # NaN and infinities fall outside
+                out[i, j] = dist[int(fy), int(fx)] < distance_m
+    return out
+
+
+def near_obstacle_reference(
+    grid: OccupancyGrid,
+    poses: NDArray[np.float64],
+    prepared: PreparedScan,
+    distance_m: float,
+) -> NDArray[np.bool_]:
+    """:func:`near_obstacle` in NumPy."""
     p = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
     lp = laser_poses(p, prepared.laser_pose)
     ang = lp[:, 2:3] + prepared.bearings[None, :]

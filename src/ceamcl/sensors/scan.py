@@ -232,4 +232,7 @@ def laser_poses(poses: ArrayLike, laser_pose: ArrayLike) -> NDArray[np.float64]:
     m = np.asarray(laser_pose, dtype=np.float64).reshape(-1, 3)
     lx, ly, lyaw = m[:, 0], m[:, 1], m[:, 2]
     c, s = np.cos(p[:, 2]), np.sin(p[:, 2])
-    return np.column_stack([p[:, 0] + c * lx - s * ly, p[:, 1] + s * lx + c * ly, p[:, 2] + lyaw])
+    x, y, yaw = p[:, 0] + c * lx - s * ly, p[:, 1] + s * lx + c * ly, p[:, 2] + lyaw
+    out = np.empty((x.size, 3))
+    out[:, 0], out[:, 1], out[:, 2] = x, y, yaw
+    return out
