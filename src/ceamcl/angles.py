@@ -6,6 +6,7 @@ needs a mean heading calls :func:`circular_mean` from here.
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -16,6 +17,12 @@ def wrap(angle: ArrayLike) -> NDArray[np.float64]:
     """Wrap angles to the half-open interval (-pi, pi]."""
     a = np.asarray(angle, dtype=np.float64)
     return np.pi - np.mod(np.pi - a, TWO_PI)
+
+
+@numba.njit(cache=True)
+def wrap_one(angle: float) -> float:  # pragma: no cover
+    """:func:`wrap` of one angle inside compiled kernels: the same operations, the same bits."""
+    return np.pi - np.mod(np.pi - angle, TWO_PI)
 
 
 def diff(a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:

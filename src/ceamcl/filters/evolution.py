@@ -28,7 +28,8 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from ceamcl.angles import interpolate, wrap
+from ceamcl.angles import interpolate, wrap, wrap_one
+from ceamcl.filters.resampling import maximum
 
 Evaluator = Callable[[NDArray[np.float64]], NDArray[np.float64]]
 
@@ -81,7 +82,7 @@ def crossover(
     a, b, xi = first[mate], second[mate], xi[mate]
     if a.size == 0:
         return 0
-    a, b = a.astype(np.intp), b.astype(np.intp)
+    a, b = a.astype(np.intp, copy=False), b.astype(np.intp, copy=False)
     children = _crossover_children(poses, a, b, xi)
     ll_children = np.asarray(evaluate(children), dtype=np.float64)
     metropolis = selection == "metropolis"
@@ -112,7 +113,7 @@ def mutation(
     z = rng.standard_normal((chosen.size, 3))
     if chosen.size == 0:
         return 0
-    chosen = chosen.astype(np.intp)
+    chosen = chosen.astype(np.intp, copy=False)
     child = _mutants(poses, chosen, z, np.asarray(sigma, dtype=np.float64))
     ll_child = np.asarray(evaluate(child), dtype=np.float64)
     metropolis = selection == "metropolis"
@@ -129,18 +130,6 @@ _NONE = np.zeros(0)  # an absent array argument of the kernels
 
 
 @numba.njit(cache=True)
-def _wrap(a: float) -> float:  # pragma: no cover
-    """:func:`ceamcl.angles.wrap` of one angle, the same operations."""
-    return np.pi - np.mod(np.pi - a, 2.0 * np.pi)
-
-
-@numba.njit(cache=True)
-def _max(x: float, y: float) -> float:  # pragma: no cover
-    """``np.maximum(x, y)``: NaN propagates, ties keep ``x``."""
-    return x if (x >= y or np.isnan(x)) else y
-
-
-@numba.njit(cache=True)
 def _crossover_children(poses, a, b, xi):  # type: ignore[no-untyped-def]  # pragma: no cover
     """``vstack([c1, c2])`` of eq. 17: positions blended, headings along the shorter arc
     (:func:`ceamcl.angles.interpolate`), operation for operation as the reference."""
@@ -152,8 +141,8 @@ def _crossover_children(poses, a, b, xi):  # type: ignore[no-untyped-def]  # pra
         for j in range(2):
             out[k, j] = x * pa[j] + (1.0 - x) * pb[j]
             out[m + k, j] = (1.0 - x) * pa[j] + x * pb[j]
-        out[k, 2] = _wrap(pb[2] + x * _wrap(pa[2] - pb[2]))
-        out[m + k, 2] = _wrap(pa[2] + x * _wrap(pb[2] - pa[2]))
+        out[k, 2] = wrap_one(pb[2] + x * wrap_one(pa[2] - pb[2]))
+        out[m + k, 2] = wrap_one(pa[2] + x * wrap_one(pb[2] - pa[2]))
     return out
 
 
@@ -178,8 +167,8 @@ def _crossover_select(  # type: ignore[no-untyped-def]  # pragma: no cover
             cand[2, d], cand[3, d] = children[k, d], children[m + k, d]
         if track:
             top = max(max(cand_ll[0], cand_ll[1]), max(cand_ll[2], cand_ll[3]))
-            best_seen[i] = _max(best_seen[i], top)
-            best_seen[j] = _max(best_seen[j], top)
+            best_seen[i] = maximum(best_seen[i], top)
+            best_seen[j] = maximum(best_seen[j], top)
         if metropolis:
             log_ratio = cand_ll[2] + cand_ll[3] - cand_ll[0] - cand_ll[1]
             if np.isnan(log_ratio):
@@ -208,7 +197,7 @@ def _mutants(poses, chosen, z, sigma):  # type: ignore[no-untyped-def]  # pragma
     for k in range(chosen.size):
         for d in range(3):
             child[k, d] = poses[chosen[k], d] + z[k, d] * sigma[d]
-        child[k, 2] = _wrap(child[k, 2])
+        child[k, 2] = wrap_one(child[k, 2])
     return child
 
 
@@ -221,7 +210,7 @@ def _mutation_select(  # type: ignore[no-untyped-def]  # pragma: no cover
         i = chosen[k]
         ll = ll_child[k]
         if track:
-            best_seen[i] = _max(best_seen[i], -np.inf if np.isnan(ll) else ll)
+            best_seen[i] = maximum(best_seen[i], -np.inf if np.isnan(ll) else ll)
         if metropolis:
             log_ratio = ll - loglik[i]
             if np.isnan(log_ratio):

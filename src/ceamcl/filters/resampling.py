@@ -261,13 +261,17 @@ def segment_sum(a: NDArray[np.float64], s: int, e: int) -> float:  # pragma: no 
 
 
 @numba.njit(cache=True)
+def maximum(x: float, y: float) -> float:  # pragma: no cover
+    """``np.maximum(x, y)`` of two numbers: NaN propagates, ties keep ``x``."""
+    return x if (x >= y or np.isnan(x)) else y
+
+
+@numba.njit(cache=True)
 def segment_max(a: NDArray[np.float64], s: int, e: int) -> float:  # pragma: no cover
     """``np.maximum.reduceat``'s maximum of ``a[s:e]`` (NaN propagates)."""
     m = a[s]
     for i in range(s + 1, e):
-        v = a[i]
-        if not (m >= v or np.isnan(m)):
-            m = v
+        m = maximum(m, a[i])
     return m
 
 

@@ -173,8 +173,8 @@ def skip_unexplained_beams(
     poses = [p for p in (np.asarray(g, dtype=np.float64).reshape(-1, 3) for g in groups) if len(p)]
     if not poses:
         return prepared, 0
-    centres = [_centre(p) for p in poses]
-    explained = np.any(near_obstacle(grid, np.array(centres), prepared, config.distance_m), axis=0)
+    centres = np.array([_centre(p) for p in poses])
+    explained = np.any(near_obstacle(grid, centres, prepared, config.distance_m), axis=0)
     if explained.all():
         return prepared, 0
     loose = np.flatnonzero(~explained)
@@ -190,7 +190,7 @@ def skip_unexplained_beams(
     # Only readings *shorter* than the map allows can be an obstacle it lacks (unknown cells
     # allow anything); a reading that goes through a wall of the map at every hypothesis says
     # the hypotheses are wrong, and counts.
-    sensors = laser_poses(np.array(centres), prepared.laser_pose)
+    sensors = laser_poses(centres, prepared.laser_pose)
     expected = cast_fan(
         grid, sensors, prepared.bearings[loose], prepared.range_max, through_unknown=True
     )

@@ -120,9 +120,6 @@ class LikelihoodFieldModel(CombinedBeams):
         self.config = config or LikelihoodFieldConfig()
         self._tables: dict[float, NDArray[np.float64]] = {}
         self._caps: dict[float, float] = {}
-        # the last scan's beam directions: a filter step weighs one scan several times
-        self._directions: tuple[PreparedScan, NDArray[np.float64], NDArray[np.float64]] | None
-        self._directions = None
 
     @cached_property
     def _dist(self) -> NDArray[np.float64]:
@@ -193,27 +190,13 @@ class LikelihoodFieldModel(CombinedBeams):
         a_hit, _, c_rand = self._terms(prepared)
         return math.log(a_hit + c_rand)
 
-    def _beam_directions(
-        self, prepared: PreparedScan
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Cosine and sine of each beam's bearing on the robot, computed once per scan (the
-        last one asked for is kept; a prepared scan is never changed)."""
-        last = self._directions
-        if last is not None and last[0] is prepared:
-            return last[1], last[2]
-        angles = prepared.bearings + prepared.laser_pose[2]
-        cos_b = np.ascontiguousarray(np.cos(angles))
-        sin_b = np.ascontiguousarray(np.sin(angles))
-        self._directions = (prepared, cos_b, sin_b)
-        return cos_b, sin_b
-
     def log_likelihood(self, poses: ArrayLike, prepared: PreparedScan) -> NDArray[np.float64]:
         mp = self.grid.poses_to_map(poses)
         if prepared.n_beams == 0:
             return np.zeros(mp.shape[0])
         lx, ly, _ = prepared.laser_pose
         value_off = self._cap_value(prepared.range_max)  # an end point off the map
-        cos_b, sin_b = self._beam_directions(prepared)
+        cos_b, sin_b = prepared.directions
         kernel = _lf_kernel_parallel if mp.shape[0] >= PARALLEL_MIN_POSES else _lf_kernel_serial
         out: NDArray[np.float64] = kernel(
             np.ascontiguousarray(mp),

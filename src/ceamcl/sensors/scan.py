@@ -153,6 +153,13 @@ class PreparedScan:
         """Whether at least one beam enters the likelihood."""
         return self.n_beams > 0
 
+    @functools.cached_property
+    def directions(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Cosine and sine of each beam's bearing on the robot (bearing plus the laser's yaw),
+        computed once per prepared scan: a filter step weighs one scan several times."""
+        angles = self.bearings + self.laser_pose[2]
+        return np.ascontiguousarray(np.cos(angles)), np.ascontiguousarray(np.sin(angles))
+
 
 def select_beam_indices(n_total: int, max_beams: int) -> NDArray[np.intp]:
     """At most ``max_beams`` beam indices evenly spread over ``n_total`` (first and last kept).

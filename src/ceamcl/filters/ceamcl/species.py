@@ -13,7 +13,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from ceamcl.angles import wrap
+from ceamcl.angles import wrap, wrap_one
 from ceamcl.filters.clustering import pose_cluster_labels
 from ceamcl.filters.resampling import (
     label_segments,
@@ -68,8 +68,8 @@ def all_species_stats(
         np.ascontiguousarray(poses[order], dtype=np.float64),
         np.ascontiguousarray(loglik[order], dtype=np.float64),
         np.ascontiguousarray(fitness[order], dtype=np.float64),
-        starts.astype(np.intp),
-        counts.astype(np.intp),
+        np.asarray(starts, dtype=np.intp),
+        np.asarray(counts, dtype=np.intp),
     )
     return _collect(ids, order, starts, counts, w, mean, cov, cov_xy, heading_sd, fit, best)
 
@@ -117,7 +117,7 @@ def _species_moments(p, ll, fitness, starts, counts):  # type: ignore[no-untyped
     (``p``, ``ll``, ``fitness``; species ``k`` owns ``[starts[k], starts[k] + counts[k])``):
     in-species weights, weighted mean pose and covariance, unweighted x-y covariance, circular
     heading spread, mean and best fitness. Every elementwise operation is the reference's,
-    in its order, and every sum is a :func:`_segment_sum`."""
+    in its order, and every sum is a :func:`~ceamcl.filters.resampling.segment_sum`."""
     n_all = p.shape[0]
     n_species = starts.size
     w = np.empty(n_all)
@@ -131,7 +131,6 @@ def _species_moments(p, ll, fitness, starts, counts):  # type: ignore[no-untyped
     heading_sd = np.empty(n_species)
     fit = np.empty(n_species)
     best = np.empty(n_species)
-    two_pi = 2.0 * np.pi
     for k in range(n_species):
         s = starts[k]
         e = s + counts[k]
@@ -158,7 +157,7 @@ def _species_moments(p, ll, fitness, starts, counts):  # type: ignore[no-untyped
         for i in range(s, e):
             dx[i] = p[i, 0] - mx
             dy[i] = p[i, 1] - my
-            dth[i] = np.pi - np.mod(np.pi - (p[i, 2] - mth), two_pi)
+            dth[i] = wrap_one(p[i, 2] - mth)
         for a in range(3):
             da = dx if a == 0 else (dy if a == 1 else dth)
             for b in range(a, 3):
