@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -93,6 +94,17 @@ class CEAMCLConfig:
             times the leading species' weight (the odds that the robot was carried off rather
             than the scans being poor), then both gather evidence; ``None``: the old species
             are dropped and the new ones start level.
+        recovery_drift_m, recovery_drift_rad: a new species whose mean pose lies within
+            these distances (m, and rad of heading) of a species the filter had starts level
+            with it instead of at ``recovery_prior``: the kept pose having drifted off the
+            robot (an odometry fault, a stretch the map explains poorly) is far likelier than
+            a kidnap (docs/ceamcl.md, departure 11). ``recovery_drift_m=None``: every new
+            species starts at ``recovery_prior``.
+        recovery_prior_fades: ``False`` (the default): the handicap ``recovery_prior`` of a
+            new species beyond ``recovery_drift_m`` stays in its weight while other species
+            live, so a far place must out-fit the near ones by that much in the evidence the
+            memory keeps; ``True``: it fades with the evidence memory like any past evidence
+            (departure 9 as first measured).
         recovery_lost_updates: a recovery also fires when the filter's own state
             (:meth:`~ceamcl.filters.ceamcl.filter.CEAMCL.state`) has said LOST at this many
             consecutive updates with a scan (docs/ceamcl.md, departure 10): the kidnap test sees
@@ -155,6 +167,9 @@ class CEAMCLConfig:
     recovery_alpha_slow: float = 0.02
     recovery_warmup_steps: int = 20
     recovery_prior: float | None = 1e-6
+    recovery_drift_m: float | None = 4.0
+    recovery_drift_rad: float = 1.0
+    recovery_prior_fades: bool = False
     recovery_lost_updates: int | None = 3
     beam_skip: BeamSkipConfig | None = field(default_factory=BeamSkipConfig)
     confirm_fit_below: float | None = DEFAULT_THRESHOLDS.fit_min
@@ -202,6 +217,8 @@ class CEAMCLConfig:
             "recovery_alpha_slow": 0 < self.recovery_alpha_slow < self.recovery_alpha_fast,
             "recovery_warmup_steps": self.recovery_warmup_steps >= 0,
             "recovery_prior": self.recovery_prior is None or 0 < self.recovery_prior <= 1,
+            "recovery_drift_m": self.recovery_drift_m is None or self.recovery_drift_m >= 0,
+            "recovery_drift_rad": 0 <= self.recovery_drift_rad <= math.pi,
             "recovery_lost_updates": self.recovery_lost_updates is None
             or self.recovery_lost_updates >= 1,
         }

@@ -78,6 +78,7 @@ from ceamcl.filters.state import (
 )
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel, apply_increment
+from ceamcl.pose import pose_mean
 from ceamcl.sensors.base import SensorModel, fitness
 from ceamcl.sensors.beam_skip import skip_unexplained_beams
 from ceamcl.sensors.scan import LaserScan, PreparedScan
@@ -133,6 +134,10 @@ class CEAMCL:
         self._read: tuple[list[Hypothesis], LocalisationState] | None = None
         #: log of each species' accumulated evidence, the largest 0 (docs/ceamcl.md)
         self.log_weight: dict[int, float] = {}
+        #: the part of ``log_weight`` the evidence memory does not fade: a species a recovery
+        #: proposed far from every species the filter had carries ``log(recovery_prior)``
+        #: here while others live (departure 11); absent means 0
+        self.log_prior: dict[int, float] = {}
         #: each species' evidence peak at the last step that compared species, carried to the
         #: next by the odometry as the climb's first candidate (docs/ceamcl.md, departure 6);
         #: species ids are never reused, so a new species never meets an old peak
@@ -203,12 +208,19 @@ class CEAMCL:
         # each species' evidence so far: the first scan's mean likelihood over its samples
         self.log_weight = {}
         self._accumulate_evidence(label_groups(labels), memory=0.0)
+        self.log_prior = {}
         if kept is not None:
             old, evidence = kept
+            # one x-y region can hold a place at several headings (below): split first, so
+            # that each part is near the old species or not by its own mean pose
+            self._split_and_merge()
             finite = loglik[np.isfinite(loglik)]
             # back to the log-likelihoods' scale (the largest new species' evidence is 0 now)
-            shift = (float(np.max(finite)) if finite.size else -np.inf) + float(np.log(prior))
-            self.log_weight = {sid: v + shift for sid, v in self.log_weight.items()}
+            scale = float(np.max(finite)) if finite.size else -np.inf
+            handicap = self._recovery_handicaps(old, float(np.log(prior)))
+            self.log_weight = {sid: v + scale + handicap[sid] for sid, v in self.log_weight.items()}
+            if not self.config.recovery_prior_fades:
+                self.log_prior = {sid: h for sid, h in handicap.items() if h < 0.0}
             self.log_weight.update(evidence)
             self.particle_set.extend(old)
             self.particle_set.log_weights = uniform_log_weights(self.particle_set.n)
@@ -224,6 +236,22 @@ class CEAMCL:
         self.events.n0 += init.n0
         self.events.v_cells += init.v_size
 
+    def _recovery_handicaps(self, old: ParticleSet, log_prior: float) -> dict[int, float]:
+        """Each new species' log prior against the species the filter had (``old``): 0 when
+        its mean pose lies within ``recovery_drift_m`` and ``recovery_drift_rad`` of an old
+        species' mean, ``log_prior`` otherwise (docs/ceamcl.md, departures 9 and 11)."""
+        new = label_groups(self.particle_set.labels)
+        reach = self.config.recovery_drift_m
+        olds = label_groups(old.labels)
+        if reach is None or not olds:
+            return {sid: log_prior for sid in new}
+        a = np.array([pose_mean(self.particle_set.poses[idx]) for idx in new.values()])
+        b = np.array([pose_mean(old.poses[idx]) for idx in olds.values()])
+        apart = np.hypot(a[:, None, 0] - b[None, :, 0], a[:, None, 1] - b[None, :, 1])
+        turned = np.abs(angles.wrap(a[:, None, 2] - b[None, :, 2]))
+        near = ((apart <= reach) & (turned <= self.config.recovery_drift_rad)).any(axis=1)
+        return {sid: 0.0 if ok else log_prior for sid, ok in zip(new, near, strict=True)}
+
     def initialise_pose(self, pose: ArrayLike, covariance: ArrayLike) -> None:
         """Pose tracking: one species of ``tracking_samples`` around a known pose."""
         sid = self._next_id
@@ -236,6 +264,7 @@ class CEAMCL:
         self._refresh_stats()
         self.competition = Competition({sid: 0.0})
         self.log_weight = {sid: 0.0}
+        self.log_prior = {}
 
     def initialise_hypotheses(self, poses: ArrayLike, covariance: ArrayLike) -> None:
         """Several hypotheses at once (e.g. the known symmetric images of a start pose): one
@@ -259,6 +288,7 @@ class CEAMCL:
         self._refresh_stats()
         self.competition = Competition({sid: 0.0 for sid in self.stats})
         self.log_weight = {sid: 0.0 for sid in self.stats}
+        self.log_prior = {}
 
     # ================================================================== one step
     def step(self, increment: OdometryIncrement, scan: LaserScan | None) -> CEAMCLRecord:
@@ -494,7 +524,8 @@ class CEAMCL:
             }
         for sid in members:
             gain = top.get(sid, -np.inf)
-            self.log_weight[sid] = memory * self.log_weight.get(sid, 0.0) + gain
+            held = self.log_prior.get(sid, 0.0)  # not faded (departure 11)
+            self.log_weight[sid] = memory * (self.log_weight.get(sid, 0.0) - held) + held + gain
         self._normalise_weights()
 
     def _normalise_weights(self, living: bool = False) -> None:
@@ -502,6 +533,9 @@ class CEAMCL:
         species in ``stats`` keep one (a species new to them starts at 0, the leader's)."""
         if living:
             lw = {sid: self.log_weight.get(sid, 0.0) for sid in self.stats}
+            # a prior is odds against the other species: none left, nothing to hold
+            held = {sid: v for sid, v in self.log_prior.items() if sid in self.stats}
+            self.log_prior = held if len(self.stats) > 1 else {}
         else:
             lw = dict(self.log_weight)
         top = max(lw.values(), default=0.0)
@@ -618,6 +652,8 @@ class CEAMCL:
         for sid, parent in new_ids.items():
             self.competition.dn[sid] = 0.0
             self.log_weight[sid] = self.log_weight.get(parent, 0.0)  # the parent's past
+            if parent in self.log_prior:
+                self.log_prior[sid] = self.log_prior[parent]
             self._peaks.pop(parent, None)  # the peak may lie in either part
         for sid, short in shortfall.items():
             self.log_weight[sid] = self.log_weight.get(sid, 0.0) + short
@@ -644,6 +680,7 @@ class CEAMCL:
             self._prepared,
             self.events,
             self.log_weight,
+            self.log_prior,
         )
         self._evaluations += evaluations
         if merged:

@@ -205,9 +205,11 @@ def merge(
     prepared: PreparedScan,
     events: Events,
     log_weight: dict[int, float] | None = None,
+    log_prior: dict[int, float] | None = None,
 ) -> tuple[bool, int]:
     """Phase 6b: two species whose living domains overlap merge (the less fit joins the
-    fitter, adding its ``dN`` and, when given, its weight to ``log_weight``) unless the
+    fitter, adding its ``dN`` and, when given, its weight to ``log_weight``; of their
+    unfaded priors in ``log_prior`` the larger stays) unless the
     fitness along the segment between their means dips below ``merge_valley_ratio`` of the
     smaller end value. Returns whether any merged and the evaluations spent on the probes."""
     ids = sorted(stats, key=lambda s: -stats[s].fitness)
@@ -235,6 +237,10 @@ def merge(
             dn[a] = dn.get(a, 0.0) + dn.get(b, 0.0)
             if log_weight is not None and b in log_weight:
                 log_weight[a] = float(np.logaddexp(log_weight.get(a, -np.inf), log_weight.pop(b)))
+            if log_prior is not None and (a in log_prior or b in log_prior):
+                held = max(log_prior.pop(a, 0.0), log_prior.pop(b, 0.0))
+                if held < 0.0:
+                    log_prior[a] = held
             events.merges += 1
     return bool(merged), int(ll.size)
 
