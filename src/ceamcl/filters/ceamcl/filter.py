@@ -169,7 +169,9 @@ class CEAMCL:
         a scan's usable beams (none: the species spread uniformly over free space). ``kept``:
         particles of earlier species to keep beside the new ones, with each species' log
         evidence in the scale of the new species' log-likelihoods; the new species then start
-        at ``prior`` times their own evidence (:meth:`_recover`)."""
+        at ``prior`` times their own evidence, or at their own evidence when near a kept
+        species, a handicap kept apart in ``log_prior`` unless ``recovery_prior_fades``
+        (:meth:`_recover`, :meth:`_recovery_handicaps`)."""
         self._fit_fast = self._fit_slow = None
         self._steps_since_init = 0
         self._lost_streak = 0
@@ -596,7 +598,9 @@ class CEAMCL:
         scored with the whole scan (a lone species was weighed without the beams it skipped)
         and climb from their best samples, as the new species' test poses were polished; each
         keeps its accumulated evidence, and each new species starts at ``recovery_prior``
-        times the leading old species' weight before this scan's evidence. A robot that was
+        times the leading old species' weight before this scan's evidence, or level with it
+        within ``recovery_drift_m`` / ``recovery_drift_rad`` of an old species (a drift, not
+        a kidnap: departure 11). A robot that was
         carried off is found again within a few scans, as the old species keep failing; a
         scan or two that the map explains poorly no longer hands the estimate to whichever
         place of the building fits that one scan best."""
