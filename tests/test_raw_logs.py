@@ -157,14 +157,16 @@ def test_ceamcl_recovers_near_the_track_after_fr079s_odometry_fault(
     seed: int, fr079_raw: tuple[Any, Any]
 ) -> None:
     """fr079 raw, scans 780-960, tracked from the true pose perturbed by 0.5 m / 0.3 rad: at
-    scans 854-859 the wheel odometry reports twice the distance the robot drove, and through
+    scans 854-859 the robot backs up while its wheel odometry reports the motion forward (the
+    log's odometry never moves backwards; docs/ceamcl.md, departure 12), and through
     scans 842-878 the scans fit the true pose worse than places 12-28 m away (tempered
     log-likelihood -1 to -9 at the truth, about 0 there; docs/ceamcl.md, departure 11). The
     recoveries this fires find species at the truth; starting level with the kept species
     (within ``recovery_drift_m``) and ahead of the far places by ``recovery_prior`` that does
     not fade, they keep the estimate within a few metres and end on the truth. With the
     recovery of departure 9 (every new species at a fading ``recovery_prior``) the estimate
-    went 25-28 m away (seeds 0-4)."""
+    went 25-28 m away (seeds 0-4). The recovery alone, without departure 12's look-around
+    (which often keeps the species on the truth here without any recovery)."""
     from ceamcl.experiments.tracking_log import perturbed_start, start_covariance
     from ceamcl.filters.registry import with_config
     from ceamcl.replay import UpdatePace, filter_rng, make_paced_filter
@@ -176,7 +178,7 @@ def test_ceamcl_recovers_near_the_track_after_fr079s_odometry_fault(
     known = np.all(np.isfinite(window.true_poses), axis=1)
     first = int(np.flatnonzero(known)[0])
     pace = UpdatePace()
-    cfg = with_config("ceamcl", tracking_samples=2000)
+    cfg = with_config("ceamcl", tracking_samples=2000, look_around_m=None)
     f = make_paced_filter("ceamcl", grid, filter_rng(seed, 0, "ceamcl"), pace, config=cfg)
     start = (perturbed_start(window.true_poses[first], seed), start_covariance())
     result = run_filter(f, window, update_when=pace.policy(), initial_pose=start)
@@ -187,3 +189,43 @@ def test_ceamcl_recovers_near_the_track_after_fr079s_odometry_fault(
     assert scored.size >= 150
     assert scored[5:].max() < 6.0  # measured 3.1-3.9 m (seeds 0-5)
     assert scored[-1] < 0.5
+
+
+def _track_fr079(
+    fr079_raw: tuple[Any, Any], first: int, last: int, seed: int, **settings: Any
+) -> tuple[Any, Any]:
+    """fr079 raw scans ``first``-``last`` tracked by CEAMCL (2,000-sample budget, Nav2's
+    pace) from the true pose at ``first`` perturbed by 0.5 m / 0.3 rad."""
+    from ceamcl.experiments.tracking_log import perturbed_start, start_covariance
+    from ceamcl.filters.registry import with_config
+    from ceamcl.replay import UpdatePace, filter_rng, make_paced_filter
+    from ceamcl.runner import run_filter
+
+    prepared, grid = fr079_raw
+    window = prepared.log.window(first, last)
+    assert window.true_poses is not None and np.all(np.isfinite(window.true_poses[0]))
+    pace = UpdatePace()
+    cfg = with_config("ceamcl", tracking_samples=2000, **settings)
+    f = make_paced_filter("ceamcl", grid, filter_rng(seed, 0, "ceamcl"), pace, config=cfg)
+    start = (perturbed_start(window.true_poses[0], seed), start_covariance())
+    result = run_filter(f, window, update_when=pace.policy(), initial_pose=start)
+    assert result.position_errors is not None
+    return result, result.position_errors[result.truth_known]
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_ceamcl_follows_fr079_backing_up_with_unsigned_odometry(
+    seed: int, fr079_raw: tuple[Any, Any]
+) -> None:
+    """fr079 raw, scans 1300-1460: at scans 1405-1433 the robot backs up about 3 m while its
+    wheel odometry reports the same motion forward (0.5 m wrong an update at Nav2's pace).
+    Looking around when the lone species fits poorly (departure 12), CEAMCL follows the scans
+    with no recovery (largest error 0.87-1.03 m, seeds 0-5, mostly between updates, where the
+    odometry alone carries the estimate); without it two recoveries fired in every seed and
+    the error reached 1.67-2.33 m."""
+    result, errors = _track_fr079(fr079_raw, 1300, 1460, seed)
+    assert errors.size >= 140
+    assert not any(d.record.columns().get("recoveries", 0) for d in result.diagnostics)
+    assert any(d.record.columns().get("look_arounds", 0) for d in result.diagnostics)
+    assert errors[5:].max() < 1.3
+    assert errors[-1] < 0.5

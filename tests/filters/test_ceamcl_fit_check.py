@@ -24,7 +24,8 @@ def one_step(offset: tuple[float, float, float], bar: float | None, seed: int) -
     taken at the true pose (the robot stands still: the motion model moves nothing)."""
     log = office_scenario().simulate(np.random.default_rng(1))
     world = get_world("small-office")
-    config = replace(CEAMCLConfig(), confirm_fit_below=bar)
+    # the climb alone: no look-around (departure 12, tests/filters/test_ceamcl_look_around.py)
+    config = replace(CEAMCLConfig(), confirm_fit_below=bar, look_around_m=None)
     f = CEAMCL(
         world,
         OdometryMotionModel(OdometryNoise()),

@@ -123,6 +123,17 @@ class CEAMCLConfig:
             before its fitness is reported; a species that climbed (every species while
             several compete) reports the better of its fittest individual and the climb's
             peak. ``None``: a lone species never climbs.
+
+    Not in the paper (odometry faults, docs/ceamcl.md departure 12):
+        look_around_m: a lone species in doubt (above) also scores a grid of poses around
+            its best pose, within this many metres plus ``look_around_gain`` times the
+            odometry's translation since the last update (at most ``look_around_max_m``) and
+            ``look_around_rad`` plus the gain times its rotation (at most three times
+            ``look_around_rad``), ``look_around_step_m`` and ``look_around_step_rad`` apart;
+            when the best beats the species' best pose by ``look_around_margin`` (tempered
+            log-likelihood, every beam) and, refined, fits (``confirm_fit_below``), the
+            worst ``look_around_share`` of the samples are drawn again around it. ``None``:
+            no look-around (the evidence climb alone).
     """
 
     n_test: int = 1_000_000
@@ -173,6 +184,14 @@ class CEAMCLConfig:
     recovery_lost_updates: int | None = 3
     beam_skip: BeamSkipConfig | None = field(default_factory=BeamSkipConfig)
     confirm_fit_below: float | None = DEFAULT_THRESHOLDS.fit_min
+    look_around_m: float | None = 0.3
+    look_around_gain: float = 2.0
+    look_around_max_m: float = 1.0
+    look_around_step_m: float = 0.1
+    look_around_rad: float = 0.1
+    look_around_step_rad: float = 0.05
+    look_around_margin: float = 3.0
+    look_around_share: float = 0.5
 
     def __post_init__(self) -> None:
         checks = {
@@ -210,8 +229,16 @@ class CEAMCLConfig:
             "see_through_margin_m": self.see_through_margin_m is None
             or self.see_through_margin_m >= 0,
             "see_through_tolerance": 0 <= self.see_through_tolerance < 1,
-            "confirm_fit_below": self.confirm_fit_below is None
-            or 0 < self.confirm_fit_below <= 1,
+            "confirm_fit_below": self.confirm_fit_below is None or 0 < self.confirm_fit_below <= 1,
+            "look_around_m": self.look_around_m is None
+            or 0 <= self.look_around_m <= self.look_around_max_m,
+            "look_around_gain": self.look_around_gain >= 0,
+            "look_around_max_m": 0 < self.look_around_max_m <= 5.0,
+            "look_around_step_m": 0.01 <= self.look_around_step_m <= self.look_around_max_m,
+            "look_around_rad": 0 <= self.look_around_rad <= np.pi / 3,
+            "look_around_step_rad": 0.005 <= self.look_around_step_rad <= np.pi / 3,
+            "look_around_margin": self.look_around_margin >= 0,
+            "look_around_share": 0 < self.look_around_share <= 1,
             "recovery_ratio": 0 < self.recovery_ratio < 1,
             "recovery_alpha_fast": 0 < self.recovery_alpha_fast <= 1,
             "recovery_alpha_slow": 0 < self.recovery_alpha_slow < self.recovery_alpha_fast,

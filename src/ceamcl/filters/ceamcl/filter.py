@@ -68,7 +68,7 @@ from ceamcl.filters.particles import (
     usable,
     weigh,
 )
-from ceamcl.filters.resampling import label_groups
+from ceamcl.filters.resampling import label_groups, sanitise_log_likelihood
 from ceamcl.filters.state import (
     LocalisationState,
     State,
@@ -357,6 +357,9 @@ class CEAMCL:
             self._peaks = {}  # no warm start for a lone species' climb
             if self._fit_in_doubt(members):  # for the reported fitness only (docs/state.md)
                 self._evaluations += self._probe_peaks(members, best_seen, prepared, increment)
+                if cfg.look_around_m is not None:  # departure 12
+                    self._evaluations += self._look_around(members, full, increment)
+                    prepared = self._prepared
         self._accumulate_evidence(
             members, self._memory_for(increment), best_seen, see_through=compared
         )
@@ -427,6 +430,94 @@ class CEAMCL:
         self._peaks = {sid: centre[r].copy() for r, sid in enumerate(sids)}
         peak_fit = fitness(best, prepared, self.sensor)
         self._peak_fitness = {sid: float(peak_fit[r]) for r, sid in enumerate(sids)}
+        return evaluations
+
+    def _look_around(
+        self,
+        members: dict[int, NDArray[np.intp]],
+        full: PreparedScan,
+        increment: OdometryIncrement,
+    ) -> int:
+        """Departure 12 (docs/ceamcl.md): a lone species that fits the scan poorly looks
+        around its best pose before the state calls the robot lost. Every pose of a grid
+        (``look_around_step_m``, ``look_around_step_rad``) within ``look_around_m`` plus
+        ``look_around_gain`` times the odometry's translation (at most ``look_around_max_m``)
+        and ``look_around_rad`` plus the gain times its rotation (at most three times
+        ``look_around_rad``) is scored on every beam of the scan. When the best of them
+        beats the species' best pose by ``look_around_margin`` in tempered log-likelihood
+        and, refined on a grid a quarter as fine, fits as the state reads a lone species
+        (fitness at least ``confirm_fit_below``, beam skipping at that pose), the worst
+        ``look_around_share`` of the species' samples are drawn again around it (the
+        mutation's Sigma) and the whole species is weighed again with the beams that pose
+        keeps. The odometry can be wrong by more than the motion model's noise (a wheel slip,
+        a reversing robot whose encoders report speed without sign), and the scan, which
+        fits a pose nearby, says where the robot went: a local sensor reset (Lenser and
+        Veloso 2000) in the neighbourhood the odometry leaves in doubt. Returns the
+        evaluations spent."""
+        cfg = self.config
+        reach = cfg.look_around_m
+        if reach is None:
+            return 0
+        ps = self.particle_set
+        ((sid, idx),) = members.items()
+        if idx.size == 0:
+            return 0
+        top = int(idx[np.argmax(ps.loglik[idx])])
+        centre = self._peaks.get(sid, ps.poses[top])
+        turn = abs(increment.rot1) + abs(increment.rot2)
+        radius = min(cfg.look_around_max_m, reach + cfg.look_around_gain * increment.trans)
+        spread = min(3.0 * cfg.look_around_rad, cfg.look_around_rad + cfg.look_around_gain * turn)
+        cands = centre + _look_around_offsets(
+            radius, cfg.look_around_step_m, spread, cfg.look_around_step_rad
+        )
+        cands[:, 2] = angles.wrap(cands[:, 2])
+        ll = self.sensor.log_likelihood(np.vstack([centre[None, :], cands]), full)
+        ll = np.where(np.isnan(ll), -np.inf, ll)
+        evaluations = int(ll.size)
+        here = float(ll[0])
+        if not ll[1:].max() - here >= cfg.look_around_margin:
+            return evaluations
+        # refine the best grid pose on a grid a quarter as fine, then ask that it fits
+        coarse = cands[int(np.argmax(ll[1:]))]
+        fine = coarse + _look_around_offsets(
+            0.5 * cfg.look_around_step_m * np.sqrt(2.0),
+            0.25 * cfg.look_around_step_m,
+            0.5 * cfg.look_around_step_rad,
+            0.25 * cfg.look_around_step_rad,
+        )
+        fine[:, 2] = angles.wrap(fine[:, 2])
+        lf = self.sensor.log_likelihood(fine, full)
+        lf = np.where(np.isnan(lf), -np.inf, lf)
+        evaluations += int(lf.size)
+        found = fine[int(np.argmax(lf))]
+        # the found pose's fitness as the state reads a lone species': without the short
+        # readings it cannot explain (beam skipping)
+        there = full
+        if cfg.beam_skip is not None:
+            there, _ = skip_unexplained_beams(self.grid, [found[None, :]], full, cfg.beam_skip)
+        lt = sanitise_log_likelihood(self.sensor.log_likelihood(found[None, :], there))
+        fit = float(fitness(lt, there, self.sensor)[0])
+        evaluations += 1
+        bar = cfg.confirm_fit_below if cfg.confirm_fit_below is not None else 0.0
+        if fit < bar:
+            return evaluations
+        k = max(1, round(cfg.look_around_share * idx.size))
+        worst = idx[np.argsort(ps.loglik[idx], kind="stable")[:k]]
+        ev = cfg.evolution
+        sigma = np.array(
+            [ev.mutation_sigma_xy_m, ev.mutation_sigma_xy_m, ev.mutation_sigma_theta_rad]
+        )
+        new = found + self.rng.standard_normal((k, 3)) * sigma
+        new[0] = found
+        new[:, 2] = angles.wrap(new[:, 2])
+        ps.poses[worst] = new
+        ps.loglik[idx] = sanitise_log_likelihood(self.sensor.log_likelihood(ps.poses[idx], there))
+        ps.fitness[idx] = fitness(ps.loglik[idx], there, self.sensor)
+        evaluations += int(idx.size)
+        self._prepared = there
+        self._peaks[sid] = found.copy()
+        self._peak_fitness[sid] = fit
+        self.events.look_arounds += 1
         return evaluations
 
     def _fit_in_doubt(self, members: dict[int, NDArray[np.intp]]) -> bool:
@@ -834,3 +925,21 @@ def _reported_fitness(s: SpeciesStats, peak: float | None = None) -> float:
     fitness of 0.20 and a median best of 0.91."""
     best = s.best_fitness if np.isfinite(s.best_fitness) else s.fitness
     return best if peak is None else max(best, peak)
+
+
+def _look_around_offsets(
+    radius_m: float, step_m: float, spread_rad: float, step_rad: float
+) -> NDArray[np.float64]:
+    """Offsets ``(dx, dy, dtheta)`` of :meth:`CEAMCL._look_around`: a square grid of
+    ``step_m`` within ``radius_m`` times headings of ``step_rad`` within ``spread_rad``."""
+    n = int(np.floor(radius_m / step_m))
+    g = np.arange(-n, n + 1) * step_m
+    dx, dy = np.meshgrid(g, g, indexing="ij")
+    inside = dx**2 + dy**2 <= radius_m**2 + 1e-12
+    m = int(np.floor(spread_rad / step_rad))
+    dth = np.arange(-m, m + 1) * step_rad
+    xy = np.column_stack([dx[inside], dy[inside]])
+    out = np.empty((xy.shape[0] * dth.size, 3))
+    out[:, :2] = np.repeat(xy, dth.size, axis=0)
+    out[:, 2] = np.tile(dth, xy.shape[0])
+    return out

@@ -40,6 +40,7 @@ class Events:
     restarts: int = 0
     recoveries: int = 0
     skipped_beams: int = 0
+    look_arounds: int = 0
     n0: int = 0
     v_cells: int = 0
 
