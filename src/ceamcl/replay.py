@@ -47,6 +47,7 @@ from ceamcl.experiments.metrics import (
     restarts,
     score_errors,
 )
+from ceamcl.experiments.truth_check import doubtful_truth
 from ceamcl.filters.base import LocalisationFilter
 from ceamcl.filters.policies import Policy, on_motion
 from ceamcl.filters.registry import make_filter, with_config
@@ -346,6 +347,13 @@ def run_summary(
         **restarts(result.diagnostics),
         **summarise_states(result.states, result.times),
     }
+    if prepared.has_truth:
+        doubt = doubtful_truth(prepared.log, grid)
+        summary["truth_fit"] = {
+            "median_share": None if math.isnan(doubt.median) else doubt.median,
+            "doubtful_scans": [list(s) for s in doubt.stretches],
+            "note": doubt.summary(),
+        }
     if prepared.pairing is not None:
         p = prepared.pairing
         summary["truth_pairing"] = {

@@ -130,7 +130,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     prepared, grid, map_source, pace = open_inputs(args)
     if not args.quiet:
         console.print(f"map: {map_source}")
-        print_truth(console, prepared)
+        print_truth(console, prepared, grid)
         console.print(
             f"filter updates (every algorithm): {'every scan' if pace is None else pace.describe()}"
         )

@@ -179,9 +179,14 @@ def open_kwargs(args: argparse.Namespace) -> dict[str, Any]:
     }
 
 
-def print_truth(console: Console, prepared: Any) -> None:
-    """What was decided about ground truth and odometry, and repaired scan times."""
+def print_truth(console: Console, prepared: Any, grid: OccupancyGrid | None = None) -> None:
+    """What was decided about ground truth and odometry, and repaired scan times; with the
+    map, how well the truth explains its scans on it (:mod:`ceamcl.experiments.truth_check`)."""
     console.print(f"ground truth: {prepared.truth_reason}")
+    if prepared.has_truth and grid is not None:
+        from ceamcl.experiments.truth_check import doubtful_truth
+
+        console.print(doubtful_truth(prepared.log, grid).summary())
     if not prepared.has_truth:
         console.print("odometry: the log's recorded odometry (no ground truth: no errors scored)")
     if prepared.pairing is not None:
@@ -298,7 +303,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     prepared, grid, map_source, pace = open_inputs(args)
     if not args.quiet:
         console.print(f"map: {map_source}")
-        print_truth(console, prepared)
+        print_truth(console, prepared, grid)
         console.print(f"filter updates: {'every scan' if pace is None else pace.describe()}")
         if prepared.noise is not None:
             n = prepared.noise

@@ -31,6 +31,7 @@ from ceamcl.experiments.metrics import (
     score_errors,
     within,
 )
+from ceamcl.experiments.truth_check import doubtful_truth
 from ceamcl.io.recorded import RecordedLog
 from ceamcl.io.results import ensure_output_dir
 from ceamcl.maps.grid import OccupancyGrid
@@ -270,5 +271,8 @@ def evaluate_log(
         "every scan" if pace is None else pace.describe(),
     )
     if out_dir is not None:
-        write_evaluation(evaluation, prepared, out_dir, hold=hold, hold_m=hold_m)
+        doubt = doubtful_truth(log, grid)
+        write_evaluation(
+            evaluation, prepared, out_dir, hold=hold, hold_m=hold_m, truth_note=doubt.summary()
+        )
     return evaluation

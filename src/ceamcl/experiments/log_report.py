@@ -47,20 +47,30 @@ def write_evaluation(
     *,
     hold: int = HOLD_STEPS,
     hold_m: float | None = None,
+    truth_note: str | None = None,
 ) -> None:
-    """``evaluate.csv`` (per run), ``evaluate.md`` (per algorithm) and two figures."""
+    """``evaluate.csv`` (per run), ``evaluate.md`` (per algorithm, with ``truth_note``, how
+    well the truth explains its scans on the map) and two figures."""
     # matplotlib (~0.4 s) only when figures are drawn, as in the other experiments' writers:
     # `ceamcl --help` imports this module.
     from ceamcl.experiments.figures import plot_evaluation
 
     rows = [{k: getattr(r, k) for k in _CSV_FIELDS} for r in ev.results]
     write_csv(out_dir / "evaluate.csv", rows)
-    write_text(out_dir / "evaluate.md", evaluation_markdown(ev, prepared, hold=hold, hold_m=hold_m))
+    write_text(
+        out_dir / "evaluate.md",
+        evaluation_markdown(ev, prepared, hold=hold, hold_m=hold_m, truth_note=truth_note),
+    )
     plot_evaluation(ev, out_dir)
 
 
 def evaluation_markdown(
-    ev: Evaluation, prepared: PreparedLog, *, hold: int = HOLD_STEPS, hold_m: float | None = None
+    ev: Evaluation,
+    prepared: PreparedLog,
+    *,
+    hold: int = HOLD_STEPS,
+    hold_m: float | None = None,
+    truth_note: str | None = None,
 ) -> str:
     log = prepared.log
     lengths = [e - s for s, e in ev.windows]
@@ -78,6 +88,7 @@ def evaluation_markdown(
             else ""
         ),
         f"- ground truth: {truth_source(prepared)}",
+        *([f"- {truth_note}"] if truth_note else []),
         f"- filter updates (every algorithm): {ev.update_policy}",
         f"- {len(ev.windows)} start points, windows of {ev.window} "
         f"({min(lengths)}-{max(lengths)} scans)",

@@ -30,6 +30,7 @@ from numpy.typing import NDArray
 from ceamcl.errors import ConfigError
 from ceamcl.experiments.common import fmt, pct, write_csv, write_text
 from ceamcl.experiments.executors import Batch
+from ceamcl.experiments.truth_check import doubtful_truth
 from ceamcl.filters.base import LocalisationFilter
 from ceamcl.filters.registry import get, with_config
 from ceamcl.io.recorded import RecordedLog
@@ -215,7 +216,7 @@ def track_log(
         out_dir,
     )
     if out_dir is not None:
-        write_tracking(tracking, prepared, out_dir)
+        write_tracking(tracking, prepared, out_dir, doubtful_truth(prepared.log, grid).summary())
     return tracking
 
 
@@ -238,7 +239,9 @@ def tracking_rows(tracking: Tracking) -> list[dict[str, Any]]:
     return [{k: getattr(r, k) for k in _ROW_FIELDS} for r in tracking.results]
 
 
-def tracking_markdown(tracking: Tracking, prepared: PreparedLog) -> str:
+def tracking_markdown(
+    tracking: Tracking, prepared: PreparedLog, truth_note: str | None = None
+) -> str:
     log = prepared.log
     x, y, th = tracking.start
     lines = [
@@ -248,6 +251,7 @@ def tracking_markdown(tracking: Tracking, prepared: PreparedLog) -> str:
         f"{log.path_length_m:.0f} m of travel)",
         f"- map: {tracking.map_source}",
         f"- ground truth: {truth_source(prepared)}",
+        *([f"- {truth_note}"] if truth_note else []),
         f"- odometry: {prepared.odometry}",
         f"- start: scan {tracking.first_scan}, the true pose moved {START_OFFSET_M} m and turned "
         f"{START_TURN_RAD} rad: ({x:.3f}, {y:.3f}, {th:.3f}), seed {prepared.seed}",
@@ -275,12 +279,15 @@ def tracking_markdown(tracking: Tracking, prepared: PreparedLog) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_tracking(tracking: Tracking, prepared: PreparedLog, out_dir: Path) -> None:
-    """``tracking.csv``, ``tracking.md``, the TUM files and ``ape.png``."""
+def write_tracking(
+    tracking: Tracking, prepared: PreparedLog, out_dir: Path, truth_note: str | None = None
+) -> None:
+    """``tracking.csv``, ``tracking.md`` (with ``truth_note``, how well the truth explains its
+    scans on the map), the TUM files and ``ape.png``."""
     import matplotlib.pyplot as plt  # lazy: the CLI imports this module to build its parser
 
     write_csv(out_dir / "tracking.csv", tracking_rows(tracking))
-    write_text(out_dir / "tracking.md", tracking_markdown(tracking, prepared))
+    write_text(out_dir / "tracking.md", tracking_markdown(tracking, prepared, truth_note))
     if tracking.results:
         first = tracking.results[0]
         write_tum(out_dir / "groundtruth.tum", first.times, first.truth)
