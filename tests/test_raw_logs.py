@@ -239,7 +239,7 @@ def test_fr079s_truth_is_doubtful_in_one_room(fr079_raw: tuple[Any, Any]) -> Non
     (a median 89 % of the end points within 0.15 m of an obstacle), except in one room, scans
     1148-1239 (down to 4 %), where every filter's error measures the truth as much as the
     filter (docs/real-data.md, departure 12)."""
-    from ceamcl.experiments.truth_check import doubtful_truth
+    from ceamcl.io.truth_check import doubtful_truth
 
     prepared, grid = fr079_raw
     doubt = doubtful_truth(prepared.log, grid)

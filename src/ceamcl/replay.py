@@ -47,7 +47,6 @@ from ceamcl.experiments.metrics import (
     restarts,
     score_errors,
 )
-from ceamcl.experiments.truth_check import doubtful_truth
 from ceamcl.filters.base import LocalisationFilter
 from ceamcl.filters.policies import Policy, on_motion
 from ceamcl.filters.registry import make_filter, with_config
@@ -57,6 +56,7 @@ from ceamcl.io.recorded import RecordedLog
 from ceamcl.io.results import ensure_output_dir
 from ceamcl.io.timestamps import check_times
 from ceamcl.io.truth import TruthPairing, pair_truth
+from ceamcl.io.truth_check import doubtful_truth
 from ceamcl.mapping import MappingConfig, map_from_log
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.maps.ros_io import load_map

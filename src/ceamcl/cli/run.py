@@ -181,10 +181,10 @@ def open_kwargs(args: argparse.Namespace) -> dict[str, Any]:
 
 def print_truth(console: Console, prepared: Any, grid: OccupancyGrid | None = None) -> None:
     """What was decided about ground truth and odometry, and repaired scan times; with the
-    map, how well the truth explains its scans on it (:mod:`ceamcl.experiments.truth_check`)."""
+    map, how well the truth explains its scans on it (:mod:`ceamcl.io.truth_check`)."""
     console.print(f"ground truth: {prepared.truth_reason}")
     if prepared.has_truth and grid is not None:
-        from ceamcl.experiments.truth_check import doubtful_truth
+        from ceamcl.io.truth_check import doubtful_truth
 
         console.print(doubtful_truth(prepared.log, grid).summary())
     if not prepared.has_truth:

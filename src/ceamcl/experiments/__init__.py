@@ -9,8 +9,8 @@
 - :mod:`~ceamcl.experiments.evaluate_log`: ``ceamcl evaluate-log``, global localisation from
   many start points of a real log (:mod:`~ceamcl.experiments.log_windows` picks the windows,
   :mod:`~ceamcl.experiments.log_report` writes its tables and figures;
-  :mod:`~ceamcl.experiments.tracking_log` is its ``--tracking`` mode, and
-  :mod:`~ceamcl.experiments.truth_check` says how well a log's truth explains its scans).
+  :mod:`~ceamcl.experiments.tracking_log` is its ``--tracking`` mode;
+  :mod:`ceamcl.io.truth_check` says how well a log's truth explains its scans).
 - :mod:`~ceamcl.experiments.figures`: their figures, apart from measurement.
 
 Algorithms are looked up by name in :mod:`ceamcl.filters.registry`; replaying one log

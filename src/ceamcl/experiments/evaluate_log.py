@@ -31,9 +31,9 @@ from ceamcl.experiments.metrics import (
     score_errors,
     within,
 )
-from ceamcl.experiments.truth_check import doubtful_truth
 from ceamcl.io.recorded import RecordedLog
 from ceamcl.io.results import ensure_output_dir
+from ceamcl.io.truth_check import doubtful_truth
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.replay import PreparedLog, UpdatePace, filter_rng, make_paced_filter
 from ceamcl.runner import RunResult, run_filter

@@ -30,11 +30,11 @@ from numpy.typing import NDArray
 from ceamcl.errors import ConfigError
 from ceamcl.experiments.common import fmt, pct, write_csv, write_text
 from ceamcl.experiments.executors import Batch
-from ceamcl.experiments.truth_check import doubtful_truth
 from ceamcl.filters.base import LocalisationFilter
 from ceamcl.filters.registry import get, with_config
 from ceamcl.io.recorded import RecordedLog
 from ceamcl.io.results import ensure_output_dir
+from ceamcl.io.truth_check import doubtful_truth
 from ceamcl.io.tum import write_tum
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.pose import heading_error, inside_ellipse, position_error

@@ -1,4 +1,4 @@
-"""The ground truth judged against its own map (:mod:`ceamcl.experiments.truth_check`)."""
+"""The ground truth judged against its own map (:mod:`ceamcl.io.truth_check`)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ceamcl.experiments.truth_check import doubtful_truth, truth_fit
+from ceamcl.io.truth_check import doubtful_truth, truth_fit
 from ceamcl.maps.worlds import get_world
 from ceamcl.sensors.scan import LaserScan
 from ceamcl.simulation.scenarios import office_scenario
