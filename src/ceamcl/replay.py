@@ -56,7 +56,7 @@ from ceamcl.io.recorded import RecordedLog
 from ceamcl.io.results import ensure_output_dir
 from ceamcl.io.timestamps import check_times
 from ceamcl.io.truth import TruthPairing, pair_truth
-from ceamcl.io.truth_check import doubtful_truth
+from ceamcl.io.truth_check import TruthDoubt, doubtful_truth
 from ceamcl.mapping import MappingConfig, map_from_log
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.maps.ros_io import load_map
@@ -256,6 +256,7 @@ def replay_log(
     outputs: OutputOptions | None = None,
     on_frame: Callable[[int, int], None] | None = None,
     pace: UpdatePace | None = None,
+    truth_doubt: TruthDoubt | None = None,
 ) -> ReplayOutcome:
     """Global localisation over the whole log; with ``out``, the files of ``ceamcl run``.
 
@@ -277,7 +278,7 @@ def replay_log(
         snapshot_every=snapshot_every,
         update_when=None if pace is None else pace.policy(),
     )
-    summary = run_summary(result, prepared, grid, map_source, pace)
+    summary = run_summary(result, prepared, grid, map_source, pace, truth_doubt)
     files = write_run_files(
         result,
         grid,
@@ -314,8 +315,10 @@ def run_summary(
     grid: OccupancyGrid,
     map_source: str,
     pace: UpdatePace | None = None,
+    truth_doubt: TruthDoubt | None = None,
 ) -> dict[str, Any]:
-    """The fields of ``summary.json`` of ``ceamcl run``."""
+    """The fields of ``summary.json`` of ``ceamcl run``; ``truth_doubt``: the truth check of
+    the log on ``grid`` when the caller has it (else it is made here)."""
     log = prepared.log
     step_ms = result.step_ms
     summary: dict[str, Any] = {
@@ -348,7 +351,7 @@ def run_summary(
         **summarise_states(result.states, result.times),
     }
     if prepared.has_truth:
-        doubt = doubtful_truth(prepared.log, grid)
+        doubt = truth_doubt or doubtful_truth(prepared.log, grid)
         summary["truth_fit"] = {
             "median_share": None if math.isnan(doubt.median) else doubt.median,
             "doubtful_scans": [list(s) for s in doubt.stretches],

@@ -16,6 +16,7 @@ from ceamcl.cli.run import (
     add_truth_arguments,
     open_inputs,
     print_truth,
+    truth_doubt,
 )
 from ceamcl.errors import ConfigError
 from ceamcl.experiments.common import fmt, pct
@@ -25,6 +26,7 @@ from ceamcl.experiments.log_windows import DEFAULT_WINDOW_M
 from ceamcl.experiments.metrics import DEFAULT_HOLD_M, HOLD_STEPS
 from ceamcl.experiments.tracking_log import DEFAULT_TRACKING_PARTICLES, track_log
 from ceamcl.filters import registry
+from ceamcl.io.truth_check import TruthDoubt
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.replay import PreparedLog, UpdatePace
 
@@ -128,16 +130,19 @@ def run(args: argparse.Namespace, console: Console) -> int:
         raise ConfigError("algorithms: none of the chosen algorithms can run here")
     budget.require("--starts x algorithms", args.starts * len(algos), RUN_BYTES, "runs")
     prepared, grid, map_source, pace = open_inputs(args)
+    doubt = truth_doubt(prepared, grid)
     if not args.quiet:
         console.print(f"map: {map_source}")
-        print_truth(console, prepared, grid)
+        print_truth(console, prepared, doubt)
         console.print(
             f"filter updates (every algorithm): {'every scan' if pace is None else pace.describe()}"
         )
         for name, why in skipped.items():
             console.print(f"[yellow]{name} skipped[/]: {why}")
     if args.tracking:
-        return run_tracking(args, console, prepared, grid, map_source, algos, skipped, pace)
+        return run_tracking(
+            args, console, prepared, grid, map_source, algos, skipped, pace, doubt
+        )
     if args.particles is not None:
         raise ConfigError("particles: only with --tracking (global localisation uses defaults)")
     with TrialsProgress(console, quiet=args.quiet) as progress:
@@ -158,6 +163,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
             progress=progress,
             skipped=skipped,
             pace=pace,
+            truth_doubt=doubt,
         )
     if not args.quiet:
         title = (
@@ -205,6 +211,7 @@ def run_tracking(
     algos: list[str],
     skipped: dict[str, str],
     pace: UpdatePace | None,
+    doubt: TruthDoubt | None = None,
 ) -> int:
     """``evaluate-log --tracking``: APE of pose tracking over the whole log."""
     particles = args.particles or DEFAULT_TRACKING_PARTICLES
@@ -219,6 +226,7 @@ def run_tracking(
             batch=Batch(args.executor, args.workers, progress),
             out=args.out,
             skipped=skipped,
+            truth_doubt=doubt,
         )
     if not args.quiet:
         columns = ["algorithm", "scored", "updates", "APE RMSE [m]", "median [m]", "max [m]"]

@@ -27,6 +27,7 @@ from ceamcl.cli.common import (
 )
 from ceamcl.errors import ConfigError
 from ceamcl.filters import registry
+from ceamcl.io.truth_check import TruthDoubt, doubtful_truth
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.outputs import OutputOptions
 from ceamcl.replay import (
@@ -179,14 +180,18 @@ def open_kwargs(args: argparse.Namespace) -> dict[str, Any]:
     }
 
 
-def print_truth(console: Console, prepared: Any, grid: OccupancyGrid | None = None) -> None:
-    """What was decided about ground truth and odometry, and repaired scan times; with the
-    map, how well the truth explains its scans on it (:mod:`ceamcl.io.truth_check`)."""
-    console.print(f"ground truth: {prepared.truth_reason}")
-    if prepared.has_truth and grid is not None:
-        from ceamcl.io.truth_check import doubtful_truth
+def truth_doubt(prepared: Any, grid: OccupancyGrid) -> TruthDoubt | None:
+    """How well the log's truth explains its scans on ``grid`` (:mod:`ceamcl.io.truth_check`),
+    made once per command for its console and its files; ``None`` without truth."""
+    return doubtful_truth(prepared.log, grid) if prepared.has_truth else None
 
-        console.print(doubtful_truth(prepared.log, grid).summary())
+
+def print_truth(console: Console, prepared: Any, doubt: TruthDoubt | None = None) -> None:
+    """What was decided about ground truth and odometry, and repaired scan times; with
+    ``doubt`` (:func:`truth_doubt`), how well the truth explains its scans on the map."""
+    console.print(f"ground truth: {prepared.truth_reason}")
+    if doubt is not None:
+        console.print(doubt.summary())
     if not prepared.has_truth:
         console.print("odometry: the log's recorded odometry (no ground truth: no errors scored)")
     if prepared.pairing is not None:
@@ -301,9 +306,10 @@ def run(args: argparse.Namespace, console: Console) -> int:
     outputs = OutputOptions.from_args(args)  # refuses --mp4 without ffmpeg before the run
     require_available(args.algorithm)
     prepared, grid, map_source, pace = open_inputs(args)
+    doubt = truth_doubt(prepared, grid)
     if not args.quiet:
         console.print(f"map: {map_source}")
-        print_truth(console, prepared, grid)
+        print_truth(console, prepared, doubt)
         console.print(f"filter updates: {'every scan' if pace is None else pace.describe()}")
         if prepared.noise is not None:
             n = prepared.noise
@@ -327,6 +333,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
             outputs=outputs,
             on_frame=bar.frame,
             pace=pace,
+            truth_doubt=doubt,
         )
     if not args.quiet:
         console.print(

@@ -33,7 +33,7 @@ from ceamcl.experiments.metrics import (
 )
 from ceamcl.io.recorded import RecordedLog
 from ceamcl.io.results import ensure_output_dir
-from ceamcl.io.truth_check import doubtful_truth
+from ceamcl.io.truth_check import TruthDoubt, doubtful_truth
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.replay import PreparedLog, UpdatePace, filter_rng, make_paced_filter
 from ceamcl.runner import RunResult, run_filter
@@ -225,10 +225,13 @@ def evaluate_log(
     quiet: bool = False,
     skipped: dict[str, str] | None = None,
     pace: UpdatePace | None = None,
+    truth_doubt: TruthDoubt | None = None,
 ) -> Evaluation:
     """Global localisation from ``starts`` points of the log with each algorithm.
 
-    Writes ``evaluate.csv``, ``evaluate.md``, ``errors.png`` and ``success.png`` to ``out``.
+    Writes ``evaluate.csv``, ``evaluate.md``, ``errors.png`` and ``success.png`` to ``out``;
+    ``evaluate.md`` says how well the truth explains its scans (``truth_doubt``, made here when
+    the caller has none).
     """
     log = prepared.log
     if not prepared.has_truth:
@@ -271,7 +274,7 @@ def evaluate_log(
         "every scan" if pace is None else pace.describe(),
     )
     if out_dir is not None:
-        doubt = doubtful_truth(log, grid)
+        doubt = truth_doubt or doubtful_truth(log, grid)
         write_evaluation(
             evaluation, prepared, out_dir, hold=hold, hold_m=hold_m, truth_note=doubt.summary()
         )

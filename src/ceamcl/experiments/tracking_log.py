@@ -34,7 +34,7 @@ from ceamcl.filters.base import LocalisationFilter
 from ceamcl.filters.registry import get, with_config
 from ceamcl.io.recorded import RecordedLog
 from ceamcl.io.results import ensure_output_dir
-from ceamcl.io.truth_check import doubtful_truth
+from ceamcl.io.truth_check import TruthDoubt, doubtful_truth
 from ceamcl.io.tum import write_tum
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.pose import heading_error, inside_ellipse, position_error
@@ -184,9 +184,11 @@ def track_log(
     batch: Batch | None = None,
     out: str | os.PathLike[str] | None = None,
     skipped: dict[str, str] | None = None,
+    truth_doubt: TruthDoubt | None = None,
 ) -> Tracking:
     """Pose tracking over the whole log with each algorithm (module docstring); the trials run
-    as ``batch`` says (default: local processes, no progress)."""
+    as ``batch`` says (default: local processes, no progress). ``truth_doubt``: the truth
+    check for ``tracking.md`` when the caller has it (else it is made here)."""
     log = prepared.log
     known = log.has_truth_at
     if not prepared.has_truth or not known.any():
@@ -216,7 +218,8 @@ def track_log(
         out_dir,
     )
     if out_dir is not None:
-        write_tracking(tracking, prepared, out_dir, doubtful_truth(prepared.log, grid).summary())
+        doubt = truth_doubt or doubtful_truth(prepared.log, grid)
+        write_tracking(tracking, prepared, out_dir, doubt.summary())
     return tracking
 
 

@@ -24,7 +24,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ceamcl.maps.grid import OccupancyGrid
-from ceamcl.sensors.scan import LaserScan, laser_poses
+from ceamcl.sensors.beam_skip import near_obstacle
+from ceamcl.sensors.scan import LaserScan, prepare_scan
 
 __all__ = [
     "TRUTH_FIT_BELOW",
@@ -59,30 +60,19 @@ TRUTH_FIT_MIN_SCANS = 5
 def truth_fit(
     log: LogWithTruth, grid: OccupancyGrid, *, tol_m: float = TRUTH_FIT_TOL_M
 ) -> NDArray[np.float64]:
-    """For each scan, the share of its end points (readings short of the sensor's maximum)
-    within ``tol_m`` of an occupied cell of ``grid`` when the scan is placed at the true pose;
+    """For each scan, the share of its end points (usable readings short of the sensor's
+    maximum) within ``tol_m`` of an occupied cell of ``grid`` when the scan is placed at the
+    true pose (:func:`ceamcl.sensors.beam_skip.near_obstacle`, the test beam skipping makes);
     NaN at scans without a true pose or without such a reading (nothing to judge)."""
     out = np.full(len(log), np.nan)
     truth = log.true_poses
     if truth is None:
         return out
-    distance = grid.distance_to_occupied
-    height, width = distance.shape
     for k in np.flatnonzero(np.all(np.isfinite(truth), axis=1)):
         scan = log.scan(int(k))
-        r = scan.ranges
-        ok = np.isfinite(r) & (r > scan.range_min) & (r < scan.range_max)
-        if not ok.any():
-            continue
-        laser = laser_poses(truth[k][None, :], scan.pose)[0]
-        bearing = laser[2] + scan.angles[ok]
-        ix, iy = grid.world_to_cell(
-            laser[0] + r[ok] * np.cos(bearing), laser[1] + r[ok] * np.sin(bearing)
-        )
-        inside = (ix >= 0) & (ix < width) & (iy >= 0) & (iy < height)
-        near = np.zeros(ix.size, dtype=bool)
-        near[inside] = distance[iy[inside], ix[inside]] <= tol_m
-        out[k] = float(near.mean())
+        hits = prepare_scan(scan, scan.n_beams, keep_max_range=False)  # every reading that ends
+        if hits.n_beams:
+            out[k] = float(near_obstacle(grid, truth[k], hits, tol_m).mean())
     return out
 
 

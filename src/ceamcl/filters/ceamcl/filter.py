@@ -62,6 +62,7 @@ from ceamcl.filters.particles import (
     check_increment,
     evolve,
     gaussian,
+    gaussian_poses,
     propagate,
     resample_within_labels,
     uniform_log_weights,
@@ -357,9 +358,7 @@ class CEAMCL:
             self._peaks = {}  # no warm start for a lone species' climb
             if self._fit_in_doubt(members):  # for the reported fitness only (docs/state.md)
                 self._evaluations += self._probe_peaks(members, best_seen, prepared, increment)
-                if cfg.look_around_m is not None:  # departure 12
-                    self._evaluations += self._look_around(members, full, increment)
-                    prepared = self._prepared
+                self._evaluations += self._look_around(members, full, increment)  # departure 12
         self._accumulate_evidence(
             members, self._memory_for(increment), best_seen, see_through=compared
         )
@@ -471,8 +470,9 @@ class CEAMCL:
             radius, cfg.look_around_step_m, spread, cfg.look_around_step_rad
         )
         cands[:, 2] = angles.wrap(cands[:, 2])
-        ll = self.sensor.log_likelihood(np.vstack([centre[None, :], cands]), full)
-        ll = np.where(np.isnan(ll), -np.inf, ll)
+        ll = sanitise_log_likelihood(
+            self.sensor.log_likelihood(np.vstack([centre[None, :], cands]), full)
+        )
         evaluations = int(ll.size)
         here = float(ll[0])
         if not ll[1:].max() - here >= cfg.look_around_margin:
@@ -486,8 +486,7 @@ class CEAMCL:
             0.25 * cfg.look_around_step_rad,
         )
         fine[:, 2] = angles.wrap(fine[:, 2])
-        lf = self.sensor.log_likelihood(fine, full)
-        lf = np.where(np.isnan(lf), -np.inf, lf)
+        lf = sanitise_log_likelihood(self.sensor.log_likelihood(fine, full))
         evaluations += int(lf.size)
         found = fine[int(np.argmax(lf))]
         # the found pose's fitness as the state reads a lone species': without the short
@@ -504,12 +503,9 @@ class CEAMCL:
         k = max(1, round(cfg.look_around_share * idx.size))
         worst = idx[np.argsort(ps.loglik[idx], kind="stable")[:k]]
         ev = cfg.evolution
-        sigma = np.array(
-            [ev.mutation_sigma_xy_m, ev.mutation_sigma_xy_m, ev.mutation_sigma_theta_rad]
-        )
-        new = found + self.rng.standard_normal((k, 3)) * sigma
+        sigma = [ev.mutation_sigma_xy_m, ev.mutation_sigma_xy_m, ev.mutation_sigma_theta_rad]
+        new = gaussian_poses(found, np.diag(np.square(sigma)), k, self.rng)
         new[0] = found
-        new[:, 2] = angles.wrap(new[:, 2])
         ps.poses[worst] = new
         ps.loglik[idx] = sanitise_log_likelihood(self.sensor.log_likelihood(ps.poses[idx], there))
         ps.fitness[idx] = fitness(ps.loglik[idx], there, self.sensor)
