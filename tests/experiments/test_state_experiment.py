@@ -4,13 +4,26 @@ a smoke run of the command (runs cut short)."""
 from __future__ import annotations
 
 import csv
+import dataclasses
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from ceamcl.cli import main
-from ceamcl.experiments.state import StateRun, kidnap_figures, score, true_states
+from ceamcl.experiments.state import (
+    DATA_DIR,
+    NOT_SCORED,
+    REAL_LOGS,
+    LogStateTrial,
+    StateRun,
+    _doubtful_section,
+    kidnap_figures,
+    real_log_trials,
+    run_log_state_trial,
+    score,
+    true_states,
+)
 from ceamcl.filters.state import STATES, State
 
 C = {s: i for i, s in enumerate(STATES)}
@@ -42,6 +55,9 @@ def test_true_state_of_a_step() -> None:
     assert true_states(est, TRUTH, [_h((1.1, 1.0, 0.0, 1.0))], True)[0] == C[State.LOCALISED]
 
 
+_FIELDS = [f.name for f in dataclasses.fields(StateRun)]
+
+
 def _run(said: list[State], truth: list[State], kidnapped_at: tuple[int, ...] = ()) -> StateRun:
     n = len(said)
     return StateRun(
@@ -71,6 +87,75 @@ def test_precision_recall_and_support_skip_initialising_steps() -> None:
     assert by["LOST"].precision == pytest.approx(1.0)
     assert by["LOST"].recall == pytest.approx(1 / 2)  # step 0 is INITIALISING: not scored
     assert by["LOST"].support == 2
+
+
+def test_steps_without_a_true_pose_are_not_scored() -> None:
+    L, X = State.LOCALISED, State.LOST
+    run = _run([L, L, X, L], [L, L, X, X])
+    truth = run.truth.copy()
+    truth[3] = NOT_SCORED  # a raw log's scan that its corrected log does not hold
+    unscored = StateRun(*[truth if f == "truth" else getattr(run, f) for f in _FIELDS])
+    by = {s.state: s for s in score([unscored])}
+    assert by["LOCALISED"].precision == 1.0 and by["LOCALISED"].said == 2
+    assert by["LOST"].recall == 1.0 and by["LOST"].support == 1
+    # the same steps scored: the last LOCALISED was wrong
+    assert {s.state: s for s in score([run])}["LOCALISED"].precision == pytest.approx(2 / 3)
+
+
+def test_steps_where_the_truth_is_doubtful_are_reported_apart() -> None:
+    L = State.LOCALISED
+    run = _run([L, L, L, L], [L, L, L, State.LOST])
+    doubtful = np.array([False, False, False, True])
+    marked = dataclasses.replace(run, doubtful=doubtful)
+    # scored as they are in the main tables ...
+    assert {s.state: s for s in score([marked])}["LOCALISED"].precision == pytest.approx(3 / 4)
+    # ... and without them beside: the one wrong LOCALISED lay where the truth is doubtful
+    clean = {s.state: s for s in score([marked.without_doubtful()])}
+    assert clean["LOCALISED"].precision == 1.0 and clean["LOST"].support == 0
+    text = "\n".join(_doubtful_section([marked]))
+    assert "doubtful at scans 3-3" in text and "1 scored steps lie there" in text
+    assert "| alg | LOCALISED | 100.0 % |" in text
+    assert _doubtful_section([run]) == []  # a simulated run has no doubtful steps
+
+
+def test_absent_real_logs_are_skipped_with_the_path(tmp_path: Path) -> None:
+    trials, skipped = real_log_trials(["ceamcl"], 0, tmp_path)
+    assert trials == []
+    assert [name for name, _ in skipped] == [r.label for r in REAL_LOGS]
+    assert all(str(tmp_path) in why and "absent" in why for _, why in skipped)
+    # a raw log whose corrected log is missing is skipped for that one
+    raw = next(r for r in REAL_LOGS if r.truth_from is not None)
+    (tmp_path / raw.path).parent.mkdir(parents=True)
+    (tmp_path / raw.path).write_text("")
+    _, skipped = real_log_trials(["ceamcl"], 0, tmp_path)
+    assert str(tmp_path / str(raw.truth_from)) in dict(skipped)[raw.label]
+
+
+def test_a_raw_log_is_scored_at_its_scans_with_truth_at_nav2s_pace() -> None:
+    """fr079 raw, its first 500 scans: the filter reads the robot's own odometry and updates at
+    Nav2's pace; the state is scored at its updates whose scan has a true pose."""
+    for r in REAL_LOGS:
+        for path in (r.path, r.truth_from):
+            if path is not None and not (DATA_DIR / path).is_file():
+                pytest.skip(
+                    f"real log {DATA_DIR / path} is absent (the shared data folder is not mounted)"
+                )
+    trials, skipped = real_log_trials(["ceamcl"], 0)
+    assert skipped == []
+    by_name = {t.name: t for t in trials}
+    assert by_name["intel-corrected"].pace is None  # synthetic odometry: every scan
+    raw = by_name["fr079-raw"]
+    assert raw.pace is not None and raw.pace.min_d == 0.25
+    short = LogStateTrial(raw.name, raw.algorithm, raw.grid, raw.log.window(0, 500), 0, raw.pace)
+    run = run_log_state_trial(short)
+    known = np.all(np.isfinite(short.log.true_poses), axis=1)
+    assert 0 < known.sum() < known.size
+    assert np.all(run.truth[~known] == NOT_SCORED)
+    # held-back scans are not scored either: far fewer steps than scans with a true pose
+    scored = run.truth != NOT_SCORED
+    assert 20 < scored.sum() < known.sum() / 2
+    by = {s.state: s for s in score([run])}
+    assert by["LOCALISED"].said > 0
 
 
 def test_kidnap_noticed_within_two_seconds_and_false_lost() -> None:

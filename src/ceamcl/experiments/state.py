@@ -18,10 +18,16 @@ truth was ``S`` at which it said ``S``; support = the steps whose truth was ``S`
 
 Scenarios: the kidnapped robot on ``small-office``, the four rooms of ``symmetric-hall`` and of
 ``marked-hall`` (the paper's protocol), each ``--trials`` times per route from ``--seed``; and
-the corrected real logs of ``../shared/data/carmen`` (:data:`REAL_LOGS`; truth: their
-SLAM-corrected poses; odometry: synthetic from those poses, seeded; map: built from the log, as
-``ceamcl run`` does), one global localisation from the first scan per algorithm, every scan an
-update. A log that is absent is skipped and the reason written to ``state.md``.
+the real logs of ``../shared/data`` (:data:`REAL_LOGS`), one global localisation from the first
+scan per algorithm: the corrected logs of ``carmen/`` (truth: their SLAM-corrected poses;
+odometry: synthetic from those poses, seeded; every scan an update) and the raw logs of
+``carmen-raw/`` (the robot's own odometry and every scan, updates at Nav2's pace as
+``ceamcl run`` makes them; truth: the corrected log's poses at the scans the two share, as
+``--truth-from`` pairs them). The map is built from the corrected log, as ``ceamcl run`` does.
+On a paced log the state is scored at the filter's steps, as everywhere: at each update whose
+scan has a true pose (between updates the filter reads no scan and its state is the last
+update's, its estimate carried along by the odometry; Nav2 publishes ``amcl_pose`` at updates
+too). A log that is absent is skipped and the reason written to ``state.md``.
 """
 
 from __future__ import annotations
@@ -30,7 +36,7 @@ import os
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -54,6 +60,9 @@ from ceamcl.io.recorded import RecordedLog
 from ceamcl.io.results import ensure_output_dir
 from ceamcl.maps.grid import OccupancyGrid
 
+if TYPE_CHECKING:  # replay imports the experiments' metrics: imported where used
+    from ceamcl.replay import UpdatePace
+
 #: The algorithms the issue asks for, when ``--algorithms`` is not given.
 DEFAULT_ALGORITHMS = ("ceamcl", "kld-amcl-recovery", "nav2-amcl")
 #: A kidnap counts as noticed when the filter says LOST within this time of it.
@@ -62,12 +71,30 @@ LOST_WITHIN_S = 2.0
 _CODE = {s: i for i, s in enumerate(STATES)}
 
 
-#: The real logs scored (``../shared/data/carmen``; freiburg-079's 4791 scans are left out to
-#: keep the experiment within minutes).
-REAL_LOGS = ("intel-corrected.log.gz", "fhw-corrected.log.gz")
-#: Where the real logs are: ``../shared/data/carmen``, beside the project's folder (the source
+@dataclass(frozen=True)
+class RealLog:
+    """A real log the experiment scores: its label, its path under :data:`DATA_DIR`, and for a
+    raw log the corrected log of the same run that gives its truth (``--truth-from``)."""
+
+    label: str
+    path: str
+    truth_from: str | None = None
+
+
+#: The real logs scored (``../shared/data``). freiburg-079-corrected (4,791 scans, every one
+#: an update with synthetic odometry) is left out to keep the experiment within minutes; its
+#: run is scored through the raw log fr079, at Nav2's pace.
+REAL_LOGS = (
+    RealLog("intel-corrected", "carmen/intel-corrected.log.gz"),
+    RealLog("fhw-corrected", "carmen/fhw-corrected.log.gz"),
+    RealLog("intel-raw", "carmen-raw/intel.clf.gz", "carmen/intel-corrected.log.gz"),
+    RealLog("fr079-raw", "carmen-raw/fr079.clf.gz", "carmen/freiburg-079-corrected.log.gz"),
+)
+#: Where the real logs are: ``../shared/data``, beside the project's folder (the source
 #: tree's root: ``src/ceamcl/experiments`` -> three levels up).
-DATA_DIR = Path(__file__).resolve().parents[3].parent / "shared" / "data" / "carmen"
+DATA_DIR = Path(__file__).resolve().parents[3].parent / "shared" / "data"
+#: The true state of a step that is not scored (no true pose, or no update on a paced log).
+NOT_SCORED = -1
 
 
 def default_courses() -> tuple[Course, ...]:
@@ -123,6 +150,17 @@ class StateRun:
     position_error: NDArray[np.float64]  # (T,) of the estimate, m
     hypotheses: NDArray[np.int64]  # (T,) the state's hypothesis count
     kidnapped_at: tuple[int, ...]
+    #: (T,) steps where a real log's truth is doubtful (:mod:`ceamcl.io.truth_check`); scored
+    #: like the others, and reported apart in ``state.md``
+    doubtful: NDArray[np.bool_] | None = None
+
+    def without_doubtful(self) -> StateRun:
+        """This run with its doubtful steps not scored."""
+        if self.doubtful is None:
+            return self
+        truth = self.truth.copy()
+        truth[self.doubtful] = NOT_SCORED
+        return replace(self, truth=truth, doubtful=None)
 
 
 def run_state_trial(trial: Trial) -> StateRun:
@@ -160,19 +198,34 @@ class LogStateTrial:
     grid: OccupancyGrid
     log: RecordedLog
     seed: int
+    #: Nav2's update pace on a log with the robot's own odometry; ``None``: every scan
+    pace: UpdatePace | None = None
+    #: ``(first scan, last scan, lowest share)`` of each stretch where the truth is doubtful
+    #: (:func:`ceamcl.io.truth_check.doubtful_truth`)
+    doubtful: tuple[tuple[int, int, float], ...] = ()
 
 
 def run_log_state_trial(trial: LogStateTrial) -> StateRun:
-    """A real log: the filter's state and the true state at every scan."""
+    """A real log: the filter's state and the true state at every step (:data:`NOT_SCORED`
+    where the scan has no true pose, a raw log's scan its corrected log does not hold, and on
+    a paced log where the filter did not update)."""
     from ceamcl.replay import filter_rng, make_paced_filter
     from ceamcl.runner import run_filter
 
     f = make_paced_filter(
-        trial.algorithm, trial.grid, filter_rng(trial.seed, 0, trial.algorithm), None
+        trial.algorithm, trial.grid, filter_rng(trial.seed, 0, trial.algorithm), trial.pace
     )
-    result = run_filter(f, trial.log)
+    result = run_filter(
+        f, trial.log, update_when=None if trial.pace is None else trial.pace.policy()
+    )
     assert result.truth is not None and result.position_errors is not None
     single = registry.get(trial.algorithm).reports == "estimate"
+    truth = true_states(result.estimates, result.truth, result.hypotheses, single)
+    stepped = np.array([d.stepped for d in result.diagnostics], dtype=bool)
+    truth[~(result.truth_known & stepped)] = NOT_SCORED
+    doubtful = np.zeros(truth.size, dtype=bool)
+    for first, last, _ in trial.doubtful:
+        doubtful[first : last + 1] = True
     return StateRun(
         algorithm=trial.algorithm,
         course=trial.name,
@@ -183,32 +236,42 @@ def run_log_state_trial(trial: LogStateTrial) -> StateRun:
         said=np.array(
             [_CODE[s.state] if s is not None else -1 for s in result.states], dtype=np.int64
         ),
-        truth=true_states(result.estimates, result.truth, result.hypotheses, single),
+        truth=truth,
         position_error=result.position_errors,
         hypotheses=np.array([s.n_hypotheses if s is not None else 0 for s in result.states]),
         kidnapped_at=(),
+        doubtful=doubtful,
     )
 
 
 def real_log_trials(
     algorithms: Sequence[str], seed: int, data_dir: Path = DATA_DIR
 ) -> tuple[list[LogStateTrial], list[tuple[str, str]]]:
-    """The trials of the real logs that are present, and ``(log, reason)`` for those skipped."""
-    from ceamcl.replay import obtain_map, prepare_log
+    """The trials of the real logs that are present, and ``(log, reason)`` for those skipped.
+    Each log's truth is checked against its map (:func:`ceamcl.io.truth_check.doubtful_truth`)."""
+    from ceamcl.io.truth_check import doubtful_truth
+    from ceamcl.replay import choose_pace, obtain_map, prepare_log
 
     trials, skipped = [], []
-    for name in REAL_LOGS:
-        path = data_dir / name
-        if not path.is_file():
-            skipped.append((name, f"{path} is absent (the shared data folder is not mounted)"))
+    for real in REAL_LOGS:
+        paths = [data_dir / real.path] + ([data_dir / real.truth_from] if real.truth_from else [])
+        absent = [p for p in paths if not p.is_file()]
+        if absent:
+            skipped.append(
+                (real.label, f"{absent[0]} is absent (the shared data folder is not mounted)")
+            )
             continue
-        prepared = prepare_log(path, seed=seed)
+        truth_from = paths[1] if real.truth_from else None
+        prepared = prepare_log(paths[0], seed=seed, truth_from=truth_from)
         if not prepared.has_truth:
-            skipped.append((name, f"no ground truth: {prepared.truth_reason}"))
+            skipped.append((real.label, f"no ground truth: {prepared.truth_reason}"))
             continue
         grid, _ = obtain_map(prepared.map_log, None)
-        label = name.removesuffix(".log.gz")
-        trials += [LogStateTrial(label, a, grid, prepared.log, seed) for a in algorithms]
+        pace = choose_pace(prepared)
+        doubt = doubtful_truth(prepared.log, grid).stretches
+        trials += [
+            LogStateTrial(real.label, a, grid, prepared.log, seed, pace, doubt) for a in algorithms
+        ]
     return trials, skipped
 
 
@@ -230,7 +293,7 @@ def score(runs: Sequence[StateRun]) -> list[StateScore]:
     for alg, rs in group_by(runs, lambda r: r.algorithm).items():
         said = np.concatenate([r.said for r in rs])
         truth = np.concatenate([r.truth for r in rs])
-        scored = said != _CODE[State.INITIALISING]
+        scored = (said != _CODE[State.INITIALISING]) & (truth != NOT_SCORED)
         said, truth = said[scored], truth[scored]
         for s in STATES[:3]:
             c = _CODE[s]
@@ -388,14 +451,19 @@ def state_markdown(result: StateResult, meta: dict[str, Any]) -> str:
         f"wrong place holds at least {t.weight_min:.0%} of the weight; LOCALISED when no wrong "
         "place holds weight and the estimate is within the tolerances. Steps the filter "
         "calls INITIALISING are not scored. Thresholds: `ceamcl.filters.state.StateThresholds` "
-        "(chosen on seed 100, disjoint from the seeds reported unless `--seed 100`).",
+        "(chosen on seed 100, disjoint from the seeds reported unless `--seed 100`). Real logs: "
+        "one global localisation from the first scan per algorithm; a raw log reads the robot's "
+        "own odometry, updates at Nav2's pace and is scored at its updates whose scan has a true "
+        "pose (from its corrected log).",
         "",
         "## All scenarios",
         "",
         _score_table(result.scores),
     ]
+    runs_of = group_by(result.runs, lambda r: r.course)
     for course, scores in result.by_course.items():
         lines += ["", f"## {course}", "", _score_table(scores)]
+        lines += _doubtful_section(runs_of.get(course, []))
     for name, reason in result.skipped_logs:
         lines += ["", f"Real log {name} not scored: {reason}."]
     if result.kidnaps:
@@ -419,6 +487,31 @@ def state_markdown(result: StateResult, meta: dict[str, Any]) -> str:
         ]
     lines.append(metadata_markdown(meta, result.settings.skipped))
     return "\n".join(lines)
+
+
+def _doubtful_section(runs: Sequence[StateRun]) -> list[str]:
+    """For a real log whose truth is doubtful somewhere (:mod:`ceamcl.io.truth_check`): where,
+    how many scored steps lie there, and the scores without them."""
+    hit = [r for r in runs if r.doubtful is not None and r.doubtful.any()]
+    if not hit:
+        return []
+    mask = hit[0].doubtful
+    assert mask is not None
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
+    spans = ", ".join(f"{a}-{b - 1}" for a, b in zip(edges[::2], edges[1::2], strict=True))
+    inside = int(
+        sum(
+            int(np.sum(r.doubtful & (r.truth != NOT_SCORED))) for r in hit if r.doubtful is not None
+        )
+    )
+    return [
+        "",
+        f"The truth is doubtful at scans {spans} (fewer than half of a scan's end points near "
+        "the map's obstacles at the true pose: `ceamcl.io.truth_check`, docs/real-data.md); "
+        f"{inside} scored steps lie there, scored above. Without them:",
+        "",
+        _score_table(score([r.without_doubtful() for r in runs])),
+    ]
 
 
 def write_state(
