@@ -40,3 +40,25 @@ def test_tracking_corrects_the_start_error_on_a_simulated_log(algorithm: str) ->
     assert r.ape_median_m < 0.2 and r.ape_rmse_m < 0.3
     assert r.position_errors[-10:].max() < 0.3
     assert 0 < r.updates < len(log) - 1
+
+
+def test_the_rmse_outside_doubtful_truth_leaves_out_only_those_scans() -> None:
+    """The figure beside the APE RMSE: the RMSE over the scored scans outside the stretches
+    where the truth is doubtful (the truth check's), the same scans and errors otherwise."""
+    sc = office_scenario()
+    grid = sc.grid()
+    log = sc.simulate(np.random.default_rng(7), grid)
+    start = perturbed_start(log.true_poses[0], 0)
+    plain = run_tracking_trial(
+        TrackingTrial("ceamcl", grid, log, start, 500, 0, UpdatePace(0.2, 0.2))  # type: ignore[arg-type]
+    )
+    assert plain.ape_rmse_outside_doubtful_m == plain.ape_rmse_m  # nothing doubtful
+    doubtful = np.zeros(len(log), dtype=bool)
+    doubtful[:15] = True  # the start, where the 0.5 m start error is being corrected
+    marked = run_tracking_trial(
+        TrackingTrial("ceamcl", grid, log, start, 500, 0, UpdatePace(0.2, 0.2), doubtful)  # type: ignore[arg-type]
+    )
+    pos = marked.position_errors
+    assert marked.ape_rmse_m == plain.ape_rmse_m  # the run itself is the same
+    assert marked.ape_rmse_outside_doubtful_m == pytest.approx(np.sqrt(np.mean(pos[15:] ** 2)))
+    assert marked.ape_rmse_outside_doubtful_m < marked.ape_rmse_m

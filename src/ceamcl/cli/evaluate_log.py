@@ -230,7 +230,7 @@ def run_tracking(
         )
     if not args.quiet:
         columns = ["algorithm", "scored", "updates", "APE RMSE [m]", "median [m]", "max [m]"]
-        columns += ["head RMSE [rad]", "particles", "update [ms]"]
+        columns += ["RMSE, truth sound [m]", "head RMSE [rad]", "particles", "update [ms]"]
         rows = [
             [
                 r.algorithm,
@@ -239,6 +239,7 @@ def run_tracking(
                 fmt(r.ape_rmse_m, 3),
                 fmt(r.ape_median_m, 3),
                 fmt(r.ape_max_m, 3),
+                fmt(r.ape_rmse_outside_doubtful_m, 3),
                 fmt(r.heading_rmse_rad, 3),
                 fmt(r.mean_particles, 0),
                 fmt(r.median_update_ms, 1),

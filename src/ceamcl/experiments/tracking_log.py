@@ -8,11 +8,15 @@ truth, moved :data:`START_OFFSET_M` (0.5 m) in a seeded random direction and tur
 particle budget (``particles``: the sample size of MCL and GMCL, ``max_particles`` of KLD-AMCL
 and Nav2 AMCL, the tracking species' size of CEAMCL) and the same update pace. The APE is the
 position error of the estimate at the scans with truth (no alignment: the map frame is the
-truth's frame): its RMSE, median and maximum; the heading RMSE beside it.
+truth's frame): its RMSE, median and maximum; the heading RMSE beside it; and the RMSE over the
+scans outside the stretches where the truth is doubtful (:mod:`ceamcl.io.truth_check`: the
+truth does not explain its own scans on the map), beside the RMSE over every scan, never
+instead of it.
 
 Files: ``tracking.csv`` and ``tracking.md`` (one row per algorithm), ``groundtruth.tum`` and
 ``tracking-<algorithm>.tum`` at the scans with truth (``evo_ape tum groundtruth.tum
-tracking-mcl.tum`` reads them), ``ape.png`` (position error along the log).
+tracking-mcl.tum`` reads them), ``ape.png`` (position error along the log, the doubtful
+stretches shaded).
 """
 
 from __future__ import annotations
@@ -90,6 +94,8 @@ class TrackingTrial:
     particles: int
     seed: int
     pace: UpdatePace | None = None
+    #: scans of ``log`` where the truth is doubtful (:func:`doubtful_truth`); ``None``: none
+    doubtful: NDArray[np.bool_] | None = None
 
 
 @dataclass(frozen=True)
@@ -101,6 +107,8 @@ class TrackingResult:
     ape_rmse_m: float
     ape_median_m: float
     ape_max_m: float
+    #: the APE RMSE over the scored scans outside the doubtful stretches (NaN: none left)
+    ape_rmse_outside_doubtful_m: float
     heading_rmse_rad: float
     within_2sigma: float  # share of scored scans with the truth inside the 2-sigma ellipse
     mean_particles: float
@@ -130,6 +138,7 @@ def run_tracking_trial(trial: TrackingTrial) -> TrackingResult:
         raise ConfigError(f"tracking {trial.algorithm}: the log has no scan with ground truth")
     est, truth = result.estimates[known], result.truth[known]
     pos, head = position_error(est, truth), heading_error(est, truth)
+    sound = ~trial.doubtful[known] if trial.doubtful is not None else np.ones(pos.size, bool)
     return TrackingResult(
         algorithm=trial.algorithm,
         scans=result.steps,
@@ -138,6 +147,9 @@ def run_tracking_trial(trial: TrackingTrial) -> TrackingResult:
         ape_rmse_m=float(np.sqrt(np.mean(pos**2))),
         ape_median_m=float(np.median(pos)),
         ape_max_m=float(np.max(pos)),
+        ape_rmse_outside_doubtful_m=(
+            float(np.sqrt(np.mean(pos[sound] ** 2))) if sound.any() else math.nan
+        ),
         heading_rmse_rad=float(np.sqrt(np.mean(head**2))),
         within_2sigma=_within_2sigma(result.covariances, known, est, truth),
         mean_particles=float(np.mean([d.n_particles for d in result.diagnostics])),
@@ -171,6 +183,8 @@ class Tracking:
     map_source: str
     skipped: dict[str, str]
     out_dir: Path | None
+    #: ``(first scan, last scan, lowest share)`` where the truth is doubtful (log's indices)
+    doubtful: tuple[tuple[int, int, float], ...] = ()
 
 
 def track_log(
@@ -203,8 +217,11 @@ def track_log(
     assert window.true_poses is not None
     start = perturbed_start(window.true_poses[0], prepared.seed)
     out_dir = ensure_output_dir(out) if out is not None else None
+    doubt = truth_doubt or doubtful_truth(prepared.log, grid)
+    doubtful = _doubtful_mask(doubt, len(log))[first:]
     trials = [
-        TrackingTrial(a, grid, window, start, particles, prepared.seed, pace) for a in algorithms
+        TrackingTrial(a, grid, window, start, particles, prepared.seed, pace, doubtful)
+        for a in algorithms
     ]
     results = (batch or Batch()).run(run_tracking_trial, trials, f"track {log.name}")
     tracking = Tracking(
@@ -216,11 +233,18 @@ def track_log(
         map_source,
         dict(skipped or {}),
         out_dir,
+        doubt.stretches,
     )
     if out_dir is not None:
-        doubt = truth_doubt or doubtful_truth(prepared.log, grid)
         write_tracking(tracking, prepared, out_dir, doubt.summary())
     return tracking
+
+
+def _doubtful_mask(doubt: TruthDoubt, scans: int) -> NDArray[np.bool_]:
+    mask = np.zeros(scans, dtype=bool)
+    for a, b, _ in doubt.stretches:
+        mask[a : b + 1] = True
+    return mask
 
 
 _ROW_FIELDS = (
@@ -231,6 +255,7 @@ _ROW_FIELDS = (
     "ape_rmse_m",
     "ape_median_m",
     "ape_max_m",
+    "ape_rmse_outside_doubtful_m",
     "heading_rmse_rad",
     "within_2sigma",
     "mean_particles",
@@ -260,20 +285,24 @@ def tracking_markdown(
         f"{START_TURN_RAD} rad: ({x:.3f}, {y:.3f}, {th:.3f}), seed {prepared.seed}",
         f"- particle budget: {tracking.particles} for every algorithm",
         f"- filter updates (every algorithm): {tracking.update_policy}",
-        "- APE: position error of the estimate at the scans with truth, no alignment",
+        "- APE: position error of the estimate at the scans with truth, no alignment; "
+        '"outside doubtful truth": the RMSE without the stretches where the truth does not '
+        "explain its own scans on the map (none: the same as over every scan)",
         "- within 2 sigma: share of scored scans whose true position lies inside the 2-sigma "
         "ellipse of the estimate's covariance (86.5 % if the covariance is calibrated; much "
         "lower: overconfident)",
         "",
         "| algorithm | scans | scored | updates | APE RMSE [m] | APE median [m] | APE max [m] | "
-        "heading RMSE [rad] | within 2 sigma | mean particles | median update [ms] |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "APE RMSE outside doubtful truth [m] | heading RMSE [rad] | within 2 sigma | "
+        "mean particles | median update [ms] |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for r in tracking.results:
         lines.append(
             f"| {r.algorithm} | {r.scans} | {r.scored_scans} | {r.updates} | "
             f"{fmt(r.ape_rmse_m, 3)} | {fmt(r.ape_median_m, 3)} | {fmt(r.ape_max_m, 3)} | "
-            f"{fmt(r.heading_rmse_rad, 3)} | {pct(r.within_2sigma)} | "
+            f"{fmt(r.ape_rmse_outside_doubtful_m, 3)} | {fmt(r.heading_rmse_rad, 3)} | "
+            f"{pct(r.within_2sigma)} | "
             f"{fmt(r.mean_particles, 0)} | "
             f"{fmt(r.median_update_ms, 1)} |"
         )
@@ -295,6 +324,12 @@ def write_tracking(
         first = tracking.results[0]
         write_tum(out_dir / "groundtruth.tum", first.times, first.truth)
     fig, ax = plt.subplots(figsize=(9, 4.5))
+    if tracking.results and tracking.doubtful:
+        t = prepared.log.times
+        t0 = tracking.results[0].times[0]
+        for i, (a, b, _) in enumerate(tracking.doubtful):
+            label = "truth doubtful (truth check)" if i == 0 else None
+            ax.axvspan(t[a] - t0, t[b] - t0, color="0.85", zorder=0, label=label)
     for r in tracking.results:
         write_tum(out_dir / f"tracking-{r.algorithm}.tum", r.times, r.estimates)
         ax.plot(r.times - r.times[0], r.position_errors, lw=1, label=r.algorithm)
