@@ -113,7 +113,7 @@ def test_steps_where_the_truth_is_doubtful_are_reported_apart() -> None:
     clean = {s.state: s for s in score([marked.without_doubtful()])}
     assert clean["LOCALISED"].precision == 1.0 and clean["LOST"].support == 0
     text = "\n".join(_doubtful_section([marked]))
-    assert "doubtful at scans 3-3" in text and "1 scored steps lie there" in text
+    assert "doubtful at scans 3-3" in text and "1 scored steps of a run lie there" in text
     assert "| alg | LOCALISED | 100.0 % |" in text
     assert _doubtful_section([run]) == []  # a simulated run has no doubtful steps
 

@@ -499,16 +499,15 @@ def _doubtful_section(runs: Sequence[StateRun]) -> list[str]:
     assert mask is not None
     edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
     spans = ", ".join(f"{a}-{b - 1}" for a, b in zip(edges[::2], edges[1::2], strict=True))
-    inside = int(
-        sum(
-            int(np.sum(r.doubtful & (r.truth != NOT_SCORED))) for r in hit if r.doubtful is not None
-        )
+    counts = sorted(
+        {int(np.sum(r.doubtful & (r.truth != NOT_SCORED))) for r in hit if r.doubtful is not None}
     )
+    inside = str(counts[0]) if len(counts) == 1 else f"{counts[0]}-{counts[-1]}"
     return [
         "",
         f"The truth is doubtful at scans {spans} (fewer than half of a scan's end points near "
         "the map's obstacles at the true pose: `ceamcl.io.truth_check`, docs/real-data.md); "
-        f"{inside} scored steps lie there, scored above. Without them:",
+        f"{inside} scored steps of a run lie there, scored above. Without them:",
         "",
         _score_table(score([r.without_doubtful() for r in runs])),
     ]
