@@ -49,6 +49,9 @@ def test_a_true_truth_explains_its_scans_and_a_wrong_stretch_is_found() -> None:
     assert 100 <= first <= 102 and 117 <= last <= 119
     assert lowest < 0.5
     assert f"{first}-{last}" in doubt.summary()
+    mask = doubt.mask(len(log))
+    assert mask.sum() == last - first + 1 and mask[first] and mask[last] and not mask[first - 1]
+    assert not clean.mask(len(log)).any()
 
 
 def test_a_log_without_truth_has_nothing_to_judge() -> None:

@@ -327,9 +327,7 @@ def measure_raw_log(name: str, s: RealMapsSettings, tick: Progress) -> list[dict
     first = int(np.flatnonzero(full.has_truth_at)[0])
     log = full.window(first, min(len(full), first + s.scans))
     assert log.true_poses is not None
-    doubtful = np.zeros(len(log), dtype=bool)
-    for a, b, _ in doubtful_truth(log, grid).stretches:
-        doubtful[a : b + 1] = True
+    doubtful = doubtful_truth(log, grid).mask(len(log))
     rows: list[dict[str, Any]] = []
     nav2 = peers.available()
     start = (perturbed_start(log.true_poses[0], s.seed), start_covariance())

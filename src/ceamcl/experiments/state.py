@@ -200,9 +200,9 @@ class LogStateTrial:
     seed: int
     #: Nav2's update pace on a log with the robot's own odometry; ``None``: every scan
     pace: UpdatePace | None = None
-    #: ``(first scan, last scan, lowest share)`` of each stretch where the truth is doubtful
-    #: (:func:`ceamcl.io.truth_check.doubtful_truth`)
-    doubtful: tuple[tuple[int, int, float], ...] = ()
+    #: the scans of ``log`` where the truth is doubtful
+    #: (:meth:`ceamcl.io.truth_check.TruthDoubt.mask`); ``None``: none
+    doubtful: NDArray[np.bool_] | None = None
 
 
 def run_log_state_trial(trial: LogStateTrial) -> StateRun:
@@ -223,9 +223,6 @@ def run_log_state_trial(trial: LogStateTrial) -> StateRun:
     truth = true_states(result.estimates, result.truth, result.hypotheses, single)
     stepped = np.array([d.stepped for d in result.diagnostics], dtype=bool)
     truth[~(result.truth_known & stepped)] = NOT_SCORED
-    doubtful = np.zeros(truth.size, dtype=bool)
-    for first, last, _ in trial.doubtful:
-        doubtful[first : last + 1] = True
     return StateRun(
         algorithm=trial.algorithm,
         course=trial.name,
@@ -240,7 +237,7 @@ def run_log_state_trial(trial: LogStateTrial) -> StateRun:
         position_error=result.position_errors,
         hypotheses=np.array([s.n_hypotheses if s is not None else 0 for s in result.states]),
         kidnapped_at=(),
-        doubtful=doubtful,
+        doubtful=trial.doubtful,
     )
 
 
@@ -268,7 +265,7 @@ def real_log_trials(
             continue
         grid, _ = obtain_map(prepared.map_log, None)
         pace = choose_pace(prepared)
-        doubt = doubtful_truth(prepared.log, grid).stretches
+        doubt = doubtful_truth(prepared.log, grid).mask(len(prepared.log))
         trials += [
             LogStateTrial(real.label, a, grid, prepared.log, seed, pace, doubt) for a in algorithms
         ]

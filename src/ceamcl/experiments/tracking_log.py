@@ -218,7 +218,7 @@ def track_log(
     start = perturbed_start(window.true_poses[0], prepared.seed)
     out_dir = ensure_output_dir(out) if out is not None else None
     doubt = truth_doubt or doubtful_truth(prepared.log, grid)
-    doubtful = _doubtful_mask(doubt, len(log))[first:]
+    doubtful = doubt.mask(len(log))[first:]
     trials = [
         TrackingTrial(a, grid, window, start, particles, prepared.seed, pace, doubtful)
         for a in algorithms
@@ -238,13 +238,6 @@ def track_log(
     if out_dir is not None:
         write_tracking(tracking, prepared, out_dir, doubt.summary())
     return tracking
-
-
-def _doubtful_mask(doubt: TruthDoubt, scans: int) -> NDArray[np.bool_]:
-    mask = np.zeros(scans, dtype=bool)
-    for a, b, _ in doubt.stretches:
-        mask[a : b + 1] = True
-    return mask
 
 
 _ROW_FIELDS = (

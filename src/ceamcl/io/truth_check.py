@@ -88,6 +88,13 @@ class TruthDoubt:
     min_scans: int
     stretches: tuple[tuple[int, int, float], ...]
 
+    def mask(self, scans: int) -> NDArray[np.bool_]:
+        """Which of a log's first ``scans`` scans lie in a doubtful stretch."""
+        out = np.zeros(scans, dtype=bool)
+        for first, last, _ in self.stretches:
+            out[first : last + 1] = True
+        return out
+
     def summary(self) -> str:
         """One sentence for a console or a report."""
         if math.isnan(self.median):
