@@ -466,19 +466,18 @@ class CEAMCL:
         turn = abs(increment.rot1) + abs(increment.rot2)
         radius = min(cfg.look_around_max_m, reach + cfg.look_around_gain * increment.trans)
         spread = min(3.0 * cfg.look_around_rad, cfg.look_around_rad + cfg.look_around_gain * turn)
-        cands = centre + _look_around_offsets(
+        offsets = _look_around_offsets(
             radius, cfg.look_around_step_m, spread, cfg.look_around_step_rad
         )
+        cands = centre + offsets
         cands[:, 2] = angles.wrap(cands[:, 2])
-        ll = sanitise_log_likelihood(
-            self.sensor.log_likelihood(np.vstack([centre[None, :], cands]), full)
-        )
+        ll = sanitise_log_likelihood(self.sensor.log_likelihood(cands, full))
         evaluations = int(ll.size)
-        here = float(ll[0])
-        if not ll[1:].max() - here >= cfg.look_around_margin:
+        here = float(ll[np.flatnonzero(~offsets.any(axis=1))[0]])  # the grid holds the centre
+        if not ll.max() - here >= cfg.look_around_margin:
             return evaluations
         # refine the best grid pose on a grid a quarter as fine, then ask that it fits
-        coarse = cands[int(np.argmax(ll[1:]))]
+        coarse = cands[int(np.argmax(ll))]
         fine = coarse + _look_around_offsets(
             0.5 * cfg.look_around_step_m * np.sqrt(2.0),
             0.25 * cfg.look_around_step_m,
