@@ -188,3 +188,28 @@ def test_state_smoke(tmp_path: Path) -> None:
     text = (out / "state.md").read_text()
     assert "symmetric-hall" in text and "| ceamcl | AMBIGUOUS |" in text
     assert not list(out.glob("*.tmp*"))
+
+
+def test_the_state_figure_joins_the_scans_that_have_a_true_pose(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A raw log has a true pose at some scans only (intel raw: about one in fifteen); its row
+    of ``state.png`` joins those errors instead of drawing nothing between NaN gaps."""
+    from ceamcl.experiments import figures
+
+    drawn = []
+    real_save = figures._save
+
+    def keep(fig, path):  # type: ignore[no-untyped-def]
+        drawn.append([line.get_xydata() for ax in fig.axes for line in ax.get_lines()])
+        return real_save(fig, path)
+
+    monkeypatch.setattr(figures, "_save", keep)
+    err = np.full(30, np.nan)
+    err[::10] = [0.1, 0.2, 0.3]
+    codes = np.full(30, C[State.LOCALISED])
+    assert figures.plot_state(
+        [("raw", np.arange(30) * 0.1, codes, err)], tmp_path / "s.png"
+    ).is_file()
+    error_line = drawn[0][0]
+    assert error_line.shape == (3, 2) and np.allclose(error_line[:, 1], [0.1, 0.2, 0.3])

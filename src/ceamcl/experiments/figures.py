@@ -186,7 +186,9 @@ def plot_state(
         t = np.asarray(times) - float(times[0])
         err = np.maximum(np.asarray(errors), 1e-3)
         draw_state_band(ax, t, codes, 1e-3, 2e-3)
-        ax.plot(t, err, color="k", lw=1.0)
+        # a raw log has a true pose at some scans only: join those, not the gaps between them
+        known = np.isfinite(err)
+        ax.plot(t[known], err[known], color="k", lw=1.0)
         ax.axhline(POSITION_TOL_M, color="k", ls=":", lw=0.8)
         ax.set_yscale("log")
         ax.set_ylim(1e-3, 50.0)
