@@ -24,8 +24,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ceamcl.maps.grid import OccupancyGrid
-from ceamcl.sensors.beam_skip import near_obstacle
-from ceamcl.sensors.scan import LaserScan, prepare_scan
+from ceamcl.sensors.map_agreement import EXPLAINED_TOL_M, explained_share
+from ceamcl.sensors.scan import LaserScan
 
 __all__ = [
     "TRUTH_FIT_BELOW",
@@ -50,7 +50,7 @@ class LogWithTruth(Protocol):
 
 
 #: An end point counts as explained within this distance of an obstacle of the map.
-TRUTH_FIT_TOL_M = 0.15
+TRUTH_FIT_TOL_M = EXPLAINED_TOL_M
 #: A scan's truth is doubtful below this share of explained end points ...
 TRUTH_FIT_BELOW = 0.5
 #: ... over at least this many consecutive scans with truth.
@@ -62,17 +62,15 @@ def truth_fit(
 ) -> NDArray[np.float64]:
     """For each scan, the share of its end points (usable readings short of the sensor's
     maximum) within ``tol_m`` of an occupied cell of ``grid`` when the scan is placed at the
-    true pose (:func:`ceamcl.sensors.beam_skip.near_obstacle`, the test beam skipping makes);
-    NaN at scans without a true pose or without such a reading (nothing to judge)."""
+    true pose (:func:`ceamcl.sensors.map_agreement.explained_share`, which the localisation
+    state reads at the filter's pose); NaN at scans without a true pose or without such a
+    reading (nothing to judge)."""
     out = np.full(len(log), np.nan)
     truth = log.true_poses
     if truth is None:
         return out
     for k in np.flatnonzero(np.all(np.isfinite(truth), axis=1)):
-        scan = log.scan(int(k))
-        hits = prepare_scan(scan, scan.n_beams, keep_max_range=False)  # every reading that ends
-        if hits.n_beams:
-            out[k] = float(near_obstacle(grid, truth[k], hits, tol_m).mean())
+        out[k] = explained_share(grid, truth[k], log.scan(int(k)), tol_m)
     return out
 
 
