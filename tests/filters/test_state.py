@@ -15,7 +15,9 @@ from ceamcl.filters.state import (
     read_covariance,
     read_hypotheses,
 )
+from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryIncrement
+from ceamcl.sensors.scan import LaserScan
 from ceamcl.simulation.scenarios import office_scenario
 
 TIGHT = np.diag([0.01, 0.01, 0.001])
@@ -157,3 +159,67 @@ def test_wall_crossing_is_small_at_the_true_pose_and_large_where_the_scan_sees_t
     empty = log.scan(k)
     empty = type(empty)(**{**empty.__dict__, "ranges": np.full_like(empty.ranges, np.nan)})
     assert wall_crossing(grid, empty) is None
+
+
+# ------------------------------------------------------------------ the map's agreement
+def _office_scan() -> tuple[OccupancyGrid, LaserScan, np.ndarray]:
+    from ceamcl.maps.worlds import get_world
+
+    log = office_scenario().simulate(np.random.default_rng(2))
+    return get_world("small-office"), log.scan(10), log.true_poses[10]
+
+
+def test_the_map_explains_most_of_a_scan_at_the_true_pose_and_little_half_a_metre_off() -> None:
+    from ceamcl.sensors.map_agreement import explained_share
+
+    grid, scan, truth = _office_scan()
+    assert explained_share(grid, truth, scan) >= 0.9
+    off = truth + np.array([0.5, 0.3, 0.0])
+    assert explained_share(grid, off, scan) < DEFAULT_THRESHOLDS.explained_below
+    assert np.isnan(explained_share(grid, np.array([np.nan, 0.0, 0.0]), scan))
+
+
+def test_map_agreement_turns_a_localised_state_lost_after_its_run_of_updates() -> None:
+    from ceamcl.filters.state import MapAgreement
+
+    grid, scan, truth = _office_scan()
+    off = truth + np.array([0.5, 0.3, 0.0])
+    localised = read_hypotheses([hyp(1.0, 0.9)])
+    ambiguous = read_hypotheses([hyp(0.5, 0.9), hyp(0.5, 0.9, x=5.0)])
+    n = DEFAULT_THRESHOLDS.explained_updates
+    assert n >= 2
+    agreement = MapAgreement(grid)
+
+    def at(pose: np.ndarray) -> list[Hypothesis]:
+        return [Hypothesis(pose, TIGHT, 100, 1.0, 0.9, 0)]
+
+    # the map explains the scan: nothing changes
+    assert agreement.apply(localised, 1, scan, lambda: at(truth)) is localised
+    # it does not, update after update: LOST at the n-th, with the share in the reason
+    for step in range(2, 2 + n - 1):
+        assert agreement.apply(localised, step, scan, lambda: at(off)) is localised
+        # read again in the same update: counted once
+        assert agreement.apply(localised, step, scan, lambda: at(off)) is localised
+    s = agreement.apply(ambiguous, 1 + n, scan, lambda: at(off))
+    assert s.state is State.LOST and "the map explains" in s.reason
+    assert s.n_hypotheses == 0 and 0.0 < s.confidence <= 1.0
+    # an update where it agrees again ends the run
+    assert agreement.apply(localised, 2 + n, scan, lambda: at(truth)) is localised
+    # an update the filter did not read breaks the run (the count is of consecutive updates)
+    agreement.reset()
+    for step in range(1, n):
+        agreement.apply(localised, 2 * step, scan, lambda: at(off))
+    assert agreement.apply(localised, 2 * n, scan, lambda: at(off)) is localised
+    # INITIALISING is never turned, and no hypothesis leaves the state as it is
+    init = LocalisationState(State.INITIALISING, 1.0, 0, (), "")
+    assert agreement.apply(init, 100, scan, lambda: at(off)) is init
+    assert agreement.apply(localised, 101, scan, lambda: []) is localised
+    # the leading hypothesis is the heaviest, NaN weights counting as 0
+    agreement.reset()
+    lead_off = [
+        Hypothesis(truth, TIGHT, 100, float("nan"), 0.9, 0),
+        Hypothesis(off, TIGHT, 100, 0.4, 0.9, 1),
+    ]
+    for step in range(1, n + 1):
+        s = agreement.apply(localised, step, scan, lambda: lead_off)
+    assert s.state is State.LOST

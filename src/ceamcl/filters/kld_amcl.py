@@ -41,6 +41,7 @@ sensor models:
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
@@ -72,7 +73,12 @@ from ceamcl.filters.particles import (
 )
 from ceamcl.filters.policies import Context, every_n, on_motion
 from ceamcl.filters.resampling import multinomial, normalise_log_weights
-from ceamcl.filters.state import LocalisationState, read_particles, wall_crossing
+from ceamcl.filters.state import (
+    LocalisationState,
+    MapAgreement,
+    read_particles,
+    wall_crossing,
+)
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import (
     OdometryIncrement,
@@ -390,11 +396,14 @@ class KLDAMCL:
         self._kld_target = cfg.max_particles
         #: the last scan received, for the state's wall-crossing test (docs/state.md)
         self.last_scan: LaserScan | None = None
+        #: the state's memory of how well the map explains the scans (docs/state.md)
+        self.map_agreement = MapAgreement(grid)
 
     # ------------------------------------------------------------------ initialisation
     def _reset(self, ps: ParticleSet) -> None:
         self.particle_set = ps
         self.recovery.reset()
+        self.map_agreement.reset()
         self.t = 0
         self.odom = np.zeros(3)
         self.odom_at_update = np.zeros(3)
@@ -546,14 +555,14 @@ class KLDAMCL:
         return PoseEstimate(best.pose, best.covariance)
 
     def state(self, hypotheses: Sequence[Hypothesis] | None = None) -> LocalisationState:
-        """Read from the particle clusters (:func:`ceamcl.filters.state.read_particles`)."""
+        """Read from the particle clusters (:func:`ceamcl.filters.state.read_particles`), and
+        the map's agreement with the scans (:class:`ceamcl.filters.state.MapAgreement`)."""
         known = hypotheses
-        return read_particles(
-            self.particle_set,
-            self.t,
-            self.hypotheses if known is None else lambda: known,
-            crossing=wall_crossing(self.grid, self.last_scan),
+        hyps = functools.cache(self.hypotheses if known is None else lambda: known)
+        state = read_particles(
+            self.particle_set, self.t, hyps, crossing=wall_crossing(self.grid, self.last_scan)
         )
+        return self.map_agreement.apply(state, self.t, self.last_scan, hyps)
 
     def particles(self) -> ParticleSnapshot:
         """The particles, carried by the odometry since the last update; labels are clusters."""

@@ -18,6 +18,7 @@ the particle clusters (as ROS amcl does), heaviest first.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
@@ -44,7 +45,12 @@ from ceamcl.filters.particles import (
     usable,
 )
 from ceamcl.filters.policies import Context, ess_below
-from ceamcl.filters.state import LocalisationState, read_particles, wall_crossing
+from ceamcl.filters.state import (
+    LocalisationState,
+    MapAgreement,
+    read_particles,
+    wall_crossing,
+)
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel
 from ceamcl.pose import pose_covariance, pose_mean
@@ -111,12 +117,15 @@ class MCL:
         self.t = 0
         #: the last scan received, for the state's wall-crossing test (docs/state.md)
         self.last_scan: LaserScan | None = None
+        #: the state's memory of how well the map explains the scans (docs/state.md)
+        self.map_agreement = MapAgreement(grid)
 
     # ------------------------------------------------------------------ initialisation
     def initialise_global(self, scan: LaserScan) -> StepRecord:
         """Particles uniform over free space, weighted by ``scan``; with ``init_test_poses``,
         resampled from that many test poses weighted by ``scan`` instead."""
         self.t = 0
+        self.map_agreement.reset()
         self.last_scan = scan
         cfg = self.config
         prepared = usable(self.sensor, scan)
@@ -137,6 +146,7 @@ class MCL:
     def initialise_pose(self, pose: ArrayLike, covariance: ArrayLike) -> None:
         """Particles from ``N(pose, covariance)``."""
         self.t = 0
+        self.map_agreement.reset()
         self.particle_set = gaussian(pose, covariance, self.config.n_particles, self.rng)
 
     # ------------------------------------------------------------------ one step
@@ -192,14 +202,14 @@ class MCL:
         return cluster_hypotheses(ps.poses, ps.weights, ps.fitness, *self._labels())
 
     def state(self, hypotheses: Sequence[Hypothesis] | None = None) -> LocalisationState:
-        """Read from the particle clusters (:func:`ceamcl.filters.state.read_particles`)."""
+        """Read from the particle clusters (:func:`ceamcl.filters.state.read_particles`), and
+        the map's agreement with the scans (:class:`ceamcl.filters.state.MapAgreement`)."""
         known = hypotheses
-        return read_particles(
-            self.particle_set,
-            self.t,
-            self.hypotheses if known is None else lambda: known,
-            crossing=wall_crossing(self.grid, self.last_scan),
+        hyps = functools.cache(self.hypotheses if known is None else lambda: known)
+        state = read_particles(
+            self.particle_set, self.t, hyps, crossing=wall_crossing(self.grid, self.last_scan)
         )
+        return self.map_agreement.apply(state, self.t, self.last_scan, hyps)
 
     def particles(self) -> ParticleSnapshot:
         labels, _ = self._labels()

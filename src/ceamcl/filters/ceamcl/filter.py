@@ -72,6 +72,7 @@ from ceamcl.filters.particles import (
 from ceamcl.filters.resampling import label_groups, sanitise_log_likelihood
 from ceamcl.filters.state import (
     LocalisationState,
+    MapAgreement,
     State,
     initialising,
     read_hypotheses,
@@ -148,11 +149,15 @@ class CEAMCL:
         self._peak_fitness: dict[int, float] = {}
         #: the last scan received, for the state's wall-crossing test (docs/state.md)
         self.last_scan: LaserScan | None = None
+        #: the state's memory of how well the map explains the scans (docs/state.md); the
+        #: recovery reads the state without it (:meth:`_lost_too_long`)
+        self.map_agreement = MapAgreement(grid)
 
     # ================================================================== initialisation
     def initialise_global(self, scan: LaserScan) -> CEAMCLRecord:
         """Initial species generation (section 3.1) from the first scan."""
         self.t = 0
+        self.map_agreement.reset()
         self.last_scan = scan
         self.events = Events()
         self._evaluations = 0
@@ -264,6 +269,7 @@ class CEAMCL:
         self._next_id = sid + 1
         self._prepared = None
         self.t = 0
+        self.map_agreement.reset()
         self._refresh_stats()
         self.competition = Competition({sid: 0.0})
         self.log_weight = {sid: 0.0}
@@ -288,6 +294,7 @@ class CEAMCL:
         self.particle_set = ps
         self._prepared = None
         self.t = 0
+        self.map_agreement.reset()
         self._refresh_stats()
         self.competition = Competition({sid: 0.0 for sid in self.stats})
         self.log_weight = {sid: 0.0 for sid in self.stats}
@@ -666,8 +673,9 @@ class CEAMCL:
         if cfg.recovery_lost_updates is None or not cfg.recovery:
             return False
         hyps = self.hypotheses()
-        state = self.state(hyps)
-        self._read = (hyps, state)  # what the runner (or a node) asks for next, unchanged
+        state = self._read_state(hyps)  # without the map's agreement (docs/state.md)
+        # what the runner (or a node) asks for next, unchanged
+        self._read = (hyps, self.map_agreement.apply(state, self.t, self.last_scan, lambda: hyps))
         if state.state is not State.LOST:
             self._lost_streak = 0
             self._lost_wait = cfg.recovery_lost_updates
@@ -861,7 +869,9 @@ class CEAMCL:
 
     def state(self, hypotheses: Sequence[Hypothesis] | None = None) -> LocalisationState:
         """Read from the species: their evidence shares and fitness
-        (:func:`ceamcl.filters.state.read_hypotheses`); INITIALISING until the first step."""
+        (:func:`ceamcl.filters.state.read_hypotheses`), and the map's agreement with the
+        scans (:class:`ceamcl.filters.state.MapAgreement`); INITIALISING until the first
+        step."""
         if not self.stats or self.t == 0:
             return initialising()
         if self._read is not None and (
@@ -869,6 +879,14 @@ class CEAMCL:
         ):
             return self._read[1]
         hyps = self.hypotheses() if hypotheses is None else hypotheses
+        return self.map_agreement.apply(
+            self._read_state(hyps), self.t, self.last_scan, lambda: hyps
+        )
+
+    def _read_state(self, hyps: Sequence[Hypothesis]) -> LocalisationState:
+        """The state from the species alone, as the recovery reads it."""
+        if not self.stats or self.t == 0:
+            return initialising()
         return read_hypotheses(hyps, crossing=wall_crossing(self.grid, self.last_scan))
 
     def particle_weights(self) -> NDArray[np.float64]:
