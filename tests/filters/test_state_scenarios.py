@@ -138,3 +138,28 @@ def test_a_room_the_map_holds_elsewhere_gives_lost_then_localised_again(name: st
     assert max(result.position_errors[:n]) < 0.3  # the filter was right: the map disagreed
     if name != "kld-amcl-recovery":  # its own clusters' wall test keeps it LOST longer
         assert all(s is State.LOCALISED for s in said[last + 3 :])
+
+
+def test_a_crowd_hiding_a_third_of_the_scan_leaves_a_tracked_pose_localised() -> None:
+    # The other side of the map's agreement: readings that end short on people the map does
+    # not hold (blocks of 3-11 beams ending 0.5-2 m away, 30 % of every scan) are unexplained
+    # end points too, and must not make a tracked pose LOST (docs/state.md).
+    log = office_scenario().simulate(np.random.default_rng(1))
+    n = 80
+    rng = np.random.default_rng(7)
+    ranges = log.ranges[:n].copy()
+    m = ranges.shape[1]
+    for k in range(n):
+        hidden = np.zeros(m, dtype=bool)
+        while hidden.mean() < 0.3:
+            c, w = rng.integers(0, m), rng.integers(3, 12)
+            hidden[c : c + w] = True
+        near = rng.uniform(0.5, 2.0) + 0.05 * rng.standard_normal(int(hidden.sum()))
+        ranges[k, hidden] = np.minimum(ranges[k, hidden], near)
+    log = SimulatedLog(log.times[:n], log.true_poses[:n], log.odometry[:n], ranges, log.laser)
+    from ceamcl.maps.worlds import get_world
+
+    f = make_filter("ceamcl", get_world("small-office"), np.random.default_rng(1))
+    result = run_filter(f, log, initial_pose=(log.true_poses[0], np.diag([0.01, 0.01, 0.003])))
+    assert all(s is State.LOCALISED for s in states(result)[1:])
+    assert max(result.position_errors) < 0.2
