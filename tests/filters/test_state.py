@@ -223,3 +223,13 @@ def test_map_agreement_turns_a_localised_state_lost_after_its_run_of_updates() -
     for step in range(1, n + 1):
         s = agreement.apply(localised, step, scan, lambda: lead_off)
     assert s.state is State.LOST
+
+
+def test_the_map_judges_nothing_in_a_scan_without_beams_or_readings() -> None:
+    from ceamcl.sensors.map_agreement import explained_share
+
+    grid, scan, truth = _office_scan()
+    empty = LaserScan(**{**scan.__dict__, "ranges": np.zeros(0)})
+    assert np.isnan(explained_share(grid, truth, empty))
+    blind = LaserScan(**{**scan.__dict__, "ranges": np.full_like(scan.ranges, np.nan)})
+    assert np.isnan(explained_share(grid, truth, blind))

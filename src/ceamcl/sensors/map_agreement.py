@@ -33,9 +33,9 @@ def explained_share(
 ) -> float:
     """The share of ``scan``'s end points (every usable reading short of the maximum) within
     ``tol_m`` of an occupied cell of ``grid`` when the scan is taken at ``pose`` (3,); NaN when
-    no reading ends or the pose is not finite (nothing to judge)."""
+    no reading ends (a scan without beams too) or the pose is not finite (nothing to judge)."""
     p = np.asarray(pose, dtype=np.float64).reshape(3)
-    if not np.all(np.isfinite(p)):
+    if not np.all(np.isfinite(p)) or scan.n_beams == 0:
         return math.nan
     hits = prepare_scan(scan, scan.n_beams, keep_max_range=False)
     if hits.n_beams == 0:
