@@ -448,7 +448,8 @@ def state_markdown(result: StateResult, meta: dict[str, Any]) -> str:
         f"wrong place holds at least {t.weight_min:.0%} of the weight; LOCALISED when no wrong "
         "place holds weight and the estimate is within the tolerances. Steps the filter "
         "calls INITIALISING are not scored. Thresholds: `ceamcl.filters.state.StateThresholds` "
-        "(chosen on seed 100, disjoint from the seeds reported unless `--seed 100`). Real logs: "
+        "(chosen on seed 100 and on freiburg-079-corrected, which is not scored: disjoint from "
+        "the seeds reported unless `--seed 100`). Real logs: "
         "one global localisation from the first scan per algorithm; a raw log reads the robot's "
         "own odometry, updates at Nav2's pace and is scored at its updates whose scan has a true "
         "pose (from its corrected log).",

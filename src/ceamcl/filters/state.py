@@ -68,7 +68,8 @@ STATES: tuple[State, ...] = (State.LOCALISED, State.AMBIGUOUS, State.LOST, State
 
 @dataclass(frozen=True)
 class StateThresholds:
-    """Every threshold of the state, in one place (chosen on seed 100, docs/state.md).
+    """Every threshold of the state, in one place (chosen on seed 100 of the simulated
+    scenarios and on freiburg-079-corrected, docs/state.md).
 
     fit_min: a hypothesis *fits* the scan when its fitness is at least this. Measured on
         seed 100: a tracked pose scores 0.82-1.00 (CEAMCL's species, whose fitness is its
