@@ -89,7 +89,10 @@ def test_covariance_reading_as_nav2_users_do() -> None:
 
 def test_state_row_has_the_csv_columns() -> None:
     s = LocalisationState(State.AMBIGUOUS, 0.5, 2, (0.5, 0.5), "x")
-    assert s.row() == {"state": "AMBIGUOUS", "state_confidence": 0.5, "state_hypotheses": 2}
+    row = s.row()
+    judged = row.pop("state_map_explained")
+    assert isinstance(judged, float) and np.isnan(judged)  # from hypotheses alone: not judged
+    assert row == {"state": "AMBIGUOUS", "state_confidence": 0.5, "state_hypotheses": 2}
 
 
 @pytest.mark.parametrize("name", registry.names())
@@ -193,23 +196,29 @@ def test_map_agreement_turns_a_localised_state_lost_after_its_run_of_updates() -
     def at(pose: np.ndarray) -> list[Hypothesis]:
         return [Hypothesis(pose, TIGHT, 100, 1.0, 0.9, 0)]
 
-    # the map explains the scan: nothing changes
-    assert agreement.apply(localised, 1, scan, lambda: at(truth)) is localised
+    def is_localised(s: LocalisationState) -> bool:
+        return s.state is State.LOCALISED and s.reason == localised.reason
+
+    # the map explains the scan: the state is the same, with the share it measured
+    s = agreement.apply(localised, 1, scan, lambda: at(truth))
+    assert is_localised(s) and s.map_explained >= 0.9
     # it does not, update after update: LOST at the n-th, with the share in the reason
     for step in range(2, 2 + n - 1):
-        assert agreement.apply(localised, step, scan, lambda: at(off)) is localised
+        s = agreement.apply(localised, step, scan, lambda: at(off))
+        assert is_localised(s) and s.map_explained < DEFAULT_THRESHOLDS.explained_below
         # read again in the same update: counted once
-        assert agreement.apply(localised, step, scan, lambda: at(off)) is localised
+        assert is_localised(agreement.apply(localised, step, scan, lambda: at(off)))
     s = agreement.apply(ambiguous, 1 + n, scan, lambda: at(off))
     assert s.state is State.LOST and "the map explains" in s.reason
     assert s.n_hypotheses == 0 and 0.0 < s.confidence <= 1.0
+    assert s.map_explained < DEFAULT_THRESHOLDS.explained_below
     # an update where it agrees again ends the run
-    assert agreement.apply(localised, 2 + n, scan, lambda: at(truth)) is localised
+    assert is_localised(agreement.apply(localised, 2 + n, scan, lambda: at(truth)))
     # an update the filter did not read breaks the run (the count is of consecutive updates)
     agreement.reset()
     for step in range(1, n):
         agreement.apply(localised, 2 * step, scan, lambda: at(off))
-    assert agreement.apply(localised, 2 * n, scan, lambda: at(off)) is localised
+    assert is_localised(agreement.apply(localised, 2 * n, scan, lambda: at(off)))
     # INITIALISING is never turned, and no hypothesis leaves the state as it is
     init = LocalisationState(State.INITIALISING, 1.0, 0, (), "")
     assert agreement.apply(init, 100, scan, lambda: at(off)) is init

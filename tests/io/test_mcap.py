@@ -215,3 +215,8 @@ def test_the_state_of_every_step_is_exported(exported: tuple[Any, dict[str, Any]
     assert {m["state"] for _, m in states} <= {"LOCALISED", "AMBIGUOUS", "LOST", "INITIALISING"}
     assert all(0.0 <= m["confidence"] <= 1.0 and m["reason"] for _, m in states)
     assert all(len(m["weights"]) == m["n_hypotheses"] for _, m in states)
+    # the map's share of the scan: null before the first update, a share once it is judged
+    assert states[0][1]["map_explained"] is None
+    shares = [m["map_explained"] for _, m in states[1:]]
+    assert shares and all(x is None or 0.0 <= x <= 1.0 for x in shares)
+    assert any(x is not None for x in shares)

@@ -33,4 +33,8 @@ def test_state_status_levels_and_values(state: State, level: str) -> None:
     assert values["state"] == state.name and values["confidence"] == "0.7500"
     assert values["n_hypotheses"] == str(n)
     assert values["weights"] == ("0.6000 0.4000" if n else "")
+    assert values["map_explained"] == "nan"  # not judged
+    judged = LocalisationState(state, 0.75, n, weights, "why", map_explained=0.87654)
+    (status,) = state_status(judged, "ceamcl", "amcl", 12.5).status
+    assert {kv.key: kv.value for kv in status.values}["map_explained"] == "0.8765"
     assert msg.header.stamp.sec == 12 and msg.header.stamp.nanosec == 500_000_000

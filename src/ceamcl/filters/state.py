@@ -33,7 +33,7 @@ from __future__ import annotations
 import enum
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -135,6 +135,9 @@ class LocalisationState:
     state: :class:`State`. confidence: in [0, 1], how strongly the evidence supports
     ``state``. n_hypotheses: the hypotheses that hold weight and fit the scan (LOCALISED: 1;
     AMBIGUOUS: 2 or more; LOST: 0). weights: their shares, largest first. reason: in words.
+    map_explained: the share of the scan's end points the map explains at the leading
+    hypothesis (:class:`MapAgreement`; about 0.9 where the map holds what the robot sees),
+    NaN where it was not judged (the Nav2 peer, INITIALISING, a scan without end points).
     """
 
     state: State
@@ -142,13 +145,16 @@ class LocalisationState:
     n_hypotheses: int
     weights: tuple[float, ...]
     reason: str
+    map_explained: float = math.nan
 
     def row(self) -> dict[str, str | float | int]:
-        """Flat fields for CSV and JSON (``state``, ``state_confidence``, ``state_hypotheses``)."""
+        """Flat fields for CSV and JSON (``state``, ``state_confidence``, ``state_hypotheses``,
+        ``state_map_explained``)."""
         return {
             "state": self.state.name,
             "state_confidence": self.confidence,
             "state_hypotheses": self.n_hypotheses,
+            "state_map_explained": self.map_explained,
         }
 
 
@@ -374,10 +380,10 @@ class MapAgreement:
         scan: LaserScan | None,
         hypotheses: Callable[[], Sequence[Hypothesis]],
     ) -> LocalisationState:
-        """``state``, or LOST when the map has not vouched for the leading (heaviest)
-        hypothesis for ``explained_updates`` updates. INITIALISING is left alone; every
-        other state observes the update, so the run of updates goes on while the filter
-        says LOST for another reason."""
+        """``state`` with the update's ``map_explained``, or LOST when the map has not
+        vouched for the leading (heaviest) hypothesis for ``explained_updates`` updates.
+        INITIALISING is left alone; every other state observes the update, so the run of
+        updates goes on while the filter says LOST for another reason."""
         if state.state is State.INITIALISING:
             return state
         hyps = hypotheses()
@@ -388,7 +394,7 @@ class MapAgreement:
         streak, share = self.observe(step, scan, np.asarray(hyps[lead].pose))
         t = self.thresholds
         if state.state is State.LOST or streak < t.explained_updates:
-            return state
+            return replace(state, map_explained=share)
         return LocalisationState(
             State.LOST,
             _clip01(1.0 - share / t.explained_below),
@@ -397,6 +403,7 @@ class MapAgreement:
             f"the map explains {share:.0%} of the scan's end points at the leading pose, "
             f"below {t.explained_below:.0%} for {streak} updates running: it does not hold "
             f"what the robot sees there",
+            share,
         )
 
 

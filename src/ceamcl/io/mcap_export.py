@@ -17,7 +17,8 @@ topic                     schema                     when
 ``/state``                ``ceamcl.LocalisationState``  every step the runner recorded it: the
                                                      state (LOCALISED, AMBIGUOUS, LOST,
                                                      INITIALISING), confidence, hypotheses,
-                                                     their weights and the reason (issue 14)
+                                                     their weights, the reason (issue 14)
+                                                     and the map's share of the scan
 ========================  =========================  =============================================
 
 ``map -> base_link`` is the ground truth where the log has it (so the scan lands where the robot
@@ -31,6 +32,7 @@ from __future__ import annotations
 
 import base64
 import json
+import math
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -185,6 +187,7 @@ SCHEMAS["ceamcl.LocalisationState"] = _schema(
         "n_hypotheses": {"type": "integer"},
         "weights": {"type": "array", "items": {"type": "number"}},
         "reason": {"type": "string"},
+        "map_explained": {"type": ["number", "null"]},
     },
 )
 
@@ -405,6 +408,10 @@ def write_mcap(
                             "n_hypotheses": st.n_hypotheses,
                             "weights": list(st.weights),
                             "reason": st.reason,
+                            # JSON has no NaN: null where the map was not judged
+                            "map_explained": (
+                                st.map_explained if math.isfinite(st.map_explained) else None
+                            ),
                         },
                     )
             writer.finish()

@@ -251,13 +251,15 @@ def state_status(
 ) -> DiagnosticArray:
     """``~/state``: the localisation state (issue 14, :mod:`ceamcl.filters.state`) as one
     diagnostic status: level OK (LOCALISED), WARN (AMBIGUOUS, INITIALISING) or ERROR (LOST),
-    message ``STATE: reason``, values ``state``, ``confidence``, ``n_hypotheses``, ``weights``."""
+    message ``STATE: reason``, values ``state``, ``confidence``, ``n_hypotheses``, ``weights``,
+    ``map_explained`` (``nan`` where not judged)."""
     values = [
         KeyValue(key="algorithm", value=algorithm),
         KeyValue(key="state", value=state.state.name),
         KeyValue(key="confidence", value=f"{state.confidence:.4f}"),
         KeyValue(key="n_hypotheses", value=str(state.n_hypotheses)),
         KeyValue(key="weights", value=" ".join(f"{w:.4f}" for w in state.weights)),
+        KeyValue(key="map_explained", value=f"{state.map_explained:.4f}"),
     ]
     status = DiagnosticStatus(
         level=STATE_LEVELS[state.state],
