@@ -13,7 +13,7 @@ from matplotlib.axes import Axes
 from matplotlib.patches import Patch
 from numpy.typing import ArrayLike
 
-from ceamcl.filters.state import STATES, LocalisationState, State
+from ceamcl.filters.state import DEFAULT_THRESHOLDS, STATES, LocalisationState, State
 
 if TYPE_CHECKING:
     from ceamcl.runner import RunResult
@@ -59,12 +59,15 @@ def state_legend(ax: Axes, **kwargs: Any) -> None:
 
 def plot_state_run(result: RunResult, path: str | os.PathLike[str], title: str = "") -> Path:
     """``state.png`` of a run: the position error of the estimate over time (when the truth is
-    known) above the band of the state the filter reported, and its confidence."""
+    known) above the band of the state the filter reported, its confidence (solid) and the
+    share of the scan's end points the map explains at the leading hypothesis (dashed, where
+    judged; the dotted line is where the state stops trusting the map)."""
     import matplotlib.pyplot as plt
 
     t = result.times - result.times[0]
     codes = state_codes(result.states)
     conf = np.array([np.nan if s is None else s.confidence for s in result.states])
+    share = np.array([np.nan if s is None else s.map_explained for s in result.states])
     fig, (ax_e, ax_s) = plt.subplots(
         2, 1, figsize=(8, 3.6), sharex=True, gridspec_kw={"height_ratios": (3, 1)}
     )
@@ -79,7 +82,12 @@ def plot_state_run(result: RunResult, path: str | os.PathLike[str], title: str =
     ax_e.grid(alpha=0.3)
     ax_e.set_title(title or f"{result.algorithm}: localisation state", fontsize=10)
     draw_state_band(ax_s, t, codes, 0.0, 1.0)
-    ax_s.plot(t, conf, color="k", lw=0.8)
+    ax_s.plot(t, conf, color="k", lw=0.8, label="confidence")
+    judged = np.isfinite(share)
+    if judged.any():
+        ax_s.plot(t[judged], share[judged], color="#1f4e9c", lw=0.8, ls="--", label="map explains")
+        ax_s.axhline(DEFAULT_THRESHOLDS.explained_below, color="#1f4e9c", ls=":", lw=0.6)
+        ax_s.legend(fontsize=6, loc="lower left", ncol=2, framealpha=0.6)
     ax_s.set_ylim(0.0, 1.0)
     ax_s.set_ylabel("confidence", fontsize=8)
     ax_s.set_xlabel("time (s)")
