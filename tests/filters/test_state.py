@@ -212,6 +212,11 @@ def test_map_agreement_turns_a_localised_state_lost_after_its_run_of_updates() -
     assert s.state is State.LOST and "the map explains" in s.reason
     assert s.n_hypotheses == 0 and 0.0 < s.confidence <= 1.0
     assert s.map_explained < DEFAULT_THRESHOLDS.explained_below
+    # the same update read at another leading pose (CEAMCL's recovery replaced its species
+    # after the first read) is judged again there, in place of the first reading
+    s = agreement.apply(localised, 1 + n, scan, lambda: at(truth))
+    assert is_localised(s) and s.map_explained >= 0.9
+    assert agreement.apply(localised, 1 + n, scan, lambda: at(off)).state is State.LOST
     # an update where it agrees again ends the run
     assert is_localised(agreement.apply(localised, 2 + n, scan, lambda: at(truth)))
     # an update the filter did not read breaks the run (the count is of consecutive updates)

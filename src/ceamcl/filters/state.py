@@ -349,28 +349,34 @@ class MapAgreement:
     def reset(self) -> None:
         """Forget every update (a new initialisation)."""
         self._step: int | None = None
+        self._before = 0  # the run of updates before ``_step``
         self._streak = 0
         self._share = math.nan
+        self._pose: NDArray[np.float64] | None = None
 
     def observe(
         self, step: int, scan: LaserScan | None, pose: NDArray[np.float64]
     ) -> tuple[int, float]:
-        """Update ``step``'s share at ``pose`` (once per step: later calls in the same step
-        return the first answer); returns the updates running below ``explained_below``,
-        this one included, and the share (NaN: nothing to judge, which breaks the run)."""
-        if self._step == step:
+        """Judge ``step``'s scan at ``pose``: returns the updates running below
+        ``explained_below``, this one included, and the share (NaN: nothing to judge, which
+        breaks the run). An update counts once: read again at the same pose, the first answer
+        comes back; read at another leading pose (CEAMCL's recovery replaced its species after
+        the first read), the update is judged again at that pose, in place of the first."""
+        p = np.asarray(pose, dtype=np.float64)
+        if self._step == step and self._pose is not None and np.array_equal(p, self._pose):
             return self._streak, self._share
         t = self.thresholds
         share = (
-            explained_share(self.grid, pose, scan, t.explained_tol_m)
-            if scan is not None
-            else math.nan
+            explained_share(self.grid, p, scan, t.explained_tol_m) if scan is not None else math.nan
         )
-        running = self._step is not None and step == self._step + 1
+        if self._step != step:
+            running = self._step is not None and step == self._step + 1
+            self._before = self._streak if running else 0
+            self._step = step
         below = share < t.explained_below  # NaN: False
-        self._streak = (self._streak if running else 0) + 1 if below else 0
-        self._step = step
+        self._streak = self._before + 1 if below else 0
         self._share = share
+        self._pose = p.copy()
         return self._streak, share
 
     def apply(
