@@ -105,7 +105,7 @@ class StateThresholds:
         (:func:`ceamcl.sensors.map_agreement.explained_share`) at ``explained_updates``
         consecutive updates. Chosen on freiburg-079-corrected (CEAMCL, seed 0) by the rule
         above among shares 0.30-0.50 and 1-10 updates: below 0.45 at 2 updates raised LOST
-        recall there from 0.43 to 0.65 and called 0.77 % of the updates where CEAMCL is right
+        recall there from 0.43 to 0.65 and called 0.75 % of the updates where CEAMCL is right
         LOST (0.56 % without the test). Below 0.4 at a single update tied it; two updates were
         preferred so that one scan alone (a crowd passing the laser) never decides. The
         ground-truth check's own values (below 0.5 for 5 updates) called 1.07 % LOST
