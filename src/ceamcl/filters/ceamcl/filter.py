@@ -132,7 +132,8 @@ class CEAMCL:
         self._lost_streak = 0
         self._lost_wait = self.config.recovery_lost_updates or 0
         #: the hypotheses and state read during this step (departure 10), handed to callers
-        #: that ask again before anything changes; cleared by every step and initialisation
+        #: that ask again before anything changes (the map's agreement applied when they
+        #: do); cleared by every step and initialisation
         self._read: tuple[list[Hypothesis], LocalisationState] | None = None
         #: log of each species' accumulated evidence, the largest 0 (docs/ceamcl.md)
         self.log_weight: dict[int, float] = {}
@@ -674,8 +675,9 @@ class CEAMCL:
             return False
         hyps = self.hypotheses()
         state = self._read_state(hyps)  # without the map's agreement (docs/state.md)
-        # what the runner (or a node) asks for next, unchanged
-        self._read = (hyps, self.map_agreement.apply(state, self.t, self.last_scan, lambda: hyps))
+        # what the runner (or a node) asks for next, unchanged; the map's agreement is read
+        # when the state is (:meth:`state`): the recovery does not need it
+        self._read = (hyps, state)
         if state.state is not State.LOST:
             self._lost_streak = 0
             self._lost_wait = cfg.recovery_lost_updates
@@ -877,7 +879,8 @@ class CEAMCL:
         if self._read is not None and (
             hypotheses is None or _same_hypotheses(hypotheses, self._read[0])
         ):
-            return self._read[1]
+            read_hyps, read = self._read
+            return self.map_agreement.apply(read, self.t, self.last_scan, lambda: read_hyps)
         hyps = self.hypotheses() if hypotheses is None else hypotheses
         return self.map_agreement.apply(
             self._read_state(hyps), self.t, self.last_scan, lambda: hyps
