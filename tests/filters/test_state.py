@@ -200,34 +200,34 @@ def test_map_agreement_turns_a_localised_state_lost_after_its_run_of_updates() -
         return s.state is State.LOCALISED and s.reason == localised.reason
 
     # the map explains the scan: the state is the same, with the share it measured
-    s = agreement.apply(localised, 1, scan, lambda: at(truth))
+    s = agreement.apply(localised, 1, scan, at(truth))
     assert is_localised(s) and s.map_explained >= 0.9
     # it does not, update after update: LOST at the n-th, with the share in the reason
     for step in range(2, 2 + n - 1):
-        s = agreement.apply(localised, step, scan, lambda: at(off))
+        s = agreement.apply(localised, step, scan, at(off))
         assert is_localised(s) and s.map_explained < DEFAULT_THRESHOLDS.explained_below
         # read again in the same update: counted once
-        assert is_localised(agreement.apply(localised, step, scan, lambda: at(off)))
-    s = agreement.apply(ambiguous, 1 + n, scan, lambda: at(off))
+        assert is_localised(agreement.apply(localised, step, scan, at(off)))
+    s = agreement.apply(ambiguous, 1 + n, scan, at(off))
     assert s.state is State.LOST and "the map explains" in s.reason
     assert s.n_hypotheses == 0 and 0.0 < s.confidence <= 1.0
     assert s.map_explained < DEFAULT_THRESHOLDS.explained_below
     # the same update read at another leading pose (CEAMCL's recovery replaced its species
     # after the first read) is judged again there, in place of the first reading
-    s = agreement.apply(localised, 1 + n, scan, lambda: at(truth))
+    s = agreement.apply(localised, 1 + n, scan, at(truth))
     assert is_localised(s) and s.map_explained >= 0.9
-    assert agreement.apply(localised, 1 + n, scan, lambda: at(off)).state is State.LOST
+    assert agreement.apply(localised, 1 + n, scan, at(off)).state is State.LOST
     # an update where it agrees again ends the run
-    assert is_localised(agreement.apply(localised, 2 + n, scan, lambda: at(truth)))
+    assert is_localised(agreement.apply(localised, 2 + n, scan, at(truth)))
     # an update the filter did not read breaks the run (the count is of consecutive updates)
     agreement.reset()
     for step in range(1, n):
-        agreement.apply(localised, 2 * step, scan, lambda: at(off))
-    assert is_localised(agreement.apply(localised, 2 * n, scan, lambda: at(off)))
+        agreement.apply(localised, 2 * step, scan, at(off))
+    assert is_localised(agreement.apply(localised, 2 * n, scan, at(off)))
     # INITIALISING is never turned, and no hypothesis leaves the state as it is
     init = LocalisationState(State.INITIALISING, 1.0, 0, (), "")
-    assert agreement.apply(init, 100, scan, lambda: at(off)) is init
-    assert agreement.apply(localised, 101, scan, lambda: []) is localised
+    assert agreement.apply(init, 100, scan, at(off)) is init
+    assert agreement.apply(localised, 101, scan, []) is localised
     # the leading hypothesis is the heaviest, NaN weights counting as 0
     agreement.reset()
     lead_off = [
@@ -235,7 +235,7 @@ def test_map_agreement_turns_a_localised_state_lost_after_its_run_of_updates() -
         Hypothesis(off, TIGHT, 100, 0.4, 0.9, 1),
     ]
     for step in range(1, n + 1):
-        s = agreement.apply(localised, step, scan, lambda: lead_off)
+        s = agreement.apply(localised, step, scan, lead_off)
     assert s.state is State.LOST
 
 

@@ -41,7 +41,6 @@ sensor models:
 
 from __future__ import annotations
 
-import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
@@ -558,11 +557,14 @@ class KLDAMCL:
         """Read from the particle clusters (:func:`ceamcl.filters.state.read_particles`), and
         the map's agreement with the scans (:class:`ceamcl.filters.state.MapAgreement`)."""
         known = hypotheses
-        hyps = functools.cache(self.hypotheses if known is None else lambda: known)
-        state = read_particles(
-            self.particle_set, self.t, hyps, crossing=wall_crossing(self.grid, self.last_scan)
+        return read_particles(
+            self.particle_set,
+            self.t,
+            self.hypotheses if known is None else lambda: known,
+            crossing=wall_crossing(self.grid, self.last_scan),
+            agreement=self.map_agreement,
+            scan=self.last_scan,
         )
-        return self.map_agreement.apply(state, self.t, self.last_scan, hyps)
 
     def particles(self) -> ParticleSnapshot:
         """The particles, carried by the odometry since the last update; labels are clusters."""

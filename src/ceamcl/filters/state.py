@@ -219,6 +219,13 @@ def _nan_to_num(x: float) -> float:
     return x
 
 
+def _shares(hypotheses: Sequence[Hypothesis]) -> NDArray[np.float64]:
+    """The hypotheses' weights, NaN counting as 0, normalised when they sum above 0."""
+    weights = np.array([_nan_to_num(h.weight) for h in hypotheses], dtype=np.float64)
+    total = weights.sum()
+    return weights / total if total > 0 else weights
+
+
 def read_hypotheses(
     hypotheses: Sequence[Hypothesis],
     thresholds: StateThresholds = DEFAULT_THRESHOLDS,
@@ -237,12 +244,9 @@ def read_hypotheses(
     t = thresholds
     if not hypotheses:
         return LocalisationState(State.LOST, 1.0, 0, (), "no hypothesis left")
-    weights = np.array([_nan_to_num(h.weight) for h in hypotheses], dtype=np.float64)
+    weights = _shares(hypotheses)
     fit = np.array([_nan_to_num(h.fitness) for h in hypotheses], dtype=np.float64)
-    total = weights.sum()
-    if total > 0:
-        weights = weights / total
-    order = np.argsort(-weights, kind="stable")
+    order = np.argsort(-weights, kind="stable")  # order[0]: the heaviest, the first of equals
     holds = weights >= t.weight_min
     fitting = [int(i) for i in order if holds[i] and fit[i] >= t.fit_min]
     crossed = {}
@@ -384,20 +388,17 @@ class MapAgreement:
         state: LocalisationState,
         step: int,
         scan: LaserScan | None,
-        hypotheses: Callable[[], Sequence[Hypothesis]],
+        hypotheses: Sequence[Hypothesis],
     ) -> LocalisationState:
-        """``state`` with the update's ``map_explained``, or LOST when the map has not
-        vouched for the leading (heaviest) hypothesis for ``explained_updates`` updates.
-        INITIALISING is left alone; every other state observes the update, so the run of
-        updates goes on while the filter says LOST for another reason."""
-        if state.state is State.INITIALISING:
+        """``state`` (read from ``hypotheses``) with the update's ``map_explained``, or LOST
+        when the map has not vouched for the leading hypothesis (the heaviest, as
+        :func:`read_hypotheses` reads it) for ``explained_updates`` updates. INITIALISING is
+        left alone; every other state observes the update, so the run of updates goes on
+        while the filter says LOST for another reason."""
+        if state.state is State.INITIALISING or not hypotheses:
             return state
-        hyps = hypotheses()
-        if not hyps:
-            return state
-        weights = [_nan_to_num(h.weight) for h in hyps]
-        lead = max(range(len(hyps)), key=lambda i: weights[i])  # the first of equals
-        streak, share = self.observe(step, scan, np.asarray(hyps[lead].pose))
+        lead = int(np.argmax(_shares(hypotheses)))  # the first of equals, as argsort's order
+        streak, share = self.observe(step, scan, np.asarray(hypotheses[lead].pose))
         t = self.thresholds
         if state.state is State.LOST or streak < t.explained_updates:
             return replace(state, map_explained=share)
@@ -419,15 +420,21 @@ def read_particles(
     hypotheses: Callable[[], Sequence[Hypothesis]],
     thresholds: StateThresholds = DEFAULT_THRESHOLDS,
     crossing: Crossing | None = None,
+    agreement: MapAgreement | None = None,
+    scan: LaserScan | None = None,
 ) -> LocalisationState:
     """The state of a particle filter (MCL, GMCL, KLD-AMCL) from its clusters
-    (``hypotheses()``, read by :func:`read_hypotheses` with ``crossing``); INITIALISING while
-    it holds no particle or has not stepped (``steps``) since its initialisation."""
+    (``hypotheses()``, read by :func:`read_hypotheses` with ``crossing``), then, with an
+    ``agreement``, the map's agreement with ``scan`` at step ``steps``
+    (:meth:`MapAgreement.apply`); INITIALISING while it holds no particle or has not stepped
+    (``steps``) since its initialisation."""
     if particles.n == 0:
         return initialising("no particles yet")
     if steps == 0:
         return initialising()
-    return read_hypotheses(hypotheses(), thresholds, crossing)
+    hyps = hypotheses()
+    state = read_hypotheses(hyps, thresholds, crossing)
+    return state if agreement is None else agreement.apply(state, steps, scan, hyps)
 
 
 def read_covariance(

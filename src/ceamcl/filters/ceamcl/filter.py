@@ -880,11 +880,9 @@ class CEAMCL:
             hypotheses is None or _same_hypotheses(hypotheses, self._read[0])
         ):
             read_hyps, read = self._read
-            return self.map_agreement.apply(read, self.t, self.last_scan, lambda: read_hyps)
+            return self.map_agreement.apply(read, self.t, self.last_scan, read_hyps)
         hyps = self.hypotheses() if hypotheses is None else hypotheses
-        return self.map_agreement.apply(
-            self._read_state(hyps), self.t, self.last_scan, lambda: hyps
-        )
+        return self.map_agreement.apply(self._read_state(hyps), self.t, self.last_scan, hyps)
 
     def _read_state(self, hyps: Sequence[Hypothesis]) -> LocalisationState:
         """The state from the species alone, as the recovery reads it."""
