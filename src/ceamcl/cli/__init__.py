@@ -18,6 +18,7 @@ from rich.console import Console
 
 from ceamcl import __version__, budget
 from ceamcl.budget import Budget, default_memory_bytes, format_bytes, parse_bytes
+from ceamcl.cli import interrupt
 from ceamcl.errors import CeamclError, InputWarning
 from ceamcl.io import created
 
@@ -135,10 +136,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     limits = args.memory_budget or Budget.default()
     ok = False
     try:
-        with budget.use(limits), warnings.catch_warnings():
+        with interrupt.guard(), budget.use(limits), warnings.catch_warnings():
             warnings.simplefilter("always", InputWarning)
             warnings.showwarning = _show_warning
             code: int = args.run(args, console)
+            if interrupt.pending():
+                # Ctrl-C landed where Python drops exceptions (a finaliser) and the command
+                # returned before it could be raised again: it was still interrupted
+                raise KeyboardInterrupt
         ok = True  # a command that returns has written its results (soak exits 1 on a finding)
     except CeamclError as exc:
         print(f"ceamcl: error: {exc}", file=sys.stderr)
