@@ -118,3 +118,30 @@ def test_likelihood_table_of_a_long_thin_map_with_a_far_cap() -> None:
         np.minimum(distance_cells_reference(g.occupied_mask) * g.resolution, 100.0), 8.0
     )
     assert np.array_equal(model._log_p_table(8.0), per_cell)
+
+
+def test_likelihood_table_is_an_index_of_two_bytes_a_cell() -> None:
+    """The kernel reads a 2-byte index per cell and a short list of values (the random reads
+    of 10^6 test poses then stay in the caches; docs/performance.md)."""
+    data = np.full((100, 100), FREE, np.int8)
+    data[[0, -1], :] = OCCUPIED
+    data[:, [0, -1]] = OCCUPIED  # a room whose centre is 2.5 m from its walls
+    model = LikelihoodFieldModel(OccupancyGrid(data, 0.05))
+    index, values = model._indexed_table(8.0)
+    assert index.dtype == np.uint16 and index.shape == data.shape
+    assert values.size == 1601  # s = 0 .. 1600 squared cells: 2 m at 5 cm
+
+
+def test_likelihood_table_with_a_cap_beyond_the_index() -> None:
+    """A 1 x 300 corridor with one wall cell and a 100 m cap: squared distances up to 299^2,
+    past a 2-byte index of every s, so the list holds only the distances the map has."""
+    data = np.zeros((1, 300), np.int8)
+    data[0, 0] = OCCUPIED
+    g = OccupancyGrid(data, 0.05)
+    model = LikelihoodFieldModel(g, LikelihoodFieldConfig(max_occ_dist_m=100.0))
+    index, values = model._indexed_table(8.0)
+    assert values.size == 300 and index.dtype == np.uint16
+    per_cell = model._beam_value(
+        np.minimum(distance_cells_reference(g.occupied_mask) * g.resolution, 100.0), 8.0
+    )
+    assert np.array_equal(model._log_p_table(8.0), per_cell)
