@@ -1,5 +1,6 @@
-"""Ctrl-C is never lost, even when it lands in a finaliser (where Python prints "Exception
-ignored in ..." and drops it; seen in CI while llvmlite finalised Numba's compiler output)."""
+"""Ctrl-C is never lost, even when it lands in a finaliser or a garbage collector's callback
+(where Python prints "Exception ignored in ..." and drops it; seen in CI while llvmlite
+finalised Numba's compiler output, and with hypothesis's gc callback installed)."""
 
 from __future__ import annotations
 
@@ -23,10 +24,10 @@ class _InterruptedWhileFinalised:
         signal.raise_signal(signal.SIGINT)
 
 
-def _cli_running(monkeypatch: pytest.MonkeyPatch, run: Any) -> None:
+def _cli_running(monkeypatch: pytest.MonkeyPatch, run: Any, handles_ctrl_c: bool = False) -> None:
     def build_parser() -> argparse.ArgumentParser:
         parser = argparse.ArgumentParser()
-        parser.set_defaults(run=run, memory_budget=None)
+        parser.set_defaults(run=run, memory_budget=None, handles_ctrl_c=handles_ctrl_c)
         return parser
 
     monkeypatch.setattr(cli, "build_parser", build_parser)
@@ -84,8 +85,49 @@ def test_a_command_that_handles_ctrl_c_itself_decides_its_exit(
             return 0  # as the ROS node does: Ctrl-C is how it is stopped
         return 1
 
-    _cli_running(monkeypatch, run)
+    _cli_running(monkeypatch, run, handles_ctrl_c=True)
     assert cli.main([]) == 0
+
+
+def test_an_interrupt_caught_by_the_command_line_is_not_raised_again(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    def run(args: argparse.Namespace, console: Console) -> int:
+        signal.raise_signal(signal.SIGINT)
+        return 0
+
+    _cli_running(monkeypatch, run)
+    assert cli.main([]) == 130
+    assert not interrupt.pending()
+    time.sleep(4 * interrupt.RETRY_S)  # no retry left to fire: a stray one would raise here
+
+
+def test_an_interrupt_swallowed_by_a_garbage_collector_callback_still_stops_the_command(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """As CI saw with hypothesis's gc callback installed: the handler ran inside the callback,
+    not in the finaliser, and Python dropped its exception."""
+    seen: list[str] = []
+
+    def callback(phase: str, info: dict[str, int]) -> None:
+        if phase == "start" and not seen:
+            seen.append(phase)
+            signal.raise_signal(signal.SIGINT)
+
+    def run(args: argparse.Namespace, console: Console) -> int:
+        gc.callbacks.append(callback)
+        try:
+            gc.collect()
+        finally:
+            gc.callbacks.remove(callback)
+        start = time.monotonic()
+        while time.monotonic() - start < 5.0:
+            time.sleep(0.01)
+        return 0
+
+    _cli_running(monkeypatch, run)
+    assert cli.main([]) == 130
+    assert seen
 
 
 def test_the_default_handler_is_back_after_a_command(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -136,19 +136,22 @@ def main(argv: Sequence[str] | None = None) -> int:
     limits = args.memory_budget or Budget.default()
     ok = False
     try:
-        with interrupt.guard(), budget.use(limits), warnings.catch_warnings():
+        own_ctrl_c = getattr(args, "handles_ctrl_c", False)
+        with interrupt.guard(not own_ctrl_c), budget.use(limits), warnings.catch_warnings():
             warnings.simplefilter("always", InputWarning)
             warnings.showwarning = _show_warning
             code: int = args.run(args, console)
             if interrupt.pending():
-                # Ctrl-C landed where Python drops exceptions (a finaliser) and the command
-                # returned before it could be raised again: it was still interrupted
+                # Ctrl-C landed where Python drops exceptions (a finaliser, a garbage
+                # collector's callback) and the command returned before it was raised again:
+                # it was interrupted all the same
                 raise KeyboardInterrupt
         ok = True  # a command that returns has written its results (soak exits 1 on a finding)
     except CeamclError as exc:
         print(f"ceamcl: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
+        interrupt.delivered()
         print("ceamcl: interrupted", file=sys.stderr)
         return 130
     except MemoryError:

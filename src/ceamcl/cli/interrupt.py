@@ -1,12 +1,15 @@
 """Ctrl-C that is never lost.
 
 Python turns SIGINT into ``KeyboardInterrupt`` wherever the main thread happens to be. When
-that is a finaliser (``__del__``, which llvmlite runs while Numba compiles), Python prints
-"Exception ignored in ..." and carries on, so the command would finish as if nothing had
-happened. :func:`guard` installs a handler that, when the interrupt lands in a finaliser,
-raises it again a moment later, and :func:`pending` lets the command line treat a command
-that returned before that retry as interrupted all the same. (A command that catches
-``KeyboardInterrupt`` itself, as the ROS node and player do, still decides its own exit.)
+that is a finaliser (``__del__``, which llvmlite runs while Numba compiles) or a callback of
+the garbage collector, Python prints "Exception ignored in ..." and carries on, so the command
+would finish as if nothing had happened (CI saw the demo exit 0 after Ctrl-C).
+
+:func:`guard` installs a handler that raises ``KeyboardInterrupt`` and keeps it *pending*
+until the command line has caught it (:func:`delivered`); while it is pending it is raised
+again every :data:`RETRY_S`, and a command that returns with one pending counts as interrupted
+(:func:`pending`). Commands that catch Ctrl-C themselves (the ROS node and player, which end
+that way) run without the guard.
 """
 
 from __future__ import annotations
@@ -18,59 +21,73 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from types import FrameType
 
-#: How long a deferred interrupt waits before it is raised again (seconds).
+#: How long an interrupt that was not caught waits before it is raised again (seconds).
 RETRY_S = 0.05
 
-_state: dict[str, bool] = {"pending": False}
+_lock = threading.Lock()
+_state: dict[str, bool] = {"active": False, "pending": False, "retry": False}
 _timers: list[threading.Timer] = []
 
 
-def _in_finaliser(frame: FrameType | None) -> bool:
-    while frame is not None:
-        if frame.f_code.co_name == "__del__":
-            return True
-        frame = frame.f_back
-    return False
+def _retry() -> None:
+    with _lock:
+        if _state["active"] and _state["pending"]:
+            _state["retry"] = True
+            _thread.interrupt_main()
 
 
 def _handler(signum: int, frame: FrameType | None) -> None:
-    if _in_finaliser(frame):
-        _state["pending"] = True
-        # an exception raised here would be printed and dropped: raise it once the
-        # finaliser has returned
-        timer = threading.Timer(RETRY_S, _thread.interrupt_main)
-        timer.daemon = True
-        timer.start()
-        _timers.append(timer)
-        return
-    _state["pending"] = False
+    retry, _state["retry"] = _state["retry"], False
+    if retry and not (_state["pending"] and _state["active"]):
+        return  # caught in the meantime, or the command is over: nothing to raise again
+    _state["pending"] = True
+    timer = threading.Timer(RETRY_S, _retry)
+    timer.daemon = True
+    _timers.append(timer)
+    timer.start()
     raise KeyboardInterrupt
 
 
 def pending() -> bool:
-    """Whether an interrupt landed in a finaliser and has not been raised since."""
+    """Whether an interrupt was raised and has not reached the command line since."""
     return _state["pending"]
 
 
+def delivered() -> None:
+    """The command line caught the interrupt: stop raising it again."""
+    with _lock:
+        _state["pending"] = False
+        _state["retry"] = False
+        for timer in _timers:
+            timer.cancel()
+        _timers.clear()
+
+
 @contextmanager
-def guard() -> Iterator[None]:
-    """Install the handler for the duration of a command (main thread only, and only where
+def guard(enabled: bool = True) -> Iterator[None]:
+    """Install the handler for the duration of a command (in the main thread, and only where
     SIGINT is not ignored: a job a shell started in the background keeps ignoring it)."""
-    _state["pending"] = False
+    delivered()
     if (
-        threading.current_thread() is not threading.main_thread()
+        not enabled
+        or threading.current_thread() is not threading.main_thread()
         or signal.getsignal(signal.SIGINT) is not signal.default_int_handler
     ):
         yield
         return
+    _state["active"] = True
     signal.signal(signal.SIGINT, _handler)
     try:
         yield
     finally:
-        for timer in _timers:
-            timer.cancel()  # the command has ended: nothing left to interrupt
-        _timers.clear()
-        signal.signal(signal.SIGINT, signal.default_int_handler)
+        try:
+            with _lock:
+                _state["active"] = False  # no retry fires after this, and one that fired
+                for timer in _timers:  # just before finds the handler still here: dropped
+                    timer.cancel()
+                _timers.clear()
+        finally:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
-__all__ = ["RETRY_S", "guard", "pending"]
+__all__ = ["RETRY_S", "delivered", "guard", "pending"]

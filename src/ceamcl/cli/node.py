@@ -29,7 +29,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         action="store_true",
         help="configure and activate at once (without a Nav2 lifecycle manager)",
     )
-    node.set_defaults(run=run)
+    node.set_defaults(run=run, handles_ctrl_c=True)  # Ctrl-C is how a node ends: exit 0
 
 
 def import_ros(module: str, command: str) -> ModuleType:

@@ -43,7 +43,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         help="seconds between the map and the first scan (the localiser takes the map in)",
     )
     p.add_argument("--quiet", action="store_true")
-    p.set_defaults(run=run)
+    p.set_defaults(run=run, handles_ctrl_c=True)  # Ctrl-C ends the playback: exit 0
 
 
 def run(args: argparse.Namespace, console: Console) -> int:
