@@ -14,7 +14,7 @@ import pytest
 
 from ceamcl.filters.ceamcl import CEAMCL, CEAMCLConfig
 from ceamcl.filters.ceamcl.initialisation import best_in_parts, top_k_mean_per_cell
-from ceamcl.maps.grid import OccupancyGrid
+from ceamcl.maps.grid import FREE, OCCUPIED, OccupancyGrid
 from ceamcl.maps.worlds import get_world
 from ceamcl.motion import OdometryMotionModel
 from ceamcl.sensors import BeamModel, BeamModelConfig, LikelihoodFieldModel
@@ -89,3 +89,18 @@ def test_ceamcl_initialisation_1m(benchmark: Bench, hall: OccupancyGrid, log: Si
         return int(f.poses.shape[0])
 
     assert benchmark.pedantic(init, rounds=3, iterations=1) > 0
+
+
+def test_likelihood_field_on_a_large_map(benchmark: Bench, log: SimulatedLog) -> None:
+    """CEAMCL's test poses on a real building's scale: 250,000 poses (one ``test_batch``) read
+    a 1,800 x 1,000-cell map at random, where the table's size decides the time (its cells are
+    a 2-byte index since 2026-11-27; docs/performance.md, "Likelihood field")."""
+    rng = np.random.default_rng(7)
+    data = np.where(rng.random((1800, 1000)) < 0.02, OCCUPIED, FREE).astype(np.int8)
+    grid = OccupancyGrid(data, 0.05)
+    model = LikelihoodFieldModel(grid)
+    poses = grid.sample_free_poses(250_000, rng)
+    prepared = model.prepare(log.scan(0))
+    model.log_likelihood(poses[:10], prepared)  # the distance field and the table
+    out = benchmark(model.log_likelihood, poses, prepared)
+    assert out.shape == (250_000,) and np.all(np.isfinite(out))
