@@ -141,17 +141,17 @@ def main(argv: Sequence[str] | None = None) -> int:
             warnings.simplefilter("always", InputWarning)
             warnings.showwarning = _show_warning
             code: int = args.run(args, console)
-            if interrupt.pending():
+            if interrupt.swallowed():
                 # Ctrl-C landed where Python drops exceptions (a finaliser, a garbage
                 # collector's callback) and the command returned before it was raised again:
                 # it was interrupted all the same
+                interrupt.consume()
                 raise KeyboardInterrupt
         ok = True  # a command that returns has written its results (soak exits 1 on a finding)
     except CeamclError as exc:
         print(f"ceamcl: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        interrupt.delivered()
         print("ceamcl: interrupted", file=sys.stderr)
         return 130
     except MemoryError:

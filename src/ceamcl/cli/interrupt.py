@@ -2,72 +2,90 @@
 
 Python turns SIGINT into ``KeyboardInterrupt`` wherever the main thread happens to be. When
 that is a finaliser (``__del__``, which llvmlite runs while Numba compiles) or a callback of
-the garbage collector, Python prints "Exception ignored in ..." and carries on, so the command
-would finish as if nothing had happened (CI saw the demo exit 0 after Ctrl-C).
+the garbage collector, Python hands the exception to ``sys.unraisablehook`` ("Exception
+ignored in ...") and carries on, so the command would finish as if nothing had happened (CI
+saw the demo exit 0 after Ctrl-C).
 
-:func:`guard` installs a handler that raises ``KeyboardInterrupt`` and keeps it *pending*
-until the command line has caught it (:func:`delivered`); while it is pending it is raised
-again every :data:`RETRY_S`, and a command that returns with one pending counts as interrupted
-(:func:`pending`). Commands that catch Ctrl-C themselves (the ROS node and player, which end
-that way) run without the guard.
+:func:`guard` installs a hook that catches exactly those dropped interrupts: it marks the
+interrupt *swallowed* and raises it again in the main thread :data:`RETRY_S` later, and a
+command that returns before that counts as interrupted (:func:`swallowed`). An interrupt that
+was not dropped is left alone: it unwinds the command (its clean-up included) as it always did.
+Commands that catch Ctrl-C themselves (the ROS node and player, which end that way) run
+without the guard.
 """
 
 from __future__ import annotations
 
-import _thread
 import signal
+import sys
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from types import FrameType
+from typing import Any
 
-#: How long an interrupt that was not caught waits before it is raised again (seconds).
+#: How long after an interrupt was dropped it is raised again (seconds).
 RETRY_S = 0.05
 
-_lock = threading.Lock()
-_state: dict[str, bool] = {"active": False, "pending": False, "retry": False}
+# re-entrant: the hook can run inside a finaliser while the main thread holds the lock
+_lock = threading.RLock()
+_state: dict[str, bool] = {"active": False, "swallowed": False, "retry": False}
 _timers: list[threading.Timer] = []
 
 
 def _retry() -> None:
     with _lock:
-        if _state["active"] and _state["pending"]:
+        if _state["active"] and _state["swallowed"]:
             _state["retry"] = True
-            _thread.interrupt_main()
+            # a real signal, not ``_thread.interrupt_main``: it also wakes a main thread
+            # that sleeps or waits in a system call
+            main_id = threading.main_thread().ident
+            if main_id is not None:
+                signal.pthread_kill(main_id, signal.SIGINT)
 
 
 def _handler(signum: int, frame: FrameType | None) -> None:
     retry, _state["retry"] = _state["retry"], False
-    if retry and not (_state["pending"] and _state["active"]):
-        return  # caught in the meantime, or the command is over: nothing to raise again
-    _state["pending"] = True
-    timer = threading.Timer(RETRY_S, _retry)
-    timer.daemon = True
-    _timers.append(timer)
-    timer.start()
+    if retry:
+        if not (_state["active"] and _state["swallowed"]):
+            return  # the command ended meanwhile: nothing left to interrupt
+        _state["swallowed"] = False
     raise KeyboardInterrupt
 
 
-def pending() -> bool:
-    """Whether an interrupt was raised and has not reached the command line since."""
-    return _state["pending"]
+def _hook_for(previous: Any) -> Any:
+    def hook(unraisable: Any) -> None:
+        exc_type = unraisable.exc_type
+        if exc_type is not None and issubclass(exc_type, KeyboardInterrupt):
+            with _lock:
+                _state["swallowed"] = True
+                timer = threading.Timer(RETRY_S, _retry)
+                timer.daemon = True
+                _timers.append(timer)
+                timer.start()
+            return  # ours to raise again: nothing to print
+        previous(unraisable)
+
+    return hook
 
 
-def delivered() -> None:
-    """The command line caught the interrupt: stop raising it again."""
+def swallowed() -> bool:
+    """Whether an interrupt was dropped by Python and has not been raised again since."""
+    return _state["swallowed"]
+
+
+def consume() -> None:
+    """The command line raises the dropped interrupt itself: no retry is needed."""
     with _lock:
-        _state["pending"] = False
-        _state["retry"] = False
-        for timer in _timers:
-            timer.cancel()
-        _timers.clear()
+        _state["swallowed"] = False
 
 
 @contextmanager
 def guard(enabled: bool = True) -> Iterator[None]:
-    """Install the handler for the duration of a command (in the main thread, and only where
-    SIGINT is not ignored: a job a shell started in the background keeps ignoring it)."""
-    delivered()
+    """Install the handler and the hook for the duration of a command (in the main thread,
+    and only where SIGINT is not ignored: a job a shell started in the background keeps
+    ignoring it)."""
+    _state.update(swallowed=False, retry=False)
     if (
         not enabled
         or threading.current_thread() is not threading.main_thread()
@@ -75,7 +93,9 @@ def guard(enabled: bool = True) -> Iterator[None]:
     ):
         yield
         return
+    previous_hook = sys.unraisablehook
     _state["active"] = True
+    sys.unraisablehook = _hook_for(previous_hook)
     signal.signal(signal.SIGINT, _handler)
     try:
         yield
@@ -88,6 +108,7 @@ def guard(enabled: bool = True) -> Iterator[None]:
                 _timers.clear()
         finally:
             signal.signal(signal.SIGINT, signal.default_int_handler)
+            sys.unraisablehook = previous_hook
 
 
-__all__ = ["RETRY_S", "delivered", "guard", "pending"]
+__all__ = ["RETRY_S", "consume", "guard", "swallowed"]
