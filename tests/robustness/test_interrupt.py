@@ -133,9 +133,11 @@ def test_an_interrupt_swallowed_by_a_garbage_collector_callback_still_stops_the_
 
 
 def test_the_default_handler_is_back_after_a_command(monkeypatch: pytest.MonkeyPatch) -> None:
+    hook = sys.unraisablehook
     _cli_running(monkeypatch, lambda args, console: 0)
     assert cli.main([]) == 0
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    assert sys.unraisablehook is hook
 
 
 def test_an_interrupt_that_unwinds_normally_lets_the_clean_up_finish(
