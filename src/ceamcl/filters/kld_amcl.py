@@ -42,7 +42,6 @@ sensor models:
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -72,12 +71,7 @@ from ceamcl.filters.particles import (
 )
 from ceamcl.filters.policies import Context, every_n, on_motion
 from ceamcl.filters.resampling import multinomial, normalise_log_weights
-from ceamcl.filters.state import (
-    LocalisationState,
-    MapAgreement,
-    read_particles,
-    wall_crossing,
-)
+from ceamcl.filters.state import MapAgreement, ParticleClusterState
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import (
     OdometryIncrement,
@@ -360,7 +354,7 @@ class KLDAMCLRecord(StepRecord):
     kld_target: int = 0
 
 
-class KLDAMCL:
+class KLDAMCL(ParticleClusterState):
     """ROS/Nav2 amcl's adaptive particle filter (see the module docstring)."""
 
     name = "kld-amcl"
@@ -552,19 +546,6 @@ class KLDAMCL:
         """The heaviest cluster's weighted mean and covariance (as amcl publishes)."""
         best = self.hypotheses(limit=1)[0]
         return PoseEstimate(best.pose, best.covariance)
-
-    def state(self, hypotheses: Sequence[Hypothesis] | None = None) -> LocalisationState:
-        """Read from the particle clusters (:func:`ceamcl.filters.state.read_particles`), and
-        the map's agreement with the scans (:class:`ceamcl.filters.state.MapAgreement`)."""
-        known = hypotheses
-        return read_particles(
-            self.particle_set,
-            self.t,
-            self.hypotheses if known is None else lambda: known,
-            crossing=wall_crossing(self.grid, self.last_scan),
-            agreement=self.map_agreement,
-            scan=self.last_scan,
-        )
 
     def particles(self) -> ParticleSnapshot:
         """The particles, carried by the odometry since the last update; labels are clusters."""

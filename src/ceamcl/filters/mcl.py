@@ -18,7 +18,6 @@ the particle clusters (as ROS amcl does), heaviest first.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -44,12 +43,7 @@ from ceamcl.filters.particles import (
     usable,
 )
 from ceamcl.filters.policies import Context, ess_below
-from ceamcl.filters.state import (
-    LocalisationState,
-    MapAgreement,
-    read_particles,
-    wall_crossing,
-)
+from ceamcl.filters.state import MapAgreement, ParticleClusterState
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel
 from ceamcl.pose import pose_covariance, pose_mean
@@ -92,7 +86,7 @@ class MCLConfig:
             raise ValueError(f"cluster_cell_m: expected > 0, got {self.cluster_cell_m}")
 
 
-class MCL:
+class MCL(ParticleClusterState):
     """Monte Carlo localisation with a fixed number of particles."""
 
     name = "mcl"
@@ -199,19 +193,6 @@ class MCL:
     def hypotheses(self) -> list[Hypothesis]:
         ps = self.particle_set
         return cluster_hypotheses(ps.poses, ps.weights, ps.fitness, *self._labels())
-
-    def state(self, hypotheses: Sequence[Hypothesis] | None = None) -> LocalisationState:
-        """Read from the particle clusters (:func:`ceamcl.filters.state.read_particles`), and
-        the map's agreement with the scans (:class:`ceamcl.filters.state.MapAgreement`)."""
-        known = hypotheses
-        return read_particles(
-            self.particle_set,
-            self.t,
-            self.hypotheses if known is None else lambda: known,
-            crossing=wall_crossing(self.grid, self.last_scan),
-            agreement=self.map_agreement,
-            scan=self.last_scan,
-        )
 
     def particles(self) -> ParticleSnapshot:
         labels, _ = self._labels()

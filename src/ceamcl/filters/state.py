@@ -437,6 +437,34 @@ def read_particles(
     return state if agreement is None else agreement.apply(state, steps, scan, hyps)
 
 
+class ParticleClusterState:
+    """``state()`` for a particle filter (MCL, GMCL, KLD-AMCL): :func:`read_particles` over
+    its clusters, readings through walls from :func:`wall_crossing` and the map's agreement
+    with the last scan. The filter provides the attributes below and ``hypotheses()``."""
+
+    particle_set: ParticleSet
+    t: int
+    grid: OccupancyGrid
+    last_scan: LaserScan | None
+    map_agreement: MapAgreement
+
+    def hypotheses(self) -> list[Hypothesis]:
+        raise NotImplementedError
+
+    def state(self, hypotheses: Sequence[Hypothesis] | None = None) -> LocalisationState:
+        """Read from the particle clusters (``hypotheses`` when the caller has them already),
+        then the map's agreement with the scans (:class:`MapAgreement`)."""
+        known = hypotheses
+        return read_particles(
+            self.particle_set,
+            self.t,
+            self.hypotheses if known is None else lambda: known,
+            crossing=wall_crossing(self.grid, self.last_scan),
+            agreement=self.map_agreement,
+            scan=self.last_scan,
+        )
+
+
 def read_covariance(
     estimate: PoseEstimate, thresholds: StateThresholds = DEFAULT_THRESHOLDS
 ) -> LocalisationState:
