@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 import os
+import warnings
 import zlib
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
@@ -36,7 +37,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from ceamcl.errors import ConfigError
+from ceamcl.errors import ConfigError, InputWarning
 from ceamcl.experiments.metrics import (
     HEADING_TOL_RAD,
     JUMP_M,
@@ -131,13 +132,19 @@ def _truth_from(
     ``truth_path`` at the scans the two share (:func:`ceamcl.io.truth.pair_truth`)."""
     truth_log = check_times(open_log(truth_path, **open_kwargs), repair=repair_times)
     looks, why = poses_look_corrected(truth_log)
-    if not looks:
-        raise ConfigError(
-            f"truth-from: {truth_path} does not look SLAM-corrected ({why}); expected the "
-            "corrected log of the same run"
-        )
     pairing = pair_truth(log, truth_log)
     reason = f"from {truth_path} (--truth-from): {pairing.summary()}"
+    if not looks:
+        # The user named this log as the truth: a corrected log written by another SLAM tool
+        # may carry no NEFF messages, or a laser pose apart from the robot pose. Say so, and
+        # take its poses as asked (a raw log passed by mistake still pairs, and the warning
+        # names it).
+        doubt = (
+            f"truth-from: {truth_path} does not look SLAM-corrected ({why}); its poses are "
+            "taken as the truth, as --truth-from asks"
+        )
+        warnings.warn(InputWarning(doubt), stacklevel=2)
+        reason = f"{reason} (warning: {doubt})"
     paired = replace(log, true_poses=pairing.truth_at_raw_scans())
     return PreparedLog(paired, True, "recorded", None, seed, reason, truth_log, pairing)
 

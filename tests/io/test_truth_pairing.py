@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from ceamcl.errors import LogFormatError
+from ceamcl.errors import InputWarning, LogFormatError
 from ceamcl.io.recorded import RecordedLog
 from ceamcl.io.truth import pair_truth
+from ceamcl.replay import prepare_log
 
 DATA = Path(__file__).resolve().parents[2] / ".." / "shared" / "data"
 
@@ -112,3 +114,42 @@ def test_every_corrected_scan_of_the_shared_logs_has_its_raw_twin(
         np.testing.assert_allclose(
             raw.ranges(int(p.raw_index[k])), corrected.ranges(int(p.truth_index[k])), atol=5e-4
         )
+
+
+def _flaser_log(path: Path, scans: list[list[float]], times: list[float], neff: bool) -> Path:
+    lines = []
+    for k, (r, t) in enumerate(zip(scans, times, strict=True)):
+        ranges = " ".join(f"{v:.3f}" for v in r)
+        pose = f"{0.1 * k:.3f} 0.0 0.0"
+        lines.append(f"FLASER {len(r)} {ranges} {pose} {pose} {t:.3f} host {t:.3f}")
+        if neff:
+            lines.append(f"NEFF 10.0 {t:.3f} host {t:.3f}")
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_a_truth_log_that_does_not_look_corrected_is_used_with_a_warning(
+    tmp_path: Path,
+) -> None:
+    """A corrected log written by another SLAM tool may have no NEFF messages: --truth-from
+    takes its poses as asked and says that it does not look corrected."""
+    rng = np.random.default_rng(1)
+    scans = [list(np.round(rng.uniform(0.5, 10, 181), 2)) for _ in range(8)]
+    times = [100.0 + 0.5 * k for k in range(8)]
+    raw = _flaser_log(tmp_path / "raw.clf", scans, times, neff=False)
+    kept = [0, 2, 5, 7]
+    truth = _flaser_log(
+        tmp_path / "other-slam.log", [scans[k] for k in kept], [times[k] for k in kept], False
+    )
+    with pytest.warns(InputWarning, match="does not look SLAM-corrected"):
+        prepared = prepare_log(raw, truth_from=truth)
+    assert prepared.has_truth and "warning" in prepared.truth_reason
+    assert prepared.pairing is not None and prepared.pairing.raw_index.tolist() == kept
+    # the same log with its NEFF messages is taken without a warning
+    corrected = _flaser_log(
+        tmp_path / "corrected.log", [scans[k] for k in kept], [times[k] for k in kept], True
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", InputWarning)
+        quiet = prepare_log(raw, truth_from=corrected)
+    assert "warning" not in quiet.truth_reason
