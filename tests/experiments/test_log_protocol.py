@@ -9,7 +9,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ceamcl.experiments.evaluate_log import confidently_wrong
+from ceamcl.experiments.evaluate_log import LogTrialResult, aggregate, confidently_wrong
 from ceamcl.experiments.log_windows import start_windows
 from ceamcl.experiments.metrics import score_errors
 from ceamcl.io.recorded import RecordedLog
@@ -88,3 +88,48 @@ def test_confidently_wrong_needs_most_weight_on_a_wrong_hypothesis() -> None:
     assert confidently_wrong(result_with(wrong_heavy, truth))
     assert not confidently_wrong(result_with(wrong_unsure, truth))
     assert not confidently_wrong(result_with(right_heavy, truth))
+
+
+def _trial(algorithm: str, steps_ms: list[float]) -> LogTrialResult:
+    steps = np.asarray(steps_ms, dtype=np.float64)
+    nan = math.nan
+    return LogTrialResult(
+        name="t",
+        algorithm=algorithm,
+        start_index=0,
+        start_time_s=0.0,
+        scans=steps.size + 1,
+        window_s=1.0,
+        window_m=1.0,
+        success=True,
+        scans_to_converge=0,
+        time_to_converge_s=0.0,
+        distance_to_converge_m=0.0,
+        position_rmse_m=0.1,
+        position_rmse_from_first_m=0.1,
+        confidently_wrong=False,
+        heading_rmse_rad=0.01,
+        final_position_error_m=0.1,
+        final_heading_error_rad=0.01,
+        mean_particles=100.0,
+        mean_step_ms=float(steps.mean()),
+        median_step_ms=float(np.median(steps)),
+        initialisation_ms=900.0,
+        updates=steps.size,
+        mean_update_ms=float(steps.mean()),
+        likelihood_evaluations=nan,
+        elapsed_s=np.zeros(0),
+        position_errors=np.zeros(0),
+        heading_errors=np.zeros(0),
+        step_ms=steps,
+    )
+
+
+def test_the_median_step_pools_every_scan_and_ignores_a_recovery_spike() -> None:
+    """One recovery (a 2.5 s update) moves the mean step far more than the median a robot
+    meets at most scans; the table gives both, the median over every scan of every run."""
+    runs = [_trial("ceamcl", [1.0, 1.0, 2500.0, 1.0]), _trial("ceamcl", [2.0, 2.0, 2.0, 2.0])]
+    (row,) = aggregate(runs, ["ceamcl"])
+    assert row["median_step_ms"] == 2.0  # the 8 scans pooled: 1, 1, 1, 2, 2, 2, 2, 2500
+    assert row["mean_step_ms"] == np.mean([np.mean([1.0, 1.0, 2500.0, 1.0]), 2.0])
+    assert row["mean_step_ms"] > 100 * row["median_step_ms"]

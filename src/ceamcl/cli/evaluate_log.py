@@ -140,9 +140,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
         for name, why in skipped.items():
             console.print(f"[yellow]{name} skipped[/]: {why}")
     if args.tracking:
-        return run_tracking(
-            args, console, prepared, grid, map_source, algos, skipped, pace, doubt
-        )
+        return run_tracking(args, console, prepared, grid, map_source, algos, skipped, pace, doubt)
     if args.particles is not None:
         raise ConfigError("particles: only with --tracking (global localisation uses defaults)")
     with TrialsProgress(console, quiet=args.quiet) as progress:
@@ -180,7 +178,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
             "from 1st [m]",
             "head RMSE [rad]",
             "particles",
-            "step [ms]",
+            "step [ms] median / mean",
         )
         rows = [
             (
@@ -193,7 +191,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
                 fmt(row["position_rmse_from_first_m"], 3, "-"),
                 fmt(row["heading_rmse_rad"], 3, "-"),
                 fmt(row["mean_particles"], 0, "-"),
-                fmt(row["mean_step_ms"], 1, "-"),
+                f"{fmt(row['median_step_ms'], 1, '-')} / {fmt(row['mean_step_ms'], 1, '-')}",
             )
             for row in ev.table
         ]

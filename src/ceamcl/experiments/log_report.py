@@ -33,6 +33,7 @@ _CSV_FIELDS = (
     "final_heading_error_rad",
     "mean_particles",
     "mean_step_ms",
+    "median_step_ms",
     "initialisation_ms",
     "updates",
     "mean_update_ms",
@@ -105,9 +106,10 @@ def evaluation_markdown(
         "| algorithm | runs | success | confidently wrong | time to converge [s] | "
         "scans to converge | distance to converge [m] | position RMSE [m] | "
         "RMSE from first [m] | heading RMSE [rad] | mean particles | mean step [ms] | "
+        "median step [ms] | "
         "initialisation [ms] | updates per run | mean update [ms] | "
         "likelihood evaluations per run |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     digits = {
         "time_to_converge_s": 1,
@@ -118,6 +120,7 @@ def evaluation_markdown(
         "heading_rmse_rad": 3,
         "mean_particles": 0,
         "mean_step_ms": 1,
+        "median_step_ms": 1,
         "initialisation_ms": 0,
         "updates_per_run": 0,
         "mean_update_ms": 1,
