@@ -342,6 +342,7 @@ def run_summary(
         "odometry": prepared.odometry,
         "odometry_source": ODOMETRY_SOURCES[prepared.odometry],
         "repaired_times": int(log.info.get("repaired_times", 0)),
+        "odometry_sign": log.info.get("odometry_sign", "as recorded"),
         "map": map_source,
         "map_size_m": list(grid.size_m),
         "map_free_area_m2": grid.free_area_m2,

@@ -79,6 +79,14 @@ def add_log_arguments(p: argparse.ArgumentParser) -> None:
         help="sensor maximum in metres: readings at or beyond it are no-return "
         "(default: from the log; 80 m for old-style CARMEN lasers)",
     )
+    p.add_argument(
+        "--odometry-sign",
+        choices=("auto", "recorded"),
+        default="auto",
+        help="CARMEN: auto: when the ODOM lines' velocity shows that the odometry lost its sign "
+        "(its poses keep moving forward while the robot backs up), each increment between scans "
+        "takes the velocity's sign; recorded: the odometry as recorded",
+    )
     p.add_argument("--scan-topic", default=None, help="bag: sensor_msgs/LaserScan topic")
     p.add_argument(
         "--odom-topic",
@@ -173,6 +181,7 @@ def open_kwargs(args: argparse.Namespace) -> dict[str, Any]:
     return {
         "laser": args.laser,
         "max_range_m": args.max_range,
+        "odometry_sign": args.odometry_sign,
         "scan_topic": args.scan_topic,
         "odom_topic": args.odom_topic,
         "odom_frame": args.odom_frame,
@@ -199,6 +208,9 @@ def print_truth(console: Console, prepared: Any, doubt: TruthDoubt | None = None
             f"odometry: the log's recorded odometry; scored at the {prepared.pairing.n_matched} "
             f"of {len(prepared.log)} scans with truth"
         )
+    sign = prepared.log.info.get("odometry_sign")
+    if sign:
+        console.print(f"odometry: {sign} (--odometry-sign recorded: as recorded)")
     repaired = int(prepared.log.info.get("repaired_times", 0))
     if repaired:
         console.print(f"scan times: {repaired} raised to the latest before them (--repair-times)")

@@ -69,8 +69,9 @@ from numpy.typing import NDArray
 
 from ceamcl import budget
 from ceamcl.angles import diff
-from ceamcl.errors import LogFormatError
+from ceamcl.errors import ConfigError, LogFormatError
 from ceamcl.io import streams
+from ceamcl.io.odometry_sign import MOVE_M, check_sign, forward_steps, signed_poses
 from ceamcl.io.recorded import RecordedLog, interpolate_poses
 
 __all__ = [
@@ -431,6 +432,7 @@ def read_carmen(
     *,
     laser: int = 1,
     max_range_m: float | None = None,
+    odometry_sign: str = "auto",
 ) -> RecordedLog:
     """The scans of one laser of a CARMEN log with the robot's pose at each scan.
 
@@ -441,6 +443,10 @@ def read_carmen(
         max_range_m: the sensor's maximum; readings at or beyond it mean no return. Default:
             the message's own field (ROBOTLASER/RAWLASER), else ``PARAM
             robot_front_laser_max``/``robot_rear_laser_max``, else CARMEN's 80 m.
+        odometry_sign: ``"auto"``: when the ``ODOM`` lines' velocity shows that the odometry
+            lost its sign (its poses keep moving forward while the robot backs up), each
+            increment between scans takes the velocity's sign (:mod:`ceamcl.io.odometry_sign`;
+            ``info["odometry_sign"]`` says so); ``"recorded"``: the poses as recorded.
 
     Messages with poses (FLASER/RLASER/ROBOTLASER) are used when the log has them; a log with
     only RAWLASER messages takes the robot's pose from ODOM, interpolated at each scan's time.
@@ -451,8 +457,10 @@ def read_carmen(
     parameters.
     """
     p = Path(path)
+    if odometry_sign not in ("auto", "recorded"):
+        raise ConfigError(f"odometry-sign: expected auto or recorded, got {odometry_sign!r}")
     with_pose, raw = _Stream(), _Stream()
-    odom: list[tuple[float, float, float, float]] = []
+    odom: list[tuple[float, float, float, float, float]] = []
     counts: Counter[str] = Counter()
     skipped: Counter[str] = Counter()
     params: dict[str, str] = {}
@@ -463,7 +471,7 @@ def read_carmen(
                 (with_pose if msg.laser_pose is not None else raw).add(msg, p)
         elif isinstance(msg, CarmenOdometry):
             counts["ODOM"] += 1
-            odom.append((msg.timestamp, msg.x, msg.y, msg.theta))
+            odom.append((msg.timestamp, msg.x, msg.y, msg.theta, msg.tv))
         elif isinstance(msg, CarmenParam):
             counts["PARAM"] += 1
             params[msg.name] = msg.value
@@ -481,21 +489,33 @@ def read_carmen(
         )
     n = len(stream)
     times = np.asarray(stream.times, dtype=np.float64)
-    if np.isnan(times).any():
+    timed = not np.isnan(times).any()
+    o = np.asarray(odom, dtype=np.float64).reshape(-1, 5)
+    # odometry that lost its sign (ceamcl.io.odometry_sign), told by the ODOM lines' velocity
+    sign = check_sign(o[:, 0], o[:, 1:4], o[:, 4]) if timed and odometry_sign == "auto" else None
+    unsigned = sign is not None and sign.unsigned
+    if not timed:
         # Lines without a timestamp: number the scans instead.
         times = np.where(np.isnan(times), np.arange(n, dtype=np.float64), times)
 
+    reversed_increments = 0
     if stream is with_pose:
         robot = np.asarray(stream.robot_pose, dtype=np.float64)
         laser_world = np.asarray(stream.laser_pose, dtype=np.float64)
         mount = _relative_poses(robot, laser_world)
+        if unsigned:
+            robot, reversed_increments = signed_poses(times, robot, o[:, 0], o[:, 4])
     else:
         if not odom:
             raise LogFormatError(
                 f"{p}: RAWLASER{laser} scans carry no pose and the log has no ODOM line"
             )
-        o = np.asarray(odom, dtype=np.float64)
-        robot = interpolate_poses(o[:, 0], o[:, 1:], times)
+        odom_poses = o[:, 1:4]
+        if unsigned:
+            odom_poses, _ = signed_poses(o[:, 0], odom_poses, o[:, 0], o[:, 4])
+        robot = interpolate_poses(o[:, 0], odom_poses, times)
+        if unsigned:
+            reversed_increments = int(np.count_nonzero(forward_steps(robot) < -MOVE_M))
         mount = np.zeros((n, 3))
 
     default_max = _param_max_range(params, laser, p)
@@ -517,6 +537,12 @@ def read_carmen(
         "params": params,
         "scan_lines": np.asarray(stream.lines, dtype=np.int64),  # for errors naming the line
     }
+    if unsigned:
+        assert sign is not None
+        info["odometry_sign"] = (
+            f"{sign.summary()}; {reversed_increments} of {max(n - 1, 0)} increments between "
+            "scans now go backwards"
+        )
     return RecordedLog(
         path=str(p),
         times=times,

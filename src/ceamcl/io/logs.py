@@ -90,6 +90,7 @@ def open_log(
     *,
     laser: int = 1,
     max_range_m: float | None = None,
+    odometry_sign: str = "auto",
     scan_topic: str | None = None,
     odom_topic: str | None = None,
     odom_frame: str = "odom",
@@ -97,7 +98,8 @@ def open_log(
 ) -> RecordedLog:
     """Open a CARMEN log or a ROS bag by its type (see :func:`log_format`).
 
-    ``laser`` and ``max_range_m`` apply to CARMEN logs (:func:`ceamcl.io.carmen.read_carmen`);
+    ``laser``, ``max_range_m`` and ``odometry_sign`` apply to CARMEN logs
+    (:func:`ceamcl.io.carmen.read_carmen`);
     the topics and frames to bags (:func:`ceamcl.io.rosbag.read_bag`); ``max_range_m``
     overrides a bag's ``range_max`` too.
     """
@@ -105,7 +107,7 @@ def open_log(
     if max_range_m is not None and not max_range_m > 0:
         raise ConfigError(f"max-range: expected a positive number of metres, got {max_range_m}")
     if fmt == "carmen":
-        return read_carmen(path, laser=laser, max_range_m=max_range_m)
+        return read_carmen(path, laser=laser, max_range_m=max_range_m, odometry_sign=odometry_sign)
     log = read_bag(
         path,
         scan_topic=scan_topic,
