@@ -327,6 +327,16 @@ def memory_cases() -> list[Case]:
             ("bomb.log.gz:", "scans kept", "memory budget of 1.0 MiB"),
         )
     )
+    odom = [f"ODOM 0 0 0 0 0 0 {0.01 * k:g} nohost {0.01 * k:g}" for k in range(8000)]
+    out.append(
+        Case(
+            "memory",
+            "odometry-beyond-budget",
+            ("map-from-log", "odom.log.gz", "-o", "out/map.yaml", "--memory-budget", "1MiB"),
+            write_lines("odom.log.gz", box_log_lines(3) + odom, gz=True),
+            ("odom.log.gz:", "odometry kept", "memory budget of 1.0 MiB"),
+        )
+    )
     big_line = ["FLASER 400000 " + " ".join(["1.0"] * 400000) + " 0 0 0 0 0 0 1 nohost 1"]
     out.append(
         Case(

@@ -90,6 +90,9 @@ __all__ = [
 #: Memory a kept scan holds beyond its ranges (array header, time, geometry, poses, line).
 SCAN_OVERHEAD_BYTES = 400
 
+#: Memory a kept ODOM line holds (a tuple of five floats).
+ODOM_BYTES = 200
+
 #: The maximum range CARMEN assumes for old-style laser messages (readlog.c).
 CARMEN_DEFAULT_MAX_RANGE_M = 80.0
 
@@ -471,6 +474,9 @@ def read_carmen(
                 (with_pose if msg.laser_pose is not None else raw).add(msg, p)
         elif isinstance(msg, CarmenOdometry):
             counts["ODOM"] += 1
+            held = ODOM_BYTES * (len(odom) + 1) + with_pose.bytes_held + raw.bytes_held
+            if held > budget.current().memory_bytes:  # ODOM lines are kept too
+                budget.require(f"{p}:{msg.line}: odometry kept", len(odom) + 1, ODOM_BYTES, "ODOM")
             odom.append((msg.timestamp, msg.x, msg.y, msg.theta, msg.tv))
         elif isinstance(msg, CarmenParam):
             counts["PARAM"] += 1
