@@ -253,9 +253,10 @@ def test_fr079s_truth_is_doubtful_in_one_room(fr079_raw: tuple[Any, Any]) -> Non
 
 
 def _local_steps(poses: np.ndarray) -> np.ndarray:
-    d = np.diff(poses[:, :2], axis=0)
-    c, s = np.cos(poses[:-1, 2]), np.sin(poses[:-1, 2])
-    return np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]])
+    """Each increment's translation in the robot's frame."""
+    from ceamcl.pose import relative_poses
+
+    return relative_poses(poses[:-1], poses[1:])[:, :2]
 
 
 def test_fr079s_odometry_takes_the_sign_of_its_velocity() -> None:

@@ -1,4 +1,5 @@
-"""Statistics of weighted pose sets ``(N, 3)``: mean with a circular mean heading, covariance."""
+"""Statistics of weighted pose sets ``(N, 3)``: mean with a circular mean heading, covariance;
+errors between poses and poses in another pose's frame."""
 
 from __future__ import annotations
 
@@ -80,3 +81,13 @@ def inside_ellipse(
         m2 = (d * ex * ex - 2.0 * b * ex * ey + a * ey * ey) / det
     m2 = np.where(np.isfinite(m2) & (det > 0), m2, np.where((ex == 0) & (ey == 0), 0.0, np.inf))
     return np.asarray(m2 <= n_sigma * n_sigma, dtype=bool)
+
+
+def relative_poses(base: ArrayLike, other: ArrayLike) -> NDArray[np.float64]:
+    """Pose of ``other`` in the frame of ``base`` (both world poses ``(N, 3)``): the laser's
+    mount from its world pose and the robot's, an odometry increment in the robot's frame."""
+    b = np.asarray(base, dtype=np.float64)
+    o = np.asarray(other, dtype=np.float64)
+    dx, dy = o[:, 0] - b[:, 0], o[:, 1] - b[:, 1]
+    c, s = np.cos(b[:, 2]), np.sin(b[:, 2])
+    return np.column_stack([c * dx + s * dy, -s * dx + c * dy, diff(o[:, 2], b[:, 2])])

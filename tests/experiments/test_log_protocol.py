@@ -113,7 +113,6 @@ def _trial(algorithm: str, steps_ms: list[float]) -> LogTrialResult:
         final_heading_error_rad=0.01,
         mean_particles=100.0,
         mean_step_ms=float(steps.mean()),
-        median_step_ms=float(np.median(steps)),
         initialisation_ms=900.0,
         updates=steps.size,
         mean_update_ms=float(steps.mean()),

@@ -75,8 +75,6 @@ class LogTrialResult:
     final_heading_error_rad: float
     mean_particles: float
     mean_step_ms: float
-    #: the median over the run's scans (the initialisation, its own column, excluded)
-    median_step_ms: float
     initialisation_ms: float
     updates: int
     mean_update_ms: float
@@ -87,7 +85,12 @@ class LogTrialResult:
     position_errors: NDArray[np.float64] = field(repr=False)
     heading_errors: NDArray[np.float64] = field(repr=False)
     #: every scan's step time after the initialisation (a held-back scan costs 0)
-    step_ms: NDArray[np.float64] = field(repr=False, default_factory=lambda: np.zeros(0))
+    step_ms: NDArray[np.float64] = field(repr=False)
+
+    @property
+    def median_step_ms(self) -> float:
+        """The median over the run's scans (the initialisation, its own column, excluded)."""
+        return float(np.median(self.step_ms)) if self.step_ms.size else math.nan
 
 
 def run_log_trial(trial: LogTrial) -> LogTrialResult:
@@ -125,7 +128,6 @@ def run_log_trial(trial: LogTrial) -> LogTrialResult:
         final_heading_error_rad=final_error(head),
         mean_particles=float(np.mean([d.n_particles for d in result.diagnostics])),
         mean_step_ms=float(result.step_ms.mean()),
-        median_step_ms=float(np.median(result.step_ms)),
         initialisation_ms=float(result.diagnostics[0].step_ms),
         updates=result.updates,
         mean_update_ms=float(result.update_ms.mean()),

@@ -68,11 +68,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ceamcl import budget
-from ceamcl.angles import diff
 from ceamcl.errors import ConfigError, LogFormatError
 from ceamcl.io import streams
 from ceamcl.io.odometry_sign import MOVE_M, check_sign, forward_steps, signed_poses
 from ceamcl.io.recorded import RecordedLog, interpolate_poses
+from ceamcl.pose import relative_poses
 
 __all__ = [
     "CARMEN_DEFAULT_MAX_RANGE_M",
@@ -508,7 +508,7 @@ def read_carmen(
     if stream is with_pose:
         robot = np.asarray(stream.robot_pose, dtype=np.float64)
         laser_world = np.asarray(stream.laser_pose, dtype=np.float64)
-        mount = _relative_poses(robot, laser_world)
+        mount = relative_poses(robot, laser_world)
         if unsigned:
             robot, reversed_increments = signed_poses(times, robot, o[:, 0], o[:, 4])
     else:
@@ -575,11 +575,3 @@ def _param_max_range(params: dict[str, str], laser: int, path: Path) -> float:
             f"{path}: PARAM {key}: expected a number, got {params[key]!r}"
         ) from None
     return value if value > 0 else CARMEN_DEFAULT_MAX_RANGE_M
-
-
-def _relative_poses(base: NDArray[np.float64], other: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Pose of ``other`` in the frame of ``base`` (both world poses ``(N, 3)``)."""
-    dx = other[:, 0] - base[:, 0]
-    dy = other[:, 1] - base[:, 1]
-    c, s = np.cos(base[:, 2]), np.sin(base[:, 2])
-    return np.column_stack([c * dx + s * dy, -s * dx + c * dy, diff(other[:, 2], base[:, 2])])

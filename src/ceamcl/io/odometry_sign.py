@@ -24,6 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from ceamcl.pose import relative_poses
+
 #: An ``ODOM`` line says the robot is backing up below this velocity (m/s).
 REVERSING_TV = -0.02
 #: A pose increment counts as a move when its forward component exceeds this (m).
@@ -58,9 +60,7 @@ class SignCheck:
 
 def forward_steps(poses: NDArray[np.float64]) -> NDArray[np.float64]:
     """Each increment's translation along the heading it starts from."""
-    d = np.diff(poses[:, :2], axis=0)
-    th = poses[:-1, 2]
-    return np.asarray(d[:, 0] * np.cos(th) + d[:, 1] * np.sin(th))
+    return relative_poses(poses[:-1], poses[1:])[:, 0]
 
 
 def _finite(tv: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -87,11 +87,10 @@ def signed_poses(
     odom_t: NDArray[np.float64],
     odom_tv: NDArray[np.float64],
 ) -> tuple[NDArray[np.float64], int]:
-    """``poses`` (at ``times``, increasing) re-integrated from the first with each increment's
+    """``poses`` (at ``times``, increasing) re-summed from the first with each increment's
     translation scaled by the velocity's sign share over its interval (module docstring), the
-    headings as they are;
-    and how many increments changed direction. An interval without an ``ODOM`` line takes the
-    sign of the velocity interpolated at its middle."""
+    headings as they are; and how many increments changed direction. An interval without an
+    ``ODOM`` line takes the sign of the velocity interpolated at its middle."""
     n = poses.shape[0]
     if n < 2 or odom_t.size == 0 or not (np.isfinite(poses).all() and np.isfinite(odom_t).all()):
         return poses.copy(), 0  # one NaN pose would spread to every later one: left alone
