@@ -210,7 +210,7 @@ def print_truth(console: Console, prepared: Any, doubt: TruthDoubt | None = None
         )
     sign = prepared.log.info.get("odometry_sign")
     if sign:
-        console.print(f"odometry: {sign} (--odometry-sign recorded: as recorded)")
+        console.print(f"odometry: {sign} (--odometry-sign recorded reads it as recorded)")
     repaired = int(prepared.log.info.get("repaired_times", 0))
     if repaired:
         console.print(f"scan times: {repaired} raised to the latest before them (--repair-times)")
