@@ -29,8 +29,12 @@ lint: $(STAMP)
 typecheck: $(STAMP)
 	$(BIN)/mypy
 
+# Two workers (pytest-xdist), one per core of the project's machines; --dist loadscope keeps
+# each module's tests on one worker, so a module's shared fixture (the fingerprint runs) is
+# computed once. PYTEST_WORKERS=0 runs the suite in this process.
+PYTEST_WORKERS ?= 2
 pytest: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n $(PYTEST_WORKERS) --dist loadscope
 
 test: lint typecheck pytest
 

@@ -15,8 +15,24 @@ import pytest
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
-# 1..100: a domain per session (by process id), inside the range whose ports are always valid
-os.environ["ROS_DOMAIN_ID"] = str(1 + os.getpid() % 100)
+
+
+def _domain_id() -> int:
+    """1..100, inside the range whose ports are always valid: a domain per session (by process
+    id); under pytest-xdist (``make test`` runs two workers) the session's workers share the
+    run's id, a random string, and each takes its own domain from it by its worker number,
+    so two workers of one run never share a domain."""
+    worker = os.environ.get("PYTEST_XDIST_WORKER")  # "gw0", "gw1", ...
+    run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
+    if worker is None or run is None or not worker.startswith("gw"):
+        return 1 + os.getpid() % 100
+    index = int(worker[2:])
+    count = max(1, int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1")))
+    slots = 100 // count
+    return 1 + (int(run, 16) % slots) * count + index % count
+
+
+os.environ["ROS_DOMAIN_ID"] = str(_domain_id())
 
 try:
     import rclpy  # noqa: F401
