@@ -17,9 +17,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from ceamcl.experiments.metrics import step_coverage
+from ceamcl.experiments.routes import paper_course
+from ceamcl.experiments.trials import trial_generators
 from ceamcl.filters import make_filter
 from ceamcl.filters.ceamcl import CEAMCL
 from ceamcl.filters.ceamcl.config import CEAMCLConfig
+from ceamcl.filters.ceamcl.phases import compete
+from ceamcl.filters.registry import with_config
 from ceamcl.maps.worlds import symmetric_images
 from ceamcl.motion.odometry import increment_between
 from ceamcl.runner import run_filter
@@ -169,6 +174,74 @@ def test_species_of_equal_fitness_coexist_while_the_world_is_symmetric(
     shares = {h.label: h.weight for h in f.hypotheses()}
     print(f"{len(log)} steps; final shares {sorted(shares.values())}")
     assert min(shares[sid] for sid in ids) > 0.05  # none is written off either
+
+
+def _symmetric_hall_run(route: int, repetition: int, margin: float | None) -> list[int]:
+    """Table 1's run of ``route`` and ``repetition`` (base seed 0, its generators) with
+    ``viable_fit_margin=margin``: how many of the four images a species covers at each step."""
+    course = paper_course()
+    sim_rng, filter_rng = trial_generators(0, route, repetition)
+    log = course.scenario(route).simulate(sim_rng, course.grid())
+    config = with_config("ceamcl", viable_fit_margin=margin)
+    f = make_filter("ceamcl", course.grid(), filter_rng, config=config)
+    result = run_filter(f, log)
+    return [
+        int(step_coverage(result.hypotheses[k], course.images(log.true_poses[k]))[0].sum())
+        for k in range(result.steps)
+    ]
+
+
+def test_equal_species_are_not_starved_by_a_transient_contest() -> None:
+    """Departure 13 (docs/ceamcl.md): table 1's room 1, repetition 15 is the run in which three
+    scans that fit the quarter-turned family a little better (steps 56-59) left the four true
+    images 1.2 % of the weight, and eq. 9 shrank them to extinction at step 65 while they fitted
+    as well as their rivals again. With equal species kept at a viable size while the filter
+    is ambiguous, the images live through it and cover the truth at every step."""
+    covered = _symmetric_hall_run(1, 15, CEAMCLConfig().viable_fit_margin)
+    assert min(covered[40:]) == 4
+    # the same run with eq. 9 alone (the departure off): the images die out
+    assert min(_symmetric_hall_run(1, 15, None)[40:]) == 0
+
+
+def test_only_an_ambiguous_filter_keeps_equal_species_viable() -> None:
+    """The viable size is for species that fit as well as the best, most of the recent
+    updates, while at least two hold weight; a lone heavy species' light rival that fits as
+    well is left to eq. 9 (so a tracked robot keeps the single-species rules: beam skipping,
+    the tracking floor), and so is one that has only just come to fit as well."""
+    sc = paper_scenario(0)
+    grid = sc.grid()
+    sim_rng, filter_rng = generators(0)
+    log = sc.simulate(sim_rng, grid)
+    f = ceamcl(grid, filter_rng)
+    images = symmetric_images(log.true_poses[0])
+    f.initialise_hypotheses(images[:3], np.diag([0.0025, 0.0025, 0.0025]))
+    f.step(increment_between(log.odometry[0], log.odometry[1]), log.scan(1))
+    ids = sorted(f.stats)
+    assert len(ids) == 3
+    light = ids[2]
+
+    def raised(log_weights: list[float], record: float) -> dict[int, float]:
+        """What departure 13 adds to eq. 9's dN, every species having fitted as well as
+        the best at the share ``record`` of the recent updates."""
+        f.log_weight = dict(zip(ids, log_weights, strict=True))
+        f._equal_record = dict.fromkeys(ids, record)
+        f.competition = compete(f.stats, f.config.competition, f._competition_fitness())
+        eq9 = dict(f.competition.dn)
+        f._keep_equals_viable()
+        return {sid: f.competition.dn[sid] - eq9[sid] for sid in ids}
+
+    # two species hold half the weight each, the third 0.1 %; all three fit as well (the
+    # images of one pose) and have done so: eq. 9 would starve the third (dN = -n), the
+    # departure keeps it at the viable size
+    ambiguous = [0.0, 0.0, float(np.log(1e-3))]
+    up = raised(ambiguous, 1.0)
+    print({sid: (f.stats[sid].n, f.competition.dn[sid], up[sid]) for sid in ids})
+    assert up[light] > 0.0
+    assert f.stats[light].n + f.competition.dn[light] == f.config.viable_size
+    # the same, but none has a record of fitting as well yet: eq. 9 alone
+    assert raised(ambiguous, 0.0) == dict.fromkeys(ids, 0.0)
+    # one species holds all but 0.2 %: eq. 9 alone, whatever the record
+    assert raised([0.0, float(np.log(1e-3)), float(np.log(1e-3))], 1.0) == dict.fromkeys(ids, 0.0)
 
 
 def test_a_species_seeing_through_walls_loses_evidence_the_likelihood_field_alone_gives() -> None:

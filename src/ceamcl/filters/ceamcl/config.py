@@ -77,6 +77,13 @@ class CEAMCLConfig:
             the step before, moved by the odometry, when it lies within ``evidence_warm_gate``
             mutation Sigmas of the best sample in every coordinate (docs/ceamcl.md, departure
             6).
+        viable_fit_margin, viable_size, viable_weight_min: while the filter is ambiguous (at
+            least two species hold ``viable_weight_min`` of the weight each), a species whose
+            fitness (its fittest individual's, or its climb's peak) is within
+            ``viable_fit_margin`` of the best species' keeps at least ``viable_size`` samples:
+            equal species coexist, and the competition cannot starve one that fits as well
+            as the leader before the evidence can turn (docs/ceamcl.md, departure 13). Its
+            weight stays what its evidence says. ``viable_fit_margin=None``: eq. 9 alone.
         see_through_margin_m, see_through_tolerance: with the likelihood field, each step's
             evidence of a species is taken at its best sample with the readings that pass
             more than ``see_through_margin_m`` through a mapped wall scored as unexplained,
@@ -170,6 +177,10 @@ class CEAMCLConfig:
     evidence_shrink: float = 0.6
     evidence_warm_start: bool = True
     evidence_warm_gate: float = 3.0
+    viable_fit_margin: float | None = 0.02
+    viable_size: int = 6
+    viable_weight_min: float = DEFAULT_THRESHOLDS.weight_min
+    viable_memory: float = 0.05
     see_through_margin_m: float | None = 0.5
     see_through_tolerance: float = 0.1
     recovery: bool = True
@@ -207,6 +218,10 @@ class CEAMCLConfig:
             "cell_fitness_exponent": self.cell_fitness_exponent > 0,
             "cell_smoothing": self.cell_smoothing >= 1,
             "min_species_size": self.min_species_size >= 1,
+            "viable_fit_margin": self.viable_fit_margin is None or self.viable_fit_margin >= 0,
+            "viable_size": self.viable_size >= self.min_species_size,
+            "viable_weight_min": 0 < self.viable_weight_min <= 1,
+            "viable_memory": 0 < self.viable_memory <= 1,
             "split_cell_m": self.split_cell_m > 0,
             "split_cell_rad": 0 < self.split_cell_rad <= np.pi,
             "merge_valley_ratio": 0 <= self.merge_valley_ratio <= 1,

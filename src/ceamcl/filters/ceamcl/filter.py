@@ -148,6 +148,9 @@ class CEAMCL:
         #: each species' fitness at the peak its evidence climb found this step, when it
         #: climbed: how well the hypothesis can fit the scan (docs/state.md)
         self._peak_fitness: dict[int, float] = {}
+        #: each species' running share of the updates at which it fitted as well as the best
+        #: while the filter was ambiguous (departure 13)
+        self._equal_record: dict[int, float] = {}
         #: the last scan received, for the state's wall-crossing test (docs/state.md)
         self.last_scan: LaserScan | None = None
         #: the state's memory of how well the map explains the scans (docs/state.md); the
@@ -381,7 +384,44 @@ class CEAMCL:
             return self._restart(full)  # kidnapped: no species explains the scans
         # 7. Competition: dN of every species for the next step.
         self.competition = compete(self.stats, cfg.competition, self._competition_fitness())
+        self._keep_equals_viable()
         return self._record(reinitialised=False)
+
+    def _keep_equals_viable(self) -> None:
+        """Departure 13 (docs/ceamcl.md): while at least two species hold
+        ``viable_weight_min`` of the weight each, every species that fits the scan within
+        ``viable_fit_margin`` of the best one (fittest individual or climb peak, as the state
+        reads it) gets the ``dN`` that keeps it at ``viable_size`` samples or more. Eq. 9
+        with ``alpha_ij = w_j / w_i`` shrinks a species whose accumulated evidence fell behind
+        a transient contest, even while it fits as well as its rivals again; now it lives
+        while it does, and its weight is what its evidence says."""
+        cfg = self.config
+        margin = cfg.viable_fit_margin
+        if margin is None or len(self.stats) < 2:
+            self._equal_record = {}
+            return
+        stats, share = self._ranked_shares()
+        if np.count_nonzero(share >= cfg.viable_weight_min) < 2:
+            self._equal_record = {}
+            return
+        fit = {
+            s.species_id: float(
+                np.nan_to_num(_reported_fitness(s, self._peak_fitness.get(s.species_id)))
+            )
+            for s in stats
+        }
+        best = max(fit.values())
+        bar = max(best - margin, cfg.confirm_fit_below or 0.0)
+        a = cfg.viable_memory
+        record = {
+            sid: (1.0 - a) * self._equal_record.get(sid, 0.0) + a * float(fit[sid] >= bar)
+            for sid in fit
+        }
+        self._equal_record = record
+        dn = self.competition.dn
+        for s in stats:
+            if fit[s.species_id] >= bar and record[s.species_id] >= 0.5:
+                dn[s.species_id] = max(dn.get(s.species_id, 0.0), float(cfg.viable_size - s.n))
 
     # ------------------------------------------------------------------ evidence
     def _probe_peaks(
@@ -754,6 +794,8 @@ class CEAMCL:
             self.log_weight[sid] = self.log_weight.get(parent, 0.0)  # the parent's past
             if parent in self.log_prior:
                 self.log_prior[sid] = self.log_prior[parent]
+            if parent in self._equal_record:
+                self._equal_record[sid] = self._equal_record[parent]
             self._peaks.pop(parent, None)  # the peak may lie in either part
         for sid, short in shortfall.items():
             self.log_weight[sid] = self.log_weight.get(sid, 0.0) + short
