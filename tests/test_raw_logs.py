@@ -15,6 +15,7 @@ import pytest
 
 from ceamcl.cli import main
 from ceamcl.io.tum import read_tum
+from ceamcl.pose import relative_poses
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 RAW = DATA / "carmen-raw" / "fr079.clf.gz"
@@ -254,8 +255,6 @@ def test_fr079s_truth_is_doubtful_in_one_room(fr079_raw: tuple[Any, Any]) -> Non
 
 def _local_steps(poses: np.ndarray) -> np.ndarray:
     """Each increment's translation in the robot's frame."""
-    from ceamcl.pose import relative_poses
-
     return relative_poses(poses[:-1], poses[1:])[:, :2]
 
 

@@ -225,9 +225,10 @@ def test_only_an_ambiguous_filter_keeps_equal_species_viable() -> None:
         the best at the share ``record`` of the recent updates."""
         f.log_weight = dict(zip(ids, log_weights, strict=True))
         f._equal_record = dict.fromkeys(ids, record)
-        f.competition = compete(f.stats, f.config.competition, f._competition_fitness())
-        eq9 = dict(f.competition.dn)
-        f._keep_equals_viable()
+        eq9 = compete(f.stats, f.config.competition, f._competition_fitness()).dn
+        f.competition = compete(
+            f.stats, f.config.competition, f._competition_fitness(), f._viable_floors()
+        )
         return {sid: f.competition.dn[sid] - eq9[sid] for sid in ids}
 
     # two species hold half the weight each, the third 0.1 %; all three fit as well (the

@@ -383,45 +383,49 @@ class CEAMCL:
                 return self._recover(full, increment)  # a second opinion (departure 9)
             return self._restart(full)  # kidnapped: no species explains the scans
         # 7. Competition: dN of every species for the next step.
-        self.competition = compete(self.stats, cfg.competition, self._competition_fitness())
-        self._keep_equals_viable()
+        self.competition = compete(
+            self.stats, cfg.competition, self._competition_fitness(), self._viable_floors()
+        )
         return self._record(reinitialised=False)
 
-    def _keep_equals_viable(self) -> None:
-        """Departure 13 (docs/ceamcl.md): while at least two species hold
-        ``viable_weight_min`` of the weight each, every species that fits the scan within
-        ``viable_fit_margin`` of the best one (fittest individual or climb peak, as the state
-        reads it) gets the ``dN`` that keeps it at ``viable_size`` samples or more. Eq. 9
-        with ``alpha_ij = w_j / w_i`` shrinks a species whose accumulated evidence fell behind
-        a transient contest, even while it fits as well as its rivals again; now it lives
-        while it does, and its weight is what its evidence says."""
+    def _viable_floors(self) -> dict[int, int]:
+        """Departure 13 (docs/ceamcl.md): the species that keep ``viable_size`` samples
+        whatever eq. 9 says. While at least two species hold ``viable_weight_min`` of the
+        weight each, a species qualifies when its fitness as the state reads it (fittest
+        individual or climb peak) is within ``viable_fit_margin`` of the best species' and at
+        least ``confirm_fit_below``, and has been at a running share of at least a half of
+        the recent updates (``viable_memory`` an update, the share kept across updates in
+        ``_equal_record``). Eq. 9 with ``alpha_ij = w_j / w_i`` shrinks a species whose
+        accumulated evidence fell behind a transient contest, even while it fits as well as
+        its rivals again; now it lives while it does, and its weight is what its evidence
+        says. Updates the record."""
         cfg = self.config
         margin = cfg.viable_fit_margin
         if margin is None or len(self.stats) < 2:
             self._equal_record = {}
-            return
+            return {}
         stats, share = self._ranked_shares()
         if np.count_nonzero(share >= cfg.viable_weight_min) < 2:
             self._equal_record = {}
-            return
+            return {}
         fit = {
             s.species_id: float(
                 np.nan_to_num(_reported_fitness(s, self._peak_fitness.get(s.species_id)))
             )
             for s in stats
         }
-        best = max(fit.values())
-        bar = max(best - margin, cfg.confirm_fit_below or 0.0)
+        bar = max(max(fit.values()) - margin, cfg.confirm_fit_below or 0.0)
         a = cfg.viable_memory
-        record = {
-            sid: (1.0 - a) * self._equal_record.get(sid, 0.0) + a * float(fit[sid] >= bar)
-            for sid in fit
+        equal = {sid: f >= bar for sid, f in fit.items()}
+        self._equal_record = {
+            sid: (1.0 - a) * self._equal_record.get(sid, 0.0) + a * float(ok)
+            for sid, ok in equal.items()
         }
-        self._equal_record = record
-        dn = self.competition.dn
-        for s in stats:
-            if fit[s.species_id] >= bar and record[s.species_id] >= 0.5:
-                dn[s.species_id] = max(dn.get(s.species_id, 0.0), float(cfg.viable_size - s.n))
+        return {
+            sid: cfg.viable_size
+            for sid, ok in equal.items()
+            if ok and self._equal_record[sid] >= 0.5
+        }
 
     # ------------------------------------------------------------------ evidence
     def _probe_peaks(

@@ -283,10 +283,13 @@ def compete(
     stats: dict[int, SpeciesStats],
     config: CompetitionConfig,
     fitness: dict[int, float] | None = None,
+    floors: dict[int, int] | None = None,
 ) -> Competition:
     """Phase 7, eqs. 9-16: resources, carrying capacities and every species' ``dN`` for the
     next step (Lotka-Volterra competition, integrated exactly over a step). ``fitness`` is the
-    ``w`` of eqs. 9 and 16 by species id, in (0, 1] (default: each species' mean fitness)."""
+    ``w`` of eqs. 9 and 16 by species id, in (0, 1] (default: each species' mean fitness).
+    ``floors``: a size some species keep whatever eq. 9 says (their ``dN`` raised to reach
+    it; docs/ceamcl.md, departure 13), as a lone species keeps the tracking floor."""
     ids = list(stats)
     out = Competition()
     if not ids:
@@ -300,6 +303,9 @@ def compete(
     if config.fill_tracking_floor and tracking is not None:
         # the competition is over: the floor tracking needs holds from now, not in 10-25 steps
         dn = np.maximum(dn, config.delta_per_m2 * tracking - n)
+    for k, sid in enumerate(ids):
+        if floors and sid in floors:
+            dn[k] = max(dn[k], floors[sid] - n[k])
     out.dn = dict(zip(ids, dn.tolist(), strict=True))
     return out
 
