@@ -4,7 +4,8 @@ explains the scans, the estimate stays on it instead of passing to whichever loo
 fits the step's scan as well; a robot that was really carried off is still found again (the
 kidnap tests in ``test_ceamcl_recovery.py`` run with the default). A new species near a kept
 one starts level with it, and the handicap of a far one does not fade while it fits no better
-(departure 11; the raw-log case is in ``tests/test_raw_logs.py``)."""
+(departure 11; the raw-log case is in ``tests/test_raw_logs.py``), and so does one near the
+pose the filter last held with confidence, carried on by the odometry (departure 14)."""
 
 from __future__ import annotations
 
@@ -146,3 +147,70 @@ def test_a_new_species_near_a_kept_one_starts_level(
     assert handicaps == {10: 0.0 if near else log_p, 11: log_p}
     f.config = replace(f.config, recovery_drift_m=None)
     assert f._recovery_handicaps(old, log_p) == {10: log_p, 11: log_p}
+
+
+@pytest.mark.parametrize(
+    ("new_pose", "kept", "level"),
+    [
+        # the look-alike that took the lead stands 20 m away: the anchor stands in for the
+        # place the filter lost, so a new species near it starts level ...
+        ((0.5, 0.3, 0.1), (20.0, 0.0, 0.0), True),
+        ((-3.5, 0.0, 0.0), (20.0, 0.0, 0.0), True),
+        ((0.0, 0.0, 1.57), (20.0, 0.0, 0.0), False),  # ... not a quarter-turned one
+        ((5.0, 0.0, 0.0), (20.0, 0.0, 0.0), False),  # ... nor one beyond recovery_drift_m
+        # a kept species stands near the anchor: it is the place, the anchor adds nothing
+        ((-3.5, 0.0, 0.0), (3.0, 0.0, 0.0), False),
+    ],
+)
+def test_a_new_species_near_the_last_confident_pose_starts_level(
+    new_pose: tuple[float, float, float], kept: tuple[float, float, float], level: bool
+) -> None:
+    """Departure 14 (docs/ceamcl.md): the pose the filter last held with the map's agreement,
+    carried on by the odometry, counts as a species the filter had when none it still has
+    stands there."""
+    course = paper_course()
+    f = make_filter("ceamcl", course.grid(), np.random.default_rng(0))
+    assert isinstance(f, CEAMCL)
+    new, old = _two_sets([new_pose, (30.0, 30.0, 0.0)], [kept])
+    f.particle_set = new
+    f._anchor = np.zeros(3)
+    log_p = float(np.log(1e-6))
+    assert f._recovery_handicaps(old, log_p) == {10: 0.0 if level else log_p, 11: log_p}
+    f._anchor = None  # no confident pose (or one older than recovery_anchor_m)
+    assert f._recovery_handicaps(old, log_p) == {10: log_p, 11: log_p}
+
+
+def test_the_last_confident_pose_follows_the_odometry_and_is_forgotten() -> None:
+    """The anchor is the leading pose at an update where the state says LOCALISED and the map
+    explains the scan there; between such updates the odometry carries it, and beyond
+    ``recovery_anchor_m`` of travel it is forgotten. A scan the map does not explain (a crowd
+    around the robot) does not move it."""
+    course = paper_course()
+    log = course.scenario(0).simulate(np.random.default_rng(3), course.grid())
+    truth = log.true_poses
+    f = make_filter("ceamcl", course.grid(), np.random.default_rng(3))
+    assert isinstance(f, CEAMCL)
+    f.initialise_pose(truth[0], np.diag([0.05**2, 0.05**2, 0.03**2]))
+    assert f._anchor is None
+    f.step(STILL, log.scan(0))
+    assert f._anchor is not None and position_error(f._anchor, truth[0]) < 0.1
+    # blind steps (no scan): only the odometry moves it
+    travelled, k = 0.0, 0
+    while travelled < 3.0:
+        k += 1
+        inc = increment_between(log.odometry[k - 1], log.odometry[k])
+        travelled += abs(inc.trans)
+        f.step(inc, None)
+    assert f._anchor is not None and position_error(f._anchor, truth[k]) < 0.2
+    # a crowd: every reading 0.4 m long, nothing the map explains
+    crowd = replace(log.scan(k), ranges=np.full(log.scan(k).ranges.shape, 0.4))
+    held = f._anchor.copy()
+    f.step(STILL, crowd)
+    assert f._anchor is not None and np.array_equal(f._anchor, held)
+    # beyond recovery_anchor_m of travel without a confident update
+    assert f._anchor_travel == pytest.approx(travelled)
+    f.config = replace(f.config, recovery_anchor_m=travelled + 1.0)
+    while f._anchor is not None and k < len(log) - 1:
+        k += 1
+        f.step(increment_between(log.odometry[k - 1], log.odometry[k]), None)
+    assert f._anchor is None and f._anchor_travel > travelled + 1.0

@@ -109,6 +109,12 @@ class CEAMCLConfig:
             robot (an odometry fault, a stretch the map explains poorly) is far likelier than
             a kidnap (docs/ceamcl.md, departure 11). ``recovery_drift_m=None``: every new
             species starts at ``recovery_prior``.
+        recovery_anchor_m: the filter's last confident pose (the leading hypothesis the last
+            time its state said LOCALISED), carried on by the odometry, counts as a species the
+            filter had in ``recovery_drift_m``'s test for this many metres of travel: a new
+            species near where the odometry says the robot is since it was last localised
+            starts level, even after a look-alike place has taken the lead from the drifted
+            species (docs/ceamcl.md, departure 14). ``None``: only the living species count.
         recovery_prior_fades: ``False`` (the default): the handicap ``recovery_prior`` of a
             new species beyond ``recovery_drift_m`` stays in its weight while other species
             live, so a far place must out-fit the near ones by that much in the evidence the
@@ -194,6 +200,7 @@ class CEAMCLConfig:
     recovery_drift_m: float | None = 4.0
     recovery_drift_rad: float = 1.0
     recovery_prior_fades: bool = False
+    recovery_anchor_m: float | None = 20.0
     recovery_lost_updates: int | None = 3
     beam_skip: BeamSkipConfig | None = field(default_factory=BeamSkipConfig)
     confirm_fit_below: float | None = DEFAULT_THRESHOLDS.fit_min
@@ -263,6 +270,7 @@ class CEAMCLConfig:
             "recovery_prior": self.recovery_prior is None or 0 < self.recovery_prior <= 1,
             "recovery_drift_m": self.recovery_drift_m is None or self.recovery_drift_m >= 0,
             "recovery_drift_rad": 0 <= self.recovery_drift_rad <= math.pi,
+            "recovery_anchor_m": self.recovery_anchor_m is None or self.recovery_anchor_m >= 0,
             "recovery_lost_updates": self.recovery_lost_updates is None
             or self.recovery_lost_updates >= 1,
         }
