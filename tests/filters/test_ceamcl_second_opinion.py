@@ -17,6 +17,7 @@ import pytest
 from ceamcl.experiments.routes import paper_course
 from ceamcl.filters import make_filter
 from ceamcl.filters.ceamcl import CEAMCL, CEAMCLConfig
+from ceamcl.filters.ceamcl.anchor import _Carried
 from ceamcl.filters.particles import ParticleSet
 from ceamcl.motion.odometry import OdometryIncrement, increment_between
 from ceamcl.pose import position_error
@@ -173,10 +174,10 @@ def test_a_new_species_near_the_last_confident_pose_starts_level(
     assert isinstance(f, CEAMCL)
     new, old = _two_sets([new_pose, (30.0, 30.0, 0.0)], [kept])
     f.particle_set = new
-    f._anchor = np.zeros(3)
+    f.confident._anchor = _Carried(np.zeros(3), 0.0)
     log_p = float(np.log(1e-6))
     assert f._recovery_handicaps(old, log_p) == {10: 0.0 if level else log_p, 11: log_p}
-    f._anchor = None  # no confident pose (or one older than recovery_anchor_m)
+    f.confident.reset()  # no confident pose (or one older than recovery_anchor_m)
     assert f._recovery_handicaps(old, log_p) == {10: log_p, 11: log_p}
 
 
@@ -191,9 +192,10 @@ def test_the_last_confident_pose_follows_the_odometry_and_is_forgotten() -> None
     f = make_filter("ceamcl", course.grid(), np.random.default_rng(3))
     assert isinstance(f, CEAMCL)
     f.initialise_pose(truth[0], np.diag([0.05**2, 0.05**2, 0.03**2]))
-    assert f._anchor is None
+    assert f.confident.anchor() is None
     f.step(STILL, log.scan(0))
-    assert f._anchor is not None and position_error(f._anchor, truth[0]) < 0.1
+    first = f.confident.anchor()
+    assert first is not None and position_error(first[0], truth[0]) < 0.1 and first[1] == 0.0
     # blind steps (no scan): only the odometry moves it
     travelled, k = 0.0, 0
     while travelled < 3.0:
@@ -201,16 +203,20 @@ def test_the_last_confident_pose_follows_the_odometry_and_is_forgotten() -> None
         inc = increment_between(log.odometry[k - 1], log.odometry[k])
         travelled += abs(inc.trans)
         f.step(inc, None)
-    assert f._anchor is not None and position_error(f._anchor, truth[k]) < 0.2
+    carried = f.confident.anchor()
+    assert carried is not None and position_error(carried[0], truth[k]) < 0.2
+    assert carried[1] == pytest.approx(travelled)
     # a crowd: every reading 0.4 m long, nothing the map explains
     crowd = replace(log.scan(k), ranges=np.full(log.scan(k).ranges.shape, 0.4))
-    held = f._anchor.copy()
     f.step(STILL, crowd)
-    assert f._anchor is not None and np.array_equal(f._anchor, held)
+    held = f.confident.anchor()
+    assert held is not None and np.array_equal(held[0], carried[0]) and held[1] == carried[1]
     # beyond recovery_anchor_m of travel without a confident update
-    assert f._anchor_travel == pytest.approx(travelled)
     f.config = replace(f.config, recovery_anchor_m=travelled + 1.0)
-    while f._anchor is not None and k < len(log) - 1:
+    moved = travelled
+    while f.confident.anchor() is not None and k < len(log) - 1:
         k += 1
-        f.step(increment_between(log.odometry[k - 1], log.odometry[k]), None)
-    assert f._anchor is None and f._anchor_travel > travelled + 1.0
+        inc = increment_between(log.odometry[k - 1], log.odometry[k])
+        moved += abs(inc.trans)
+        f.step(inc, None)
+    assert f.confident.anchor() is None and moved > travelled + 1.0

@@ -383,6 +383,17 @@ class MapAgreement:
         self._pose = p.copy()
         return self._streak, share
 
+    def share_at(self, step: int, scan: LaserScan | None, pose: NDArray[np.float64]) -> float:
+        """The share :meth:`observe` gives ``step``'s scan at ``pose``, without counting the
+        update: the share already judged when that update was read at that pose, else
+        computed (NaN without a scan)."""
+        p = np.asarray(pose, dtype=np.float64)
+        if self._step == step and self._pose is not None and np.array_equal(p, self._pose):
+            return self._share
+        if scan is None:
+            return math.nan
+        return explained_share(self.grid, p, scan, self.thresholds.explained_tol_m)
+
     def apply(
         self,
         state: LocalisationState,

@@ -44,6 +44,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ceamcl import angles
 from ceamcl.filters.base import Algorithm, Hypothesis, ParticleSnapshot, PoseEstimate
+from ceamcl.filters.ceamcl.anchor import ConfidentPose
 from ceamcl.filters.ceamcl.config import CEAMCLConfig
 from ceamcl.filters.ceamcl.initialisation import InitialSpecies, initial_species, polish
 from ceamcl.filters.ceamcl.phases import (
@@ -151,16 +152,14 @@ class CEAMCL:
         #: each species' running share of the updates at which it fitted as well as the best
         #: while the filter was ambiguous (departure 13)
         self._equal_record: dict[int, float] = {}
-        #: the leading hypothesis' pose the last time the state said LOCALISED, carried on by
-        #: the odometry, and the metres travelled since (departure 14); None when there is
-        #: none or it is older than ``recovery_anchor_m``
-        self._anchor: NDArray[np.float64] | None = None
-        self._anchor_travel = 0.0
         #: the last scan received, for the state's wall-crossing test (docs/state.md)
         self.last_scan: LaserScan | None = None
         #: the state's memory of how well the map explains the scans (docs/state.md); the
         #: recovery reads the state without it (:meth:`_lost_too_long`)
         self.map_agreement = MapAgreement(grid)
+        #: the leading pose the last time the filter was LOCALISED with the map's agreement,
+        #: carried on by the odometry (departure 14)
+        self.confident = ConfidentPose(self.map_agreement)
 
     # ================================================================== initialisation
     def initialise_global(self, scan: LaserScan) -> CEAMCLRecord:
@@ -168,7 +167,7 @@ class CEAMCL:
         self.t = 0
         self.map_agreement.reset()
         self.last_scan = scan
-        self._anchor = None
+        self.confident.reset()
         self.events = Events()
         self._evaluations = 0
         self._initialise_from(usable(self.sensor, scan))
@@ -261,14 +260,14 @@ class CEAMCL:
         new = label_groups(self.particle_set.labels)
         reach = self.config.recovery_drift_m
         olds = [pose_mean(old.poses[idx]) for idx in label_groups(old.labels).values()]
-        if reach is None or not (olds or self._anchor is not None):
+        confident = self.confident.anchor()
+        if reach is None or not (olds or confident is not None):
             return {sid: log_prior for sid in new}
         b = np.array(olds).reshape(-1, 3)
-        anchor = self._anchor
-        if anchor is not None and not self._near(anchor[None, :], b, reach).any():
+        if confident is not None and not self._near(confident[0][None, :], b, reach).any():
             # where the odometry says the robot is since it was last localised, when no
             # species the filter still has stands there (departure 14)
-            b = np.vstack([b, anchor])
+            b = np.vstack([b, confident[0]])
         a = np.array([pose_mean(self.particle_set.poses[idx]) for idx in new.values()])
         near = self._near(a, b, reach)
         return {sid: 0.0 if ok else log_prior for sid, ok in zip(new, near, strict=True)}
@@ -287,7 +286,7 @@ class CEAMCL:
         """Pose tracking: one species of ``tracking_samples`` around a known pose."""
         sid = self._next_id
         self._read = None
-        self._anchor = None
+        self.confident.reset()
         self.particle_set = gaussian(pose, covariance, self.config.tracking_samples, self.rng)
         self.particle_set.labels[:] = sid
         self._next_id = sid + 1
@@ -306,7 +305,7 @@ class CEAMCL:
         if centres.shape[0] == 0:
             raise ValueError("poses: expected at least one pose")
         self._read = None
-        self._anchor = None
+        self.confident.reset()
         parts = []
         for pose in centres:
             part = gaussian(pose, covariance, self.config.tracking_samples, self.rng)
@@ -357,7 +356,7 @@ class CEAMCL:
         members = resample_within_labels(ps, targets, self.rng)
         # 3. Prediction.
         propagate(ps, self.motion, increment, self.rng)
-        self._carry_anchor(increment)
+        self.confident.carry(increment, self.config.recovery_anchor_m)
         if prepared is None:
             # No information: sizes freeze (dN = 0) and the particles, just resampled, keep
             # equal weights (no evidence is counted twice at the next resampling).
@@ -399,7 +398,7 @@ class CEAMCL:
         self._split_and_merge(members, ps.loglik)  # leaves self.stats fresh
         collapsed = self._fitness_collapsed()  # both run: each keeps its own running record
         lost = self._lost_too_long()
-        self._update_anchor()
+        self._propose_anchor()
         if collapsed or lost:
             self.events.recoveries += 1
             if cfg.recovery_prior is not None:
@@ -450,40 +449,20 @@ class CEAMCL:
             if ok and self._equal_record[sid] >= 0.5
         }
 
-    def _carry_anchor(self, increment: OdometryIncrement) -> None:
-        """Move the last confident pose by the odometry (departure 14); forget it beyond
-        ``recovery_anchor_m`` of travel, where dead reckoning no longer says where it is."""
-        if self._anchor is None:
-            return
-        self._anchor_travel += abs(float(increment.trans))
-        reach = self.config.recovery_anchor_m
-        if reach is None or self._anchor_travel > reach:
-            self._anchor = None
-            return
-        self._anchor = apply_increment(
-            self._anchor, increment.rot1, increment.trans, increment.rot2
-        )[0]
-
-    def _update_anchor(self) -> None:
-        """Departure 14 (docs/ceamcl.md): when the state says LOCALISED and the map explains
-        this scan at the leading pose (:class:`~ceamcl.filters.state.MapAgreement`'s share at
-        least its ``explained_below``), that pose is the anchor a later recovery measures
-        drift from (:meth:`_recovery_handicaps`). A pose drifting in a room the map holds
-        poorly is not one."""
+    def _propose_anchor(self) -> None:
+        """Departure 14 (docs/ceamcl.md): at an update where the state (as the recovery reads
+        it) says LOCALISED, the leading pose is proposed as the anchor a later recovery
+        measures drift from (:meth:`_recovery_handicaps`); it becomes the anchor if the map
+        explains this scan there (:class:`~ceamcl.filters.ceamcl.anchor.ConfidentPose`). A
+        pose drifting in a room the map holds poorly is not one."""
         if self.config.recovery_anchor_m is None:
             return
         if self._read is None:
             hyps = self.hypotheses()
             self._read = (hyps, self._read_state(hyps))
         hyps, read = self._read
-        if read.state is not State.LOCALISED or not hyps:
-            return
-        state = self.state(hyps)  # the map's agreement, read once an update (MapAgreement)
-        if state.state is State.LOCALISED and (
-            state.map_explained >= self.map_agreement.thresholds.explained_below
-        ):
-            self._anchor = hyps[0].pose.copy()
-            self._anchor_travel = 0.0
+        if read.state is State.LOCALISED and hyps:
+            self.confident.propose(hyps[0].pose, self.last_scan, self.t)
 
     # ------------------------------------------------------------------ evidence
     def _probe_peaks(

@@ -1,0 +1,92 @@
+"""The filter's last confident pose, carried on by the odometry (docs/ceamcl.md, departure 14).
+
+At an update where the state (as the recovery reads it) says LOCALISED, the leading pose is a
+*candidate*; it becomes the *anchor* when the map explains that update's scan there
+(:class:`~ceamcl.filters.state.MapAgreement`'s share at least its ``explained_below``). The
+odometry carries both between updates; beyond ``reach_m`` of travel (``recovery_anchor_m``)
+each is forgotten. A
+candidate is judged when the next one arrives or when a recovery asks for the anchor, by then
+usually from the share the state's reading of that update already computed
+(:meth:`~ceamcl.filters.state.MapAgreement.share_at`), so an update pays for no second look at
+the map.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ceamcl.filters.state import MapAgreement
+from ceamcl.motion.odometry import OdometryIncrement, apply_increment
+from ceamcl.sensors.scan import LaserScan
+
+
+@dataclass
+class _Carried:
+    pose: NDArray[np.float64]  # where the odometry has carried it since
+    travel: float  # metres travelled since
+
+
+@dataclass
+class _Candidate(_Carried):
+    judged_at: NDArray[np.float64]  # the leading pose at its update
+    scan: LaserScan | None
+    step: int
+
+
+class ConfidentPose:
+    """The anchor (``None`` when there is none within ``reach_m`` of travel) and at most one
+    candidate waiting to be judged."""
+
+    def __init__(self, agreement: MapAgreement) -> None:
+        self.agreement = agreement
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget both (a new start)."""
+        self._anchor: _Carried | None = None
+        self._candidate: _Candidate | None = None
+
+    def propose(self, pose: NDArray[np.float64], scan: LaserScan | None, step: int) -> None:
+        """A LOCALISED update's leading pose; the candidate before it is judged first."""
+        self._judge()
+        p = np.array(pose, dtype=np.float64)
+        self._candidate = _Candidate(p.copy(), 0.0, p, scan, step)
+
+    def carry(self, increment: OdometryIncrement, reach_m: float | None) -> None:
+        """Move both by the odometry; forget whichever has travelled beyond ``reach_m``
+        (``None``: both)."""
+        trans = abs(float(increment.trans))
+        self._anchor = self._moved(self._anchor, increment, trans, reach_m)
+        candidate = self._moved(self._candidate, increment, trans, reach_m)
+        self._candidate = candidate if isinstance(candidate, _Candidate) else None
+
+    def anchor(self) -> tuple[NDArray[np.float64], float] | None:
+        """The anchor's pose and the metres travelled since it was confident, the waiting
+        candidate judged first."""
+        self._judge()
+        if self._anchor is None:
+            return None
+        return self._anchor.pose.copy(), self._anchor.travel
+
+    @staticmethod
+    def _moved(
+        c: _Carried | None, increment: OdometryIncrement, trans: float, reach_m: float | None
+    ) -> _Carried | None:
+        if c is None:
+            return None
+        c.travel += trans
+        if reach_m is None or c.travel > reach_m:
+            return None
+        c.pose = apply_increment(c.pose, increment.rot1, increment.trans, increment.rot2)[0]
+        return c
+
+    def _judge(self) -> None:
+        c, self._candidate = self._candidate, None
+        if c is None:
+            return
+        share = self.agreement.share_at(c.step, c.scan, c.judged_at)
+        if share >= self.agreement.thresholds.explained_below:  # NaN: not judged, not kept
+            self._anchor = _Carried(c.pose, c.travel)
