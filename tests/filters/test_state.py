@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -247,3 +249,25 @@ def test_the_map_judges_nothing_in_a_scan_without_beams_or_readings() -> None:
     assert np.isnan(explained_share(grid, truth, empty))
     blind = LaserScan(**{**scan.__dict__, "ranges": np.full_like(scan.ranges, np.nan)})
     assert np.isnan(explained_share(grid, truth, blind))
+
+
+def test_map_agreement_share_at_reuses_a_read_and_counts_nothing() -> None:
+    """``share_at`` (CEAMCL's last confident pose, docs/ceamcl.md departure 14): the share the
+    read of that update measured at that pose, else computed, and the run of updates stays as
+    the reads left it."""
+    from ceamcl.filters.state import MapAgreement
+    from ceamcl.sensors.map_agreement import explained_share
+
+    grid, scan, truth = _office_scan()
+    off = truth + np.array([0.5, 0.3, 0.0])
+    localised = read_hypotheses([hyp(1.0, 0.9)])
+    agreement = MapAgreement(grid)
+    s = agreement.apply(localised, 1, scan, [Hypothesis(off, TIGHT, 100, 1.0, 0.9, 0)])
+    assert agreement.share_at(1, scan, off) == s.map_explained
+    tol = DEFAULT_THRESHOLDS.explained_tol_m
+    assert agreement.share_at(1, scan, truth) == explained_share(grid, truth, scan, tol)
+    assert agreement.share_at(2, scan, off) == explained_share(grid, off, scan, tol)
+    assert math.isnan(agreement.share_at(2, None, off))
+    # nothing counted: the next update still continues the run of one
+    streak, _ = agreement.observe(2, scan, off)
+    assert streak == 2
