@@ -367,12 +367,10 @@ class MapAgreement:
         comes back; read at another leading pose (CEAMCL's recovery replaced its species after
         the first read), the update is judged again at that pose, in place of the first."""
         p = np.asarray(pose, dtype=np.float64)
-        if self._step == step and self._pose is not None and np.array_equal(p, self._pose):
+        if self._judged(step, p):
             return self._streak, self._share
         t = self.thresholds
-        share = (
-            explained_share(self.grid, p, scan, t.explained_tol_m) if scan is not None else math.nan
-        )
+        share = self.share_at(step, scan, p)
         if self._step != step:
             running = self._step is not None and step == self._step + 1
             self._before = self._streak if running else 0
@@ -388,11 +386,15 @@ class MapAgreement:
         update: the share already judged when that update was read at that pose, else
         computed (NaN without a scan)."""
         p = np.asarray(pose, dtype=np.float64)
-        if self._step == step and self._pose is not None and np.array_equal(p, self._pose):
+        if self._judged(step, p):
             return self._share
         if scan is None:
             return math.nan
         return explained_share(self.grid, p, scan, self.thresholds.explained_tol_m)
+
+    def _judged(self, step: int, pose: NDArray[np.float64]) -> bool:
+        """Was ``step`` read at ``pose`` last?"""
+        return self._step == step and self._pose is not None and np.array_equal(pose, self._pose)
 
     def apply(
         self,

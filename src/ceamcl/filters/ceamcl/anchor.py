@@ -4,9 +4,8 @@ At an update where the state (as the recovery reads it) says LOCALISED, the lead
 *candidate*; it becomes the *anchor* when the map explains that update's scan there
 (:class:`~ceamcl.filters.state.MapAgreement`'s share at least its ``explained_below``). The
 odometry carries both between updates; beyond ``reach_m`` of travel (``recovery_anchor_m``)
-each is forgotten. A
-candidate is judged when the next one arrives or when a recovery asks for the anchor, by then
-usually from the share the state's reading of that update already computed
+each is forgotten. A candidate is judged when the next one arrives or when a recovery asks for
+the anchor, by then from the share the state's reading of that update already computed
 (:meth:`~ceamcl.filters.state.MapAgreement.share_at`), so an update pays for no second look at
 the map.
 """
@@ -14,6 +13,7 @@ the map.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -34,6 +34,9 @@ class _Candidate(_Carried):
     judged_at: NDArray[np.float64]  # the leading pose at its update
     scan: LaserScan | None
     step: int
+
+
+C = TypeVar("C", bound=_Carried)
 
 
 class ConfidentPose:
@@ -60,8 +63,7 @@ class ConfidentPose:
         (``None``: both)."""
         trans = abs(float(increment.trans))
         self._anchor = self._moved(self._anchor, increment, trans, reach_m)
-        candidate = self._moved(self._candidate, increment, trans, reach_m)
-        self._candidate = candidate if isinstance(candidate, _Candidate) else None
+        self._candidate = self._moved(self._candidate, increment, trans, reach_m)
 
     def anchor(self) -> tuple[NDArray[np.float64], float] | None:
         """The anchor's pose and the metres travelled since it was confident, the waiting
@@ -73,8 +75,8 @@ class ConfidentPose:
 
     @staticmethod
     def _moved(
-        c: _Carried | None, increment: OdometryIncrement, trans: float, reach_m: float | None
-    ) -> _Carried | None:
+        c: C | None, increment: OdometryIncrement, trans: float, reach_m: float | None
+    ) -> C | None:
         if c is None:
             return None
         c.travel += trans

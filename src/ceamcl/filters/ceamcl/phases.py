@@ -304,8 +304,9 @@ def compete(
         # the competition is over: the floor tracking needs holds from now, not in 10-25 steps
         dn = np.maximum(dn, config.delta_per_m2 * tracking - n)
     for k, sid in enumerate(ids):
-        if floors and sid in floors:
-            dn[k] = max(dn[k], floors[sid] - n[k])
+        floor = (floors or {}).get(sid)
+        if floor is not None:
+            dn[k] = max(dn[k], floor - n[k])
     out.dn = dict(zip(ids, dn.tolist(), strict=True))
     return out
 
