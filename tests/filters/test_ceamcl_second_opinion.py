@@ -5,7 +5,8 @@ fits the step's scan as well; a robot that was really carried off is still found
 kidnap tests in ``test_ceamcl_recovery.py`` run with the default). A new species near a kept
 one starts level with it, and the handicap of a far one does not fade while it fits no better
 (departure 11; the raw-log case is in ``tests/test_raw_logs.py``), and so does one near the
-pose the filter last held with confidence, carried on by the odometry (departure 14)."""
+pose the filter last held with confidence, carried on by the odometry (departure 14). While the
+filter is lost after a recovery, that pose is its estimate (departure 15)."""
 
 from __future__ import annotations
 
@@ -19,8 +20,11 @@ from ceamcl.filters import make_filter
 from ceamcl.filters.ceamcl import CEAMCL, CEAMCLConfig
 from ceamcl.filters.ceamcl.anchor import _Carried
 from ceamcl.filters.particles import ParticleSet
+from ceamcl.filters.state import State
 from ceamcl.motion.odometry import OdometryIncrement, increment_between
 from ceamcl.pose import position_error
+from ceamcl.sensors.scan import LaserScan
+from ceamcl.simulation.simulator import SimulatedLog
 
 STILL = OdometryIncrement(0.0, 0.0, 0.0)
 
@@ -220,3 +224,70 @@ def test_the_last_confident_pose_follows_the_odometry_and_is_forgotten() -> None
         moved += abs(inc.trans)
         f.step(inc, None)
     assert f.confident.anchor() is None and moved > travelled + 1.0
+
+
+def _obstructed(log: SimulatedLog, k: int) -> LaserScan:
+    """Scan ``k`` with an obstacle the map lacks filling two thirds of the view."""
+    scan = log.scan(k)
+    ranges = np.array(scan.ranges)
+    hidden = 2 * ranges.size // 3
+    ranges[:hidden] = 0.6 + 0.3 * np.sin(np.arange(hidden) / 7.0)
+    return replace(scan, ranges=ranges)
+
+
+@pytest.mark.parametrize("coast", [True, False])
+def test_while_lost_after_a_recovery_the_estimate_is_the_last_confident_pose(coast: bool) -> None:
+    """Departure 15: while the state says LOST and a recovery has fired since the map last
+    vouched for a pose, the estimate is that pose carried by the odometry (the anchor), with a
+    covariance that grows with the travel; the hypotheses stay the species'. Before any
+    recovery the tracked species is the estimate (it refines the odometry), and once the map
+    explains the scans again, so is the leading species. ``coast_when_lost=False``: the
+    leading species throughout."""
+    course = paper_course()
+    log = course.scenario(0).simulate(np.random.default_rng(5), course.grid())
+    truth = log.true_poses
+    f = make_filter("ceamcl", course.grid(), np.random.default_rng(5))
+    assert isinstance(f, CEAMCL)
+    f.config = replace(f.config, coast_when_lost=coast)
+    f.initialise_pose(truth[0], np.diag([0.05**2, 0.05**2, 0.03**2]))
+    f.step(STILL, log.scan(0))
+    assert f.state().state is State.LOCALISED
+
+    def drive(k: int, scan: LaserScan) -> None:
+        f.step(increment_between(log.odometry[k - 1], log.odometry[k]), scan)
+
+    # the obstacle makes the state LOST; no recovery yet: the tracked species is the estimate
+    k = 0
+    while f.state().state is not State.LOST:
+        k += 1
+        drive(k, _obstructed(log, k))
+        assert k < 20, "the obstacle never made the state LOST"
+    lead = f.fittest()
+    assert lead is not None and np.array_equal(f.estimate().pose, lead.mean)
+    # the kidnap test fires (as in tracked_then_recovered): the filter searches
+    f._steps_since_init = f.config.recovery_warmup_steps + 1
+    f._fit_slow, f._fit_fast = 1.0, 0.0
+    sds = []
+    for _ in range(10):
+        k += 1
+        drive(k, _obstructed(log, k))
+        assert f.state().state is State.LOST
+        est, anchor, lead = f.estimate(), f.confident.anchor(), f.fittest()
+        assert anchor is not None and lead is not None
+        assert f.hypotheses()[0].label == lead.species_id  # the species are still searching
+        if coast:
+            assert np.array_equal(est.pose, anchor[0])
+            assert position_error(est.pose, truth[k]) < 0.3
+            assert np.allclose(est.covariance, np.diag(np.diag(est.covariance)))
+            sds.append(float(np.sqrt(est.covariance[0, 0])))
+        else:
+            assert np.array_equal(est.pose, lead.mean)
+    if coast:
+        assert sds[-1] > sds[0]  # the odometry's drift grows with the travel
+    # the obstacle is gone: the scans decide again
+    while f.state().state is State.LOST:
+        k += 1
+        drive(k, log.scan(k))
+        assert k < 120, "the state stayed LOST after the obstacle went"
+    lead = f.fittest()
+    assert lead is not None and np.array_equal(f.estimate().pose, lead.mean)

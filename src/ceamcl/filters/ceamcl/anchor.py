@@ -8,6 +8,11 @@ each is forgotten. A candidate is judged when the next one arrives or when a rec
 the anchor, by then from the share the state's reading of that update already computed
 (:meth:`~ceamcl.filters.state.MapAgreement.share_at`), so an update pays for no second look at
 the map.
+
+While the filter's state says LOST and a recovery has fired since the anchor was set, the
+anchor is also its estimate (departure 15, :meth:`ConfidentPose.coasting`): the pose the
+odometry has carried from the last place the map vouched for, with a covariance that grows
+with the travel (:data:`DRIFT_SD_M_PER_M`, :data:`DRIFT_SD_RAD_PER_M`).
 """
 
 from __future__ import annotations
@@ -38,6 +43,16 @@ class _Candidate(_Carried):
 
 C = TypeVar("C", bound=_Carried)
 
+#: The coasting estimate's standard deviations: at the anchor (a tracked pose's spread), then
+#: growing with each metre travelled. Position: per axis, from freiburg-079's raw odometry
+#: dead-reckoned from the corrected poses (root mean square drift 0.15, 0.35, 0.71 and 1.61 m
+#: after 2, 5, 10 and 20 m: about 0.075 m a metre, 0.053 per axis, rounded up); heading: its
+#: median heading drift (0.055 rad after 2 m, 0.29 rad after 20 m). docs/ceamcl.md, departure 15.
+BASE_SD_M = 0.1
+BASE_SD_RAD = 0.05
+DRIFT_SD_M_PER_M = 0.06
+DRIFT_SD_RAD_PER_M = 0.015
+
 
 class ConfidentPose:
     """The anchor (``None`` when there is none within ``reach_m`` of travel) and at most one
@@ -51,6 +66,7 @@ class ConfidentPose:
         """Forget both (a new start)."""
         self._anchor: _Carried | None = None
         self._candidate: _Candidate | None = None
+        self._searching = False
 
     def propose(self, pose: NDArray[np.float64], scan: LaserScan | None, step: int) -> None:
         """A LOCALISED update's leading pose; the candidate before it is judged first."""
@@ -73,6 +89,24 @@ class ConfidentPose:
             return None
         return self._anchor.pose.copy(), self._anchor.travel
 
+    def search(self) -> None:
+        """A recovery fired: the filter is looking elsewhere for the robot, and its leading
+        species may be a place the recovery proposed, not the pose it tracked, until the map
+        vouches for a pose again (a new anchor)."""
+        self._searching = True
+
+    def coasting(self) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+        """The anchor as an estimate while the filter searches (:meth:`search`): its pose and
+        a 3 x 3 covariance, diagonal, whose standard deviations grow with the travel since the
+        anchor was confident (``None``: no anchor, or not searching)."""
+        held = self.anchor()
+        if held is None or not self._searching:
+            return None
+        pose, travel = held
+        sd_m = BASE_SD_M + DRIFT_SD_M_PER_M * travel
+        sd_rad = BASE_SD_RAD + DRIFT_SD_RAD_PER_M * travel
+        return pose, np.diag([sd_m**2, sd_m**2, sd_rad**2])
+
     @staticmethod
     def _moved(
         c: C | None, increment: OdometryIncrement, trans: float, reach_m: float | None
@@ -92,3 +126,4 @@ class ConfidentPose:
         share = self.agreement.share_at(c.step, c.scan, c.judged_at)
         if share >= self.agreement.thresholds.explained_below:  # NaN: not judged, not kept
             self._anchor = _Carried(c.pose, c.travel)
+            self._searching = False

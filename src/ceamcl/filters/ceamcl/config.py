@@ -115,6 +115,13 @@ class CEAMCLConfig:
             species near where the odometry says the robot is since it was last localised
             starts level, even after a look-alike place has taken the lead from the drifted
             species (docs/ceamcl.md, departure 14). ``None``: only the living species count.
+        coast_when_lost: while the state says LOST, a recovery has fired since the last
+            confident pose (``recovery_anchor_m``) and that pose is still held,
+            :meth:`~ceamcl.filters.ceamcl.filter.CEAMCL.estimate` is that pose carried by the
+            odometry, not the leading species (docs/ceamcl.md, departure 15): where the map
+            does not hold what the robot sees, the odometry is a better guess than a place a
+            recovery proposed. The species keep searching; the hypotheses are theirs.
+            ``False``: the leading species, whatever the state.
         recovery_prior_fades: ``False`` (the default): the handicap ``recovery_prior`` of a
             new species beyond ``recovery_drift_m`` stays in its weight while other species
             live, so a far place must out-fit the near ones by that much in the evidence the
@@ -201,6 +208,7 @@ class CEAMCLConfig:
     recovery_drift_rad: float = 1.0
     recovery_prior_fades: bool = False
     recovery_anchor_m: float | None = 20.0
+    coast_when_lost: bool = True
     recovery_lost_updates: int | None = 3
     beam_skip: BeamSkipConfig | None = field(default_factory=BeamSkipConfig)
     confirm_fit_below: float | None = DEFAULT_THRESHOLDS.fit_min

@@ -401,6 +401,7 @@ class CEAMCL:
         self._propose_anchor()
         if collapsed or lost:
             self.events.recoveries += 1
+            self.confident.search()
             if cfg.recovery_prior is not None:
                 return self._recover(full, increment)  # a second opinion (departure 9)
             return self._restart(full)  # kidnapped: no species explains the scans
@@ -916,9 +917,16 @@ class CEAMCL:
         return (self.log_weight.get(s.species_id, 0.0), s.fitness)
 
     def estimate(self) -> PoseEstimate:
+        """The leading species' mean and covariance; while the state says LOST after a
+        recovery, the last confident pose carried by the odometry, when there is one
+        (departure 15, ``coast_when_lost``)."""
         best = self.fittest()
         if best is None:
             return PoseEstimate(np.zeros(3), np.diag([1e6, 1e6, np.pi**2]))
+        if self.config.coast_when_lost and self.t > 0 and self.state().state is State.LOST:
+            coasting = self.confident.coasting()
+            if coasting is not None:
+                return PoseEstimate(*coasting)
         return PoseEstimate(best.mean.copy(), best.covariance.copy())
 
     def _ranked_shares(self) -> tuple[list[SpeciesStats], NDArray[np.float64]]:
