@@ -344,7 +344,8 @@ def test_while_lost_in_fr079s_doubtful_room_ceamcl_reports_the_odometrys_pose(
     """Tracking fr079 raw (seed 0, Nav2's pace) through the room of scans 1148-1239, which the
     map holds poorly: recoveries fire and propose places up to several metres off. With
     departure 15 the estimate, while the state says LOST after a recovery, is the last pose the
-    map vouched for, carried on by the odometry: measured at most 1.72 m off in the room. With
+    map vouched for, carried on by the odometry, when the leading species stands beyond
+    ``recovery_drift_m`` of it: measured at most 2.12 m off in the room. With
     ``coast_when_lost=False`` it follows the leading species: measured 4.73 m (docs/ceamcl.md,
     departure 15)."""
     need(RAW, CORRECTED)

@@ -9,10 +9,11 @@ the anchor, by then from the share the state's reading of that update already co
 (:meth:`~ceamcl.filters.state.MapAgreement.share_at`), so an update pays for no second look at
 the map.
 
-While the filter's state says LOST and a recovery has fired since the anchor was set, the
-anchor is also its estimate (departure 15, :meth:`ConfidentPose.coasting`): the pose the
-odometry has carried from the last place the map vouched for, with a covariance that grows
-with the travel (:data:`DRIFT_SD_M_PER_M`, :data:`DRIFT_SD_RAD_PER_M`).
+While the filter's state says LOST, a recovery has fired since the anchor was set and the
+leading species stands beyond the recovery's drift reach of it, the anchor is the filter's
+estimate (departure 15, :meth:`ConfidentPose.coasting`): the pose the odometry has carried from
+the last place the map vouched for, with a covariance that grows with the travel
+(:data:`DRIFT_SD_M_PER_M`, :data:`DRIFT_SD_RAD_PER_M`).
 """
 
 from __future__ import annotations

@@ -116,11 +116,12 @@ class CEAMCLConfig:
             starts level, even after a look-alike place has taken the lead from the drifted
             species (docs/ceamcl.md, departure 14). ``None``: only the living species count.
         coast_when_lost: while the state says LOST, a recovery has fired since the last
-            confident pose (``recovery_anchor_m``) and that pose is still held,
+            confident pose (``recovery_anchor_m``), that pose is still held and the leading
+            species stands beyond ``recovery_drift_m`` / ``recovery_drift_rad`` of it,
             :meth:`~ceamcl.filters.ceamcl.filter.CEAMCL.estimate` is that pose carried by the
             odometry, not the leading species (docs/ceamcl.md, departure 15): where the map
-            does not hold what the robot sees, the odometry is a better guess than a place a
-            recovery proposed. The species keep searching; the hypotheses are theirs.
+            does not hold what the robot sees, the odometry is a better guess than another
+            place a recovery proposed. The species keep searching; the hypotheses are theirs.
             ``False``: the leading species, whatever the state.
         recovery_prior_fades: ``False`` (the default): the handicap ``recovery_prior`` of a
             new species beyond ``recovery_drift_m`` stays in its weight while other species

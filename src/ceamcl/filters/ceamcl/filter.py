@@ -918,14 +918,19 @@ class CEAMCL:
 
     def estimate(self) -> PoseEstimate:
         """The leading species' mean and covariance; while the state says LOST after a
-        recovery, the last confident pose carried by the odometry, when there is one
-        (departure 15, ``coast_when_lost``)."""
+        recovery and the leading species stands beyond ``recovery_drift_m`` (or
+        ``recovery_drift_rad``) of the last confident pose carried on by the odometry, that
+        pose: the leader is then another place the recovery proposed, not a drift of the one
+        tracked (departure 15, ``coast_when_lost``)."""
         best = self.fittest()
         if best is None:
             return PoseEstimate(np.zeros(3), np.diag([1e6, 1e6, np.pi**2]))
         if self.config.coast_when_lost and self.t > 0 and self.state().state is State.LOST:
             coasting = self.confident.coasting()
-            if coasting is not None:
+            reach = self.config.recovery_drift_m
+            if coasting is not None and (
+                reach is None or not self._near(best.mean[None, :], coasting[0][None, :], reach)[0]
+            ):  # departure 11's reach: within it, the leader is the tracked place, drifted
                 return PoseEstimate(*coasting)
         return PoseEstimate(best.mean.copy(), best.covariance.copy())
 
