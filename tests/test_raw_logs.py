@@ -286,7 +286,7 @@ def test_fr079s_odometry_takes_the_sign_of_its_velocity() -> None:
     assert errors["auto"][0] < 0.5 * errors["recorded"][0]
 
 
-def _track_fr079(seed: int, end: int, **config: Any) -> tuple[np.ndarray, np.ndarray]:
+def _fr079_tracking_errors(seed: int, end: int, **config: Any) -> tuple[np.ndarray, np.ndarray]:
     """CEAMCL (2,000-sample budget, ``config`` on top) tracking fr079 raw at Nav2's pace from the
     first scan with truth, perturbed by 0.5 m / 0.3 rad with ``seed``, to scan ``end``: each
     scan's raw-log index and position error (NaN without truth)."""
@@ -327,7 +327,7 @@ def test_ceamcl_comes_back_to_fr079s_track_after_the_doubtful_room(
     at scan 1234 (measured: at most 0.34 m off from scan 1240, 0.25 m from 1290; docs/ceamcl.md,
     departure 14)."""
     need(RAW, CORRECTED)
-    scan, errors = _track_fr079(1, 1450, recovery_anchor_m=anchor)
+    scan, errors = _fr079_tracking_errors(1, 1450, recovery_anchor_m=anchor)
     after = np.isfinite(errors) & (scan >= 1290)
     assert after.sum() > 100
     late = errors[after]
@@ -349,7 +349,7 @@ def test_while_lost_in_fr079s_doubtful_room_ceamcl_reports_the_odometrys_pose(
     ``coast_when_lost=False`` it follows the leading species: measured 4.73 m (docs/ceamcl.md,
     departure 15)."""
     need(RAW, CORRECTED)
-    scan, errors = _track_fr079(0, 1300, coast_when_lost=coast)
+    scan, errors = _fr079_tracking_errors(0, 1300, coast_when_lost=coast)
     room = np.isfinite(errors) & (scan >= 1148) & (scan <= 1260)
     assert room.sum() > 80
     worst = float(errors[room].max())

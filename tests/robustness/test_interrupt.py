@@ -10,6 +10,7 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -19,6 +20,18 @@ from rich.console import Console
 import ceamcl.cli as cli
 from ceamcl.cli import interrupt
 from ceamcl.io.results import ensure_output_dir
+
+
+@pytest.fixture(autouse=True)
+def _ctrl_c_as_at_a_terminal() -> Iterator[None]:
+    """Ctrl-C raises KeyboardInterrupt, as at a terminal, for each test here: a shell that
+    starts the suite in the background (``make test &``) starts it with SIGINT ignored, and
+    the command line then rightly leaves Ctrl-C alone (``interrupt.guard``)."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 class _InterruptedWhileFinalised:
