@@ -100,6 +100,8 @@ class ConfidentPose:
         """The anchor as an estimate while the filter searches (:meth:`search`): its pose and
         a 3 x 3 covariance, diagonal, whose standard deviations grow with the travel since the
         anchor was confident (``None``: no anchor, or not searching)."""
+        if not self._searching:
+            return None  # judging a waiting candidate could only end a search
         held = self.anchor()
         if held is None or not self._searching:
             return None

@@ -925,12 +925,15 @@ class CEAMCL:
         best = self.fittest()
         if best is None:
             return PoseEstimate(np.zeros(3), np.diag([1e6, 1e6, np.pi**2]))
-        if self.config.coast_when_lost and self.t > 0 and self.state().state is State.LOST:
-            coasting = self.confident.coasting()
+        # the cheap tests first: the state is read only while a recovery searches
+        coasting = self.confident.coasting() if self.config.coast_when_lost else None
+        if coasting is not None and self.t > 0:
             reach = self.config.recovery_drift_m
-            if coasting is not None and (
+            # departure 11's reach: within it, the leader is the tracked place, drifted
+            far = (
                 reach is None or not self._near(best.mean[None, :], coasting[0][None, :], reach)[0]
-            ):  # departure 11's reach: within it, the leader is the tracked place, drifted
+            )
+            if far and self.state().state is State.LOST:
                 return PoseEstimate(*coasting)
         return PoseEstimate(best.mean.copy(), best.covariance.copy())
 

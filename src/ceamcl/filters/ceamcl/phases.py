@@ -303,8 +303,9 @@ def compete(
     if config.fill_tracking_floor and tracking is not None:
         # the competition is over: the floor tracking needs holds from now, not in 10-25 steps
         dn = np.maximum(dn, config.delta_per_m2 * tracking - n)
+    floors = floors or {}
     for k, sid in enumerate(ids):
-        floor = (floors or {}).get(sid)
+        floor = floors.get(sid)
         if floor is not None:
             dn[k] = max(dn[k], floor - n[k])
     out.dn = dict(zip(ids, dn.tolist(), strict=True))
