@@ -9,15 +9,25 @@ the anchor, by then from the share the state's reading of that update already co
 (:meth:`~ceamcl.filters.state.MapAgreement.share_at`), so an update pays for no second look at
 the map.
 
-While the filter's state says LOST, a recovery has fired since the anchor was set and the
-leading species stands beyond the recovery's drift reach of it, the anchor is the filter's
-estimate (departure 15, :meth:`ConfidentPose.coasting`): the pose the odometry has carried from
+While the filter's state says LOST and the leading species has left the anchor, the anchor is
+the filter's estimate (:meth:`ConfidentPose.coasting`): the pose the odometry has carried from
 the last place the map vouched for, with a covariance that grows with the travel
-(:data:`DRIFT_SD_M_PER_M`, :data:`DRIFT_SD_RAD_PER_M`).
+(:data:`DRIFT_SD_M_PER_M`, :data:`DRIFT_SD_RAD_PER_M`). "Left" is measured against the
+odometry's drift envelope (departure 17, :class:`DriftEnvelope`): a few standard deviations of
+that covariance, so a species that slides along a room the map holds poorly is caught within a
+metre or two; without an envelope, as departure 15 first had it, only after a recovery has
+fired and beyond the recovery's drift reach (another place, not a drift).
+
+With an envelope, a LOCALISED pose beyond it of the held anchor does not replace the anchor at
+once: a species that slid while the map explained little can fit the next scans better where
+it slid to than at the truth. It becomes the anchor once such disagreement has lasted
+``conflict_m`` of travel (the anchor, not the species, may be the one that drifted).
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TypeVar
 
@@ -54,20 +64,75 @@ BASE_SD_RAD = 0.05
 DRIFT_SD_M_PER_M = 0.06
 DRIFT_SD_RAD_PER_M = 0.015
 
+#: Departure 17 adds the heading's random walk, whose lateral effect grows as travel^1.5 (a
+#: wrong heading carries the pose sideways): variance ``HEADING_Q`` rad^2 a metre, from the
+#: same drift (0.08 rad standard deviation after 2 m) ...
+HEADING_Q = 0.0033
+#: ... and as the odometry shows it while the filter runs: each time the map vouches for a pose
+#: at least this many metres of travel after the last sample, the heading the odometry carried
+#: from there is compared with it ...
+DRIFT_BASELINE_M = 1.0
+#: ... and the variance a metre it implies beyond the anchor's own spread (``BASE_SD_RAD``, at
+#: both ends) enters a running mean with this weight; the larger of it and ``HEADING_Q`` is used.
+DRIFT_MEMORY = 0.3
+
+
+def drift_sd_m(travel: float, heading_q: float | None = None) -> float:
+    """The anchor's position standard deviation (per axis) after ``travel`` metres: 0.1 m plus
+    0.06 m a metre (departure 15, ``heading_q=None``), or with the heading's random walk of
+    variance ``heading_q`` a metre as well (departure 17)."""
+    if heading_q is None:
+        return BASE_SD_M + DRIFT_SD_M_PER_M * travel
+    linear = DRIFT_SD_M_PER_M * travel
+    return float(np.sqrt(BASE_SD_M**2 + linear**2 + heading_q * travel**3 / 3.0))
+
+
+@dataclass(frozen=True)
+class DriftEnvelope:
+    """How far a pose may lie from the anchor and still be the anchor's place drifted
+    (departure 17): ``sd`` standard deviations of the anchor's drift (:func:`drift_sd_m`), at
+    least ``min_m``; a LOCALISED pose beyond it replaces the anchor once the disagreement has
+    lasted ``conflict_m`` metres of travel."""
+
+    sd: float
+    min_m: float
+    conflict_m: float
+
+    def reach_m(self, travel: float, heading_q: float = HEADING_Q) -> float:
+        """The envelope's radius after ``travel`` metres, the odometry's heading drifting
+        with variance ``heading_q`` a metre."""
+        return max(self.min_m, self.sd * drift_sd_m(travel, heading_q))
+
 
 class ConfidentPose:
     """The anchor (``None`` when there is none within ``reach_m`` of travel) and at most one
     candidate waiting to be judged."""
 
-    def __init__(self, agreement: MapAgreement) -> None:
+    def __init__(
+        self, agreement: MapAgreement, envelope: Callable[[], DriftEnvelope | None]
+    ) -> None:
         self.agreement = agreement
+        self.envelope = envelope  # read at each use: the filter's config may change
+        # the heading variance a metre the odometry has shown (a property of the robot: a new
+        # start keeps it)
+        self._heading_q = HEADING_Q
         self.reset()
+
+    def heading_q(self) -> float:
+        """The heading variance a metre of travel the anchor is given: the odometry's as
+        measured (:data:`DRIFT_BASELINE_M`, :data:`DRIFT_MEMORY`), never below
+        :data:`HEADING_Q` (freiburg-079's raw odometry)."""
+        return max(HEADING_Q, self._heading_q)
 
     def reset(self) -> None:
         """Forget both (a new start)."""
+        self._probe: _Carried | None = None  # the pose the last drift sample started from
         self._anchor: _Carried | None = None
         self._candidate: _Candidate | None = None
         self._searching = False
+        # the first LOCALISED pose the map vouched for beyond the anchor's envelope, carried on
+        # (its travel: metres since), while later ones stand within its own envelope
+        self._challenger: _Carried | None = None
 
     def propose(self, pose: NDArray[np.float64], scan: LaserScan | None, step: int) -> None:
         """A LOCALISED update's leading pose; the candidate before it is judged first."""
@@ -81,6 +146,8 @@ class ConfidentPose:
         trans = abs(float(increment.trans))
         self._anchor = self._moved(self._anchor, increment, trans, reach_m)
         self._candidate = self._moved(self._candidate, increment, trans, reach_m)
+        self._probe = self._moved(self._probe, increment, trans, reach_m)
+        self._challenger = self._moved(self._challenger, increment, trans, reach_m)
 
     def anchor(self) -> tuple[NDArray[np.float64], float] | None:
         """The anchor's pose and the metres travelled since it was confident, the waiting
@@ -96,19 +163,30 @@ class ConfidentPose:
         vouches for a pose again (a new anchor)."""
         self._searching = True
 
-    def coasting(self) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
-        """The anchor as an estimate while the filter searches (:meth:`search`): its pose and
-        a 3 x 3 covariance, diagonal, whose standard deviations grow with the travel since the
-        anchor was confident (``None``: no anchor, or not searching)."""
-        if not self._searching:
+    def coasting(
+        self, drift_reach_m: float | None
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], float | None] | None:
+        """The anchor as an estimate: its pose, a 3 x 3 covariance, diagonal, whose standard
+        deviations grow with the travel since the anchor was confident, and the distance
+        beyond which a leading species has left it (``None``: any distance). With an
+        envelope, that distance is the envelope's; without one (departure 15), only while
+        the filter searches (:meth:`search`), and ``drift_reach_m``. ``None``: no anchor, or
+        not searching."""
+        envelope = self.envelope()
+        if envelope is None and not self._searching:
             return None  # judging a waiting candidate could only end a search
         held = self.anchor()
-        if held is None or not self._searching:
+        if held is None or (envelope is None and not self._searching):
             return None
         pose, travel = held
-        sd_m = BASE_SD_M + DRIFT_SD_M_PER_M * travel
-        sd_rad = BASE_SD_RAD + DRIFT_SD_RAD_PER_M * travel
-        return pose, np.diag([sd_m**2, sd_m**2, sd_rad**2])
+        if envelope is None:  # departure 15
+            sd_m = drift_sd_m(travel)
+            sd_rad = BASE_SD_RAD + DRIFT_SD_RAD_PER_M * travel
+            return pose, np.diag([sd_m**2, sd_m**2, sd_rad**2]), drift_reach_m
+        q = self.heading_q()
+        sd_m = drift_sd_m(travel, q)
+        var_rad = BASE_SD_RAD**2 + q * travel
+        return pose, np.diag([sd_m**2, sd_m**2, var_rad]), envelope.reach_m(travel, q)
 
     @staticmethod
     def _moved(
@@ -127,6 +205,52 @@ class ConfidentPose:
         if c is None:
             return
         share = self.agreement.share_at(c.step, c.scan, c.judged_at)
-        if share >= self.agreement.thresholds.explained_below:  # NaN: not judged, not kept
-            self._anchor = _Carried(c.pose, c.travel)
-            self._searching = False
+        if not share >= self.agreement.thresholds.explained_below:  # NaN: not judged, not kept
+            return
+        if self._anchor is not None and not self._prevails(c, self._anchor):
+            return  # not yet: the species may be the one that slid
+        self._anchor = _Carried(c.pose, c.travel)
+        self._searching = False
+        self._challenger = None
+        self._sample_drift(c)
+
+    def _sample_drift(self, c: _Candidate) -> None:
+        """The new anchor ``c`` against the pose the odometry carried from the last sample's
+        (:data:`DRIFT_BASELINE_M` or more before): the heading variance a metre their gap
+        implies beyond the anchor's own spread (:data:`BASE_SD_RAD` at both ends) enters the
+        running mean (:data:`DRIFT_MEMORY`); ``c`` starts the next sample."""
+        if self.envelope() is None:
+            return  # departure 15 alone: the drift of freiburg-079's odometry
+        probe = self._probe
+        if probe is not None:
+            travel = probe.travel - c.travel  # the probe's travel at c's update
+            if travel < DRIFT_BASELINE_M:
+                return
+            turned = math.remainder(float(c.pose[2] - probe.pose[2]), 2.0 * math.pi)
+            q = max(0.0, turned**2 - 2.0 * BASE_SD_RAD**2) / travel
+            self._heading_q = (1.0 - DRIFT_MEMORY) * self._heading_q + DRIFT_MEMORY * q
+        self._probe = _Carried(c.pose.copy(), c.travel)
+
+    def _prevails(self, c: _Candidate, anchor: _Carried) -> bool:
+        """Whether candidate ``c`` (the map vouches for it) replaces the held ``anchor``: at
+        once within the anchor's envelope (or without an envelope); beyond it, once the
+        same place (each candidate within the envelope of the first, the challenger) has
+        disagreed with the anchor over ``conflict_m`` metres of travel. A candidate elsewhere
+        starts a new challenger."""
+        envelope = self.envelope()
+        if envelope is None:
+            return True
+        q = self.heading_q()
+        if _apart(c, anchor) <= envelope.reach_m(anchor.travel - c.travel, q):
+            self._challenger = None
+            return True
+        rival = self._challenger
+        if rival is None or _apart(c, rival) > envelope.reach_m(rival.travel - c.travel, q):
+            self._challenger = _Carried(c.pose.copy(), c.travel)
+            return envelope.conflict_m <= 0.0
+        return rival.travel - c.travel >= envelope.conflict_m
+
+
+def _apart(c: _Carried, other: _Carried) -> float:
+    """Metres between two carried poses' positions."""
+    return float(np.hypot(c.pose[0] - other.pose[0], c.pose[1] - other.pose[1]))

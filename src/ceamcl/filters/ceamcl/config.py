@@ -115,14 +115,26 @@ class CEAMCLConfig:
             species near where the odometry says the robot is since it was last localised
             starts level, even after a look-alike place has taken the lead from the drifted
             species (docs/ceamcl.md, departure 14). ``None``: only the living species count.
-        coast_when_lost: while the state says LOST, a recovery has fired since the last
-            confident pose (``recovery_anchor_m``), that pose is still held and the leading
-            species stands beyond ``recovery_drift_m`` / ``recovery_drift_rad`` of it,
+        coast_when_lost: while the state says LOST, the last confident pose
+            (``recovery_anchor_m``) is still held and the leading species has left it,
             :meth:`~ceamcl.filters.ceamcl.filter.CEAMCL.estimate` is that pose carried by the
-            odometry, not the leading species (docs/ceamcl.md, departure 15): where the map
-            does not hold what the robot sees, the odometry is a better guess than another
-            place a recovery proposed. The species keep searching; the hypotheses are theirs.
-            ``False``: the leading species, whatever the state.
+            odometry, not the leading species (docs/ceamcl.md, departures 15 and 17): where
+            the map does not hold what the robot sees, the odometry is a better guess than a
+            species sliding along what the map lacks or another place a recovery proposed.
+            The species keep searching; the hypotheses are theirs. ``False``: the leading
+            species, whatever the state.
+        anchor_envelope_sd, anchor_envelope_min_m, anchor_conflict_m: the odometry's drift
+            envelope of the last confident pose (docs/ceamcl.md, departure 17): this many
+            standard deviations of its position drift, at least ``anchor_envelope_min_m``. The
+            drift is 0.1 m plus 0.06 m a metre travelled (freiburg-079's raw odometry) and a
+            heading random walk whose variance a metre the filter measures as it runs (at
+            least freiburg-079's, :data:`~ceamcl.filters.ceamcl.anchor.HEADING_Q`). A leading
+            species beyond it has left the pose (``coast_when_lost``); a LOCALISED pose the map
+            vouches for beyond it replaces the last confident pose only once the same place
+            has disagreed with it over ``anchor_conflict_m`` metres of travel.
+            ``anchor_envelope_sd=None``: departure 15 as first adopted, coasting only after a
+            recovery and beyond ``recovery_drift_m`` / ``recovery_drift_rad``, and every
+            LOCALISED pose the map vouches for replaces the last.
         recovery_prior_fades: ``False`` (the default): the handicap ``recovery_prior`` of a
             new species beyond ``recovery_drift_m`` stays in its weight while other species
             live, so a far place must out-fit the near ones by that much in the evidence the
@@ -210,6 +222,9 @@ class CEAMCLConfig:
     recovery_prior_fades: bool = False
     recovery_anchor_m: float | None = 20.0
     coast_when_lost: bool = True
+    anchor_envelope_sd: float | None = 3.0
+    anchor_envelope_min_m: float = 0.5
+    anchor_conflict_m: float = 2.0
     recovery_lost_updates: int | None = 3
     beam_skip: BeamSkipConfig | None = field(default_factory=BeamSkipConfig)
     confirm_fit_below: float | None = DEFAULT_THRESHOLDS.fit_min
@@ -280,6 +295,9 @@ class CEAMCLConfig:
             "recovery_drift_m": self.recovery_drift_m is None or self.recovery_drift_m >= 0,
             "recovery_drift_rad": 0 <= self.recovery_drift_rad <= math.pi,
             "recovery_anchor_m": self.recovery_anchor_m is None or self.recovery_anchor_m >= 0,
+            "anchor_envelope_sd": self.anchor_envelope_sd is None or self.anchor_envelope_sd > 0,
+            "anchor_envelope_min_m": self.anchor_envelope_min_m >= 0,
+            "anchor_conflict_m": self.anchor_conflict_m >= 0,
             "recovery_lost_updates": self.recovery_lost_updates is None
             or self.recovery_lost_updates >= 1,
         }

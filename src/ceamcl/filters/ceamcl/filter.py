@@ -44,7 +44,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ceamcl import angles
 from ceamcl.filters.base import Algorithm, Hypothesis, ParticleSnapshot, PoseEstimate
-from ceamcl.filters.ceamcl.anchor import ConfidentPose
+from ceamcl.filters.ceamcl.anchor import ConfidentPose, DriftEnvelope
 from ceamcl.filters.ceamcl.config import CEAMCLConfig
 from ceamcl.filters.ceamcl.initialisation import InitialSpecies, initial_species, polish
 from ceamcl.filters.ceamcl.phases import (
@@ -159,7 +159,7 @@ class CEAMCL:
         self.map_agreement = MapAgreement(grid)
         #: the leading pose the last time the filter was LOCALISED with the map's agreement,
         #: carried on by the odometry (departure 14)
-        self.confident = ConfidentPose(self.map_agreement)
+        self.confident = ConfidentPose(self.map_agreement, self._drift_envelope)
 
     # ================================================================== initialisation
     def initialise_global(self, scan: LaserScan) -> CEAMCLRecord:
@@ -917,25 +917,36 @@ class CEAMCL:
         return (self.log_weight.get(s.species_id, 0.0), s.fitness)
 
     def estimate(self) -> PoseEstimate:
-        """The leading species' mean and covariance; while the state says LOST after a
-        recovery and the leading species stands beyond ``recovery_drift_m`` (or
-        ``recovery_drift_rad``) of the last confident pose carried on by the odometry, that
-        pose: the leader is then another place the recovery proposed, not a drift of the one
-        tracked (departure 15, ``coast_when_lost``)."""
+        """The leading species' mean and covariance; while the state says LOST and the
+        leading species has left the last confident pose carried on by the odometry (the
+        anchor), that pose (``coast_when_lost``). "Left": beyond the odometry's drift envelope
+        of the anchor (departure 17, ``anchor_envelope_sd``), a species sliding where the map
+        holds little; without an envelope, after a recovery and beyond ``recovery_drift_m``
+        (or ``recovery_drift_rad``), another place the recovery proposed (departure 15)."""
         best = self.fittest()
         if best is None:
             return PoseEstimate(np.zeros(3), np.diag([1e6, 1e6, np.pi**2]))
-        # the cheap tests first: the state is read only while a recovery searches
-        coasting = self.confident.coasting() if self.config.coast_when_lost else None
+        # the cheap tests first: the state is read only when the leader has left the anchor
+        coasting = (
+            self.confident.coasting(self.config.recovery_drift_m)
+            if self.config.coast_when_lost
+            else None
+        )
         if coasting is not None and self.t > 0:
-            reach = self.config.recovery_drift_m
-            # departure 11's reach: within it, the leader is the tracked place, drifted
-            far = (
-                reach is None or not self._near(best.mean[None, :], coasting[0][None, :], reach)[0]
-            )
+            pose, covariance, reach = coasting
+            far = reach is None or not self._near(best.mean[None, :], pose[None, :], reach)[0]
             if far and self.state().state is State.LOST:
-                return PoseEstimate(*coasting)
+                return PoseEstimate(pose, covariance)
         return PoseEstimate(best.mean.copy(), best.covariance.copy())
+
+    def _drift_envelope(self) -> DriftEnvelope | None:
+        """Departure 17's envelope from the config (``None``: ``anchor_envelope_sd`` is)."""
+        cfg = self.config
+        if cfg.anchor_envelope_sd is None:
+            return None
+        return DriftEnvelope(
+            cfg.anchor_envelope_sd, cfg.anchor_envelope_min_m, cfg.anchor_conflict_m
+        )
 
     def _ranked_shares(self) -> tuple[list[SpeciesStats], NDArray[np.float64]]:
         """The species, leading first, and each one's share of the posterior: its accumulated
