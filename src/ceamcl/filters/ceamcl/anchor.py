@@ -75,6 +75,12 @@ DRIFT_BASELINE_M = 1.0
 #: ... and the variance a metre it implies beyond the anchor's own spread (``BASE_SD_RAD``, at
 #: both ends) enters a running mean with this weight; the larger of it and ``HEADING_Q`` is used.
 DRIFT_MEMORY = 0.3
+#: Poses the map vouches for beyond the anchor's envelope are "the same place" while each
+#: lies within this many metres of the one before, carried on by the odometry (departure 17):
+#: a species that follows the scans while the odometry is wrong moves less than this between
+#: updates (fr079's unsigned odometry backing up: 0.5 m at Nav2's pace); another place a
+#: recovery proposes lies metres away.
+CHAIN_M = 1.0
 
 
 def drift_sd_m(travel: float, heading_q: float | None = None) -> float:
@@ -130,8 +136,8 @@ class ConfidentPose:
         self._anchor: _Carried | None = None
         self._candidate: _Candidate | None = None
         self._searching = False
-        # the first LOCALISED pose the map vouched for beyond the anchor's envelope, carried on
-        # (its travel: metres since), while later ones stand within its own envelope
+        # the last LOCALISED pose the map vouched for beyond the anchor's envelope, carried on;
+        # its travel: metres since the first of its chain (CHAIN_M)
         self._challenger: _Carried | None = None
 
     def propose(self, pose: NDArray[np.float64], scan: LaserScan | None, step: int) -> None:
@@ -234,9 +240,9 @@ class ConfidentPose:
     def _prevails(self, c: _Candidate, anchor: _Carried) -> bool:
         """Whether candidate ``c`` (the map vouches for it) replaces the held ``anchor``: at
         once within the anchor's envelope (or without an envelope); beyond it, once the
-        same place (each candidate within the envelope of the first, the challenger) has
-        disagreed with the anchor over ``conflict_m`` metres of travel. A candidate elsewhere
-        starts a new challenger."""
+        same place (the challenger: each candidate within :data:`CHAIN_M` of the one before,
+        carried on) has disagreed with the anchor over ``conflict_m`` metres of travel. A
+        candidate elsewhere starts a new challenger."""
         envelope = self.envelope()
         if envelope is None:
             return True
@@ -245,9 +251,10 @@ class ConfidentPose:
             self._challenger = None
             return True
         rival = self._challenger
-        if rival is None or _apart(c, rival) > envelope.reach_m(rival.travel - c.travel, q):
+        if rival is None or _apart(c, rival) > CHAIN_M:
             self._challenger = _Carried(c.pose.copy(), c.travel)
             return envelope.conflict_m <= 0.0
+        rival.pose = c.pose.copy()  # the place moves on with the scans, not the odometry
         return rival.travel - c.travel >= envelope.conflict_m
 
 

@@ -132,6 +132,9 @@ class CEAMCLConfig:
             species beyond it has left the pose (``coast_when_lost``); a LOCALISED pose the map
             vouches for beyond it replaces the last confident pose only once the same place
             has disagreed with it over ``anchor_conflict_m`` metres of travel.
+            With an envelope the estimate coasts once the leader has stood beyond it with the
+            state LOST at ``coast_after_updates`` consecutive updates (a single doubtful
+            update, as while the odometry is wrong and the scans are right, does not).
             ``anchor_envelope_sd=None``: departure 15 as first adopted, coasting only after a
             recovery and beyond ``recovery_drift_m`` / ``recovery_drift_rad``, and every
             LOCALISED pose the map vouches for replaces the last.
@@ -225,6 +228,7 @@ class CEAMCLConfig:
     anchor_envelope_sd: float | None = 3.0
     anchor_envelope_min_m: float = 0.5
     anchor_conflict_m: float = 2.0
+    coast_after_updates: int = 2
     recovery_lost_updates: int | None = 3
     beam_skip: BeamSkipConfig | None = field(default_factory=BeamSkipConfig)
     confirm_fit_below: float | None = DEFAULT_THRESHOLDS.fit_min
@@ -298,6 +302,7 @@ class CEAMCLConfig:
             "anchor_envelope_sd": self.anchor_envelope_sd is None or self.anchor_envelope_sd > 0,
             "anchor_envelope_min_m": self.anchor_envelope_min_m >= 0,
             "anchor_conflict_m": self.anchor_conflict_m >= 0,
+            "coast_after_updates": self.coast_after_updates >= 1,
             "recovery_lost_updates": self.recovery_lost_updates is None
             or self.recovery_lost_updates >= 1,
         }

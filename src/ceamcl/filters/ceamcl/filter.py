@@ -160,6 +160,9 @@ class CEAMCL:
         #: the leading pose the last time the filter was LOCALISED with the map's agreement,
         #: carried on by the odometry (departure 14)
         self.confident = ConfidentPose(self.map_agreement, self._drift_envelope)
+        #: consecutive updates (up to ``self.t``) at which the state said LOST with the leader
+        #: beyond the drift envelope of the last confident pose (departure 17)
+        self._far_lost: tuple[int, int] = (0, 0)
 
     # ================================================================== initialisation
     def initialise_global(self, scan: LaserScan) -> CEAMCLRecord:
@@ -168,6 +171,7 @@ class CEAMCL:
         self.map_agreement.reset()
         self.last_scan = scan
         self.confident.reset()
+        self._far_lost = (0, 0)
         self.events = Events()
         self._evaluations = 0
         self._initialise_from(usable(self.sensor, scan))
@@ -287,6 +291,7 @@ class CEAMCL:
         sid = self._next_id
         self._read = None
         self.confident.reset()
+        self._far_lost = (0, 0)
         self.particle_set = gaussian(pose, covariance, self.config.tracking_samples, self.rng)
         self.particle_set.labels[:] = sid
         self._next_id = sid + 1
@@ -306,6 +311,7 @@ class CEAMCL:
             raise ValueError("poses: expected at least one pose")
         self._read = None
         self.confident.reset()
+        self._far_lost = (0, 0)
         parts = []
         for pose in centres:
             part = gaussian(pose, covariance, self.config.tracking_samples, self.rng)
@@ -875,6 +881,7 @@ class CEAMCL:
         self.stats = species_stats(self.particle_set)
 
     def _record(self, reinitialised: bool) -> CEAMCLRecord:
+        self._count_far_lost()
         comp = self.competition
         ranked, shares = self._ranked_shares()
         share = {s.species_id: float(w) for s, w in zip(ranked, shares, strict=True)}
@@ -920,24 +927,55 @@ class CEAMCL:
         """The leading species' mean and covariance; while the state says LOST and the
         leading species has left the last confident pose carried on by the odometry (the
         anchor), that pose (``coast_when_lost``). "Left": beyond the odometry's drift envelope
-        of the anchor (departure 17, ``anchor_envelope_sd``), a species sliding where the map
-        holds little; without an envelope, after a recovery and beyond ``recovery_drift_m``
-        (or ``recovery_drift_rad``), another place the recovery proposed (departure 15)."""
+        of the anchor at ``coast_after_updates`` consecutive updates with the state LOST
+        (departure 17, ``anchor_envelope_sd``), a species sliding where the map holds little;
+        without an envelope, after a recovery and beyond ``recovery_drift_m`` (or
+        ``recovery_drift_rad``), another place the recovery proposed (departure 15)."""
         best = self.fittest()
         if best is None:
             return PoseEstimate(np.zeros(3), np.diag([1e6, 1e6, np.pi**2]))
+        cfg = self.config
         # the cheap tests first: the state is read only when the leader has left the anchor
-        coasting = (
-            self.confident.coasting(self.config.recovery_drift_m)
-            if self.config.coast_when_lost
-            else None
-        )
-        if coasting is not None and self.t > 0:
-            pose, covariance, reach = coasting
-            far = reach is None or not self._near(best.mean[None, :], pose[None, :], reach)[0]
-            if far and self.state().state is State.LOST:
-                return PoseEstimate(pose, covariance)
+        left = self._left_anchor(best) if cfg.coast_when_lost and self.t > 0 else None
+        if left is not None:
+            if cfg.anchor_envelope_sd is not None:
+                if self._far_lost == (self.t, self._far_lost[1]) and (
+                    self._far_lost[1] >= cfg.coast_after_updates
+                ):
+                    return left
+            elif self.state().state is State.LOST:
+                return left
         return PoseEstimate(best.mean.copy(), best.covariance.copy())
+
+    def _left_anchor(self, best: SpeciesStats) -> PoseEstimate | None:
+        """The anchor as an estimate when the leading species ``best`` stands beyond its
+        reach (the drift envelope, or departure 15's ``recovery_drift_m``), else ``None``."""
+        coasting = self.confident.coasting(self.config.recovery_drift_m)
+        if coasting is None:
+            return None
+        pose, covariance, reach = coasting
+        if reach is not None and self._near(best.mean[None, :], pose[None, :], reach)[0]:
+            return None
+        return PoseEstimate(pose, covariance)
+
+    def _count_far_lost(self) -> None:
+        """At the end of an update: one more consecutive update at which the state says LOST
+        with the leader beyond the drift envelope of the anchor, or none (departure 17;
+        counted once an update)."""
+        cfg = self.config
+        if self._far_lost[0] == self.t:
+            return
+        best = self.fittest()
+        far = (
+            cfg.coast_when_lost
+            and cfg.anchor_envelope_sd is not None
+            and self.t > 0
+            and best is not None
+            and self._left_anchor(best) is not None
+            and self.state().state is State.LOST
+        )
+        run = self._far_lost[1] + 1 if far and self._far_lost[0] == self.t - 1 else int(far)
+        self._far_lost = (self.t, run)
 
     def _drift_envelope(self) -> DriftEnvelope | None:
         """Departure 17's envelope from the config (``None``: ``anchor_envelope_sd`` is)."""
