@@ -11,6 +11,7 @@ filter is lost after a recovery, that pose is its estimate (departure 15)."""
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 import pytest
@@ -362,6 +363,16 @@ def _lost_behind_an_obstacle(
     return f, log, k
 
 
+def _anchor_on_the_paper_course(seed: int) -> tuple[Any, SimulatedLog, CEAMCL]:
+    """The paper's course, route 0 simulated with ``seed``, and a CEAMCL on its map (whose
+    :class:`~ceamcl.filters.ceamcl.anchor.ConfidentPose` the anchor tests drive by hand)."""
+    course = paper_course()
+    log = course.scenario(0).simulate(np.random.default_rng(seed), course.grid())
+    f = make_filter("ceamcl", course.grid(), np.random.default_rng(seed))
+    assert isinstance(f, CEAMCL)
+    return course, log, f
+
+
 @pytest.mark.parametrize("coast", [True, False])
 def test_while_lost_a_leader_that_left_the_drift_envelope_yields_to_the_odometry(
     coast: bool,
@@ -468,11 +479,8 @@ def test_the_anchor_learns_how_fast_the_odometrys_heading_drifts(bias: float, le
     Odometry whose heading turns 0.01 rad a reading (0.2 rad a metre here) more than the
     robot does is learnt; the simulator's own odometry leaves the floor measured on
     freiburg-079."""
-    course = paper_course()
-    log = course.scenario(0).simulate(np.random.default_rng(4), course.grid())
+    _, log, f = _anchor_on_the_paper_course(4)
     truth = log.true_poses
-    f = make_filter("ceamcl", course.grid(), np.random.default_rng(4))
-    assert isinstance(f, CEAMCL)
     cp = f.confident
     reach = f.config.recovery_anchor_m
     cp.propose(truth[0], log.scan(0), 0)
@@ -506,11 +514,8 @@ def test_a_confident_pose_elsewhere_starts_the_disagreement_again() -> None:
     again, so the true place replaces the anchor only ``anchor_conflict_m`` after it was
     proposed once more (fr079 raw, seed 2: a place 4.5 m off, LOCALISED after the room, took
     the anchor on the clock a slid species had started)."""
-    course = paper_course()
-    log = course.scenario(0).simulate(np.random.default_rng(3), course.grid())
+    course, log, f = _anchor_on_the_paper_course(3)
     truth = log.true_poses
-    f = make_filter("ceamcl", course.grid(), np.random.default_rng(3))
-    assert isinstance(f, CEAMCL)
     cp = f.confident
     reach = f.config.recovery_anchor_m
     off = truth[0] + np.array([0.0, 1.2, 0.0])

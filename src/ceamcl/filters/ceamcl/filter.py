@@ -935,16 +935,21 @@ class CEAMCL:
         if best is None:
             return PoseEstimate(np.zeros(3), np.diag([1e6, 1e6, np.pi**2]))
         cfg = self.config
-        # the cheap tests first: the state is read only when the leader has left the anchor
-        left = self._left_anchor(best) if cfg.coast_when_lost and self.t > 0 else None
-        if left is not None:
+        if cfg.coast_when_lost and self.t > 0:
             if cfg.anchor_envelope_sd is not None:
-                if self._far_lost == (self.t, self._far_lost[1]) and (
-                    self._far_lost[1] >= cfg.coast_after_updates
-                ):
+                # counted at the end of this update (_count_far_lost): no test repeated here
+                at, run = self._far_lost
+                left = (
+                    self._left_anchor(best)
+                    if at == self.t and run >= cfg.coast_after_updates
+                    else None
+                )
+                if left is not None:
                     return left
-            elif self.state().state is State.LOST:
-                return left
+            else:  # departure 15: the state is read only when the leader has left the anchor
+                left = self._left_anchor(best)
+                if left is not None and self.state().state is State.LOST:
+                    return left
         return PoseEstimate(best.mean.copy(), best.covariance.copy())
 
     def _left_anchor(self, best: SpeciesStats) -> PoseEstimate | None:
