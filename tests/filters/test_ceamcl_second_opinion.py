@@ -385,6 +385,9 @@ def test_while_lost_a_leader_that_left_the_drift_envelope_yields_to_the_odometry
     wrong and the species right), or within the envelope, the species is the estimate.
     ``coast_when_lost=False``: the species throughout."""
     f, log, k = _lost_behind_an_obstacle(coast)
+    # departure 17 alone: the species below jumps where a real one slides (departure 18 would
+    # judge the jump against the anchor)
+    f.config = replace(f.config, anchor_hold_margin=None)
     anchor = f.confident.anchor()
     assert anchor is not None and position_error(anchor[0], log.true_poses[k]) < 0.3
     reach = f.confident.coasting(f.config.recovery_drift_m)
@@ -541,3 +544,96 @@ def test_a_confident_pose_elsewhere_starts_the_disagreement_again() -> None:
         assert travel < 5.0, "never replaced"
     assert restarted is not None
     assert travel >= restarted + f.config.anchor_conflict_m
+
+
+def _tracked_along_the_course(
+    seed: int, margin: float | None
+) -> tuple[Any, SimulatedLog, CEAMCL, int]:
+    """CEAMCL tracking route 0 of the paper's course from its true start until the map has
+    vouched for a confident pose (the anchor) and the robot has travelled 1 m since; the
+    course, the log, the filter and the last update's index."""
+    course, log, f = _anchor_on_the_paper_course(seed)
+    f.config = replace(f.config, anchor_hold_margin=margin)
+    truth = log.true_poses
+    f.initialise_pose(truth[0], np.diag([0.05**2, 0.05**2, 0.03**2]))
+    f.step(STILL, log.scan(0))
+    k, travel = 0, 0.0
+    while f.confident.anchor() is None or travel < 1.0:
+        k += 1
+        inc = increment_between(log.odometry[k - 1], log.odometry[k])
+        f.step(inc, log.scan(k))
+        travel += abs(inc.trans)
+        assert k < 60, "no confident pose"
+    assert position_error(f.estimate().pose, truth[k]) < 0.2
+    return course, log, f, k
+
+
+def _leader_moved_to(f: CEAMCL, pose: np.ndarray, new_species: bool = True) -> None:
+    """Carry the lone species' samples to ``pose`` (its mean there, its spread kept), as a new
+    species (as a recovery proposes) or as the tracked one. Then end the update as the filter
+    would judge it."""
+    (stats,) = f.stats.values()
+    ps = f.particle_set
+    if new_species:
+        ps.labels[:] = f._next_id
+        f._next_id += 1
+    offsets = ps.poses - stats.mean
+    c, s = np.cos(pose[2] - stats.mean[2]), np.sin(pose[2] - stats.mean[2])
+    ps.poses[:, 0] = pose[0] + c * offsets[:, 0] - s * offsets[:, 1]
+    ps.poses[:, 1] = pose[1] + s * offsets[:, 0] + c * offsets[:, 1]
+    ps.poses[:, 2] = pose[2] + offsets[:, 2]
+    f._refresh_stats()
+    f.t += 1  # what the end of an update judges, the scan and the particles left as they are
+    f._read = None
+    f._count_far_lost()
+
+
+@pytest.mark.parametrize(("seed", "margin"), [(1, 3.0), (2, 3.0), (1, None)])
+def test_a_far_look_alike_leader_yields_to_the_anchor_that_fits_as_well(
+    seed: int, margin: float | None
+) -> None:
+    """Departure 18: when the leading species stands beyond the drift envelope of the last
+    confident pose (a look-alike a recovery proposed, in another room of the symmetric hall)
+    while a pose near that anchor, carried on by the odometry, fits the update's scan within
+    ``anchor_hold_margin`` of the leader, the estimate is that pose and not the far place; the
+    hypotheses stay the species'. Where the scan fits at the anchor no longer (the robot was
+    carried off), the leader is the estimate; ``anchor_hold_margin=None``: always the
+    leader."""
+    course, log, f, k = _tracked_along_the_course(seed, margin)
+    truth = log.true_poses[k]
+    images = course.images(truth)
+    far = images[int(np.argmax(np.hypot(*(images[:, :2] - truth[:2]).T)))]
+    assert position_error(far, truth) > 3.0
+    _leader_moved_to(f, far)
+    assert f.state().state is not State.LOST  # the look-alike fits the scan
+    (hyp,) = f.hypotheses()
+    assert position_error(hyp.pose, far) < 0.05
+    estimate = f.estimate().pose
+    if margin is None:
+        assert np.array_equal(estimate, hyp.pose)
+    else:
+        assert position_error(estimate, truth) < 0.2
+        assert f.state().state is not State.LOST
+    # the anchor carried off to where the scan does not fit (a kidnapped robot's old place):
+    # the leader, wherever it stands
+    anchor = f.confident._anchor
+    assert anchor is not None
+    anchor.pose = anchor.pose + np.array([0.0, 0.0, np.pi / 2])
+    _leader_moved_to(f, far)
+    assert np.array_equal(f.estimate().pose, f.hypotheses()[0].pose)
+
+
+def test_the_tracked_species_that_moved_on_stays_the_estimate() -> None:
+    """Departure 18 judges only a leader that was not the last update's estimate: the tracked
+    species itself, carried as far in one update (fr079's odometry reporting 0.5 m forward
+    while the robot backs up, departure 12's look-around following the scans), stays the
+    estimate whatever fits near the anchor (the raw-log case: ``tests/test_raw_logs.py``,
+    ``test_ceamcl_follows_fr079_backing_up_with_unsigned_odometry``)."""
+    course, log, f, k = _tracked_along_the_course(1, 3.0)
+    truth = log.true_poses[k]
+    images = course.images(truth)
+    far = images[int(np.argmax(np.hypot(*(images[:, :2] - truth[:2]).T)))]
+    _leader_moved_to(f, far, new_species=False)
+    (hyp,) = f.hypotheses()
+    assert position_error(hyp.pose, far) < 0.05
+    assert np.array_equal(f.estimate().pose, hyp.pose)

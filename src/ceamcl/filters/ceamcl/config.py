@@ -138,6 +138,12 @@ class CEAMCLConfig:
             ``anchor_envelope_sd=None``: departure 15 as first adopted, coasting only after a
             recovery and beyond ``recovery_drift_m`` / ``recovery_drift_rad``, and every
             LOCALISED pose the map vouches for replaces the last.
+        anchor_hold_margin: with an envelope, whatever the state, a leading species beyond it
+            yields the estimate to the anchor while a pose near the anchor (within 0.8 m and
+            0.2 rad) fits the update's scan within this margin of the leader's best sample
+            (tempered log-likelihood, every beam; docs/ceamcl.md, departure 18): a far
+            look-alike a recovery proposed needs to out-fit the place the odometry carried the
+            robot to, not only to fit. ``None``: the leader unless the estimate coasts.
         recovery_prior_fades: ``False`` (the default): the handicap ``recovery_prior`` of a
             new species beyond ``recovery_drift_m`` stays in its weight while other species
             live, so a far place must out-fit the near ones by that much in the evidence the
@@ -229,6 +235,7 @@ class CEAMCLConfig:
     anchor_envelope_min_m: float = 0.5
     anchor_conflict_m: float = 2.0
     coast_after_updates: int = 2
+    anchor_hold_margin: float | None = 3.0
     recovery_lost_updates: int | None = 3
     beam_skip: BeamSkipConfig | None = field(default_factory=BeamSkipConfig)
     confirm_fit_below: float | None = DEFAULT_THRESHOLDS.fit_min
@@ -303,6 +310,8 @@ class CEAMCLConfig:
             "anchor_envelope_min_m": self.anchor_envelope_min_m >= 0,
             "anchor_conflict_m": self.anchor_conflict_m >= 0,
             "coast_after_updates": self.coast_after_updates >= 1,
+            "anchor_hold_margin": self.anchor_hold_margin is None
+            or (math.isfinite(self.anchor_hold_margin) and self.anchor_hold_margin >= 0),
             "recovery_lost_updates": self.recovery_lost_updates is None
             or self.recovery_lost_updates >= 1,
         }

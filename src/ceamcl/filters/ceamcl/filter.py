@@ -124,6 +124,7 @@ class CEAMCL:
         self.t = 0
         self._next_id = 0
         self._prepared: PreparedScan | None = None  # the last scan with a usable beam
+        self._full: PreparedScan | None = None
         self._evaluations = 0
         self._fit_fast: float | None = None
         self._fit_slow: float | None = None
@@ -163,6 +164,9 @@ class CEAMCL:
         #: consecutive updates (up to ``self.t``) at which the state said LOST with the leader
         #: beyond the drift envelope of the last confident pose (departure 17)
         self._far_lost: tuple[int, int] = (0, 0)
+        self._held: tuple[int, PoseEstimate | None] = (0, None)  # departure 18, this update
+        #: the update and the species whose mean was its estimate (-1: the anchor; departure 18)
+        self._estimate_from: tuple[int, int] = (-1, -1)
 
     # ================================================================== initialisation
     def initialise_global(self, scan: LaserScan) -> CEAMCLRecord:
@@ -172,6 +176,8 @@ class CEAMCL:
         self.last_scan = scan
         self.confident.reset()
         self._far_lost = (0, 0)
+        self._held = (0, None)
+        self._estimate_from = (-1, -1)
         self.events = Events()
         self._evaluations = 0
         self._initialise_from(usable(self.sensor, scan))
@@ -292,10 +298,13 @@ class CEAMCL:
         self._read = None
         self.confident.reset()
         self._far_lost = (0, 0)
+        self._held = (0, None)
+        self._estimate_from = (-1, -1)
         self.particle_set = gaussian(pose, covariance, self.config.tracking_samples, self.rng)
         self.particle_set.labels[:] = sid
         self._next_id = sid + 1
         self._prepared = None
+        self._full = None
         self.t = 0
         self.map_agreement.reset()
         self._refresh_stats()
@@ -312,6 +321,8 @@ class CEAMCL:
         self._read = None
         self.confident.reset()
         self._far_lost = (0, 0)
+        self._held = (0, None)
+        self._estimate_from = (-1, -1)
         parts = []
         for pose in centres:
             part = gaussian(pose, covariance, self.config.tracking_samples, self.rng)
@@ -323,6 +334,7 @@ class CEAMCL:
             ps.extend(part)
         self.particle_set = ps
         self._prepared = None
+        self._full = None
         self.t = 0
         self.map_agreement.reset()
         self._refresh_stats()
@@ -343,6 +355,7 @@ class CEAMCL:
         self._evaluations = 0
         self.events = Events()
         self._peak_fitness = {}
+        self._full = None
         prepared = usable(self.sensor, scan)
         # 1. Sample-size determination.
         targets, evaluations = grow(
@@ -378,6 +391,7 @@ class CEAMCL:
                 self.grid, (ps.poses[idx] for idx in members.values()), prepared, cfg.beam_skip
             )
         self._prepared = prepared
+        self._full = full  # every beam: departure 18 judges the anchor on them
         self._evaluations += ps.n
         if not weigh(ps, self.sensor, prepared):
             return self._restart(full)  # every particle impossible under this scan
@@ -946,6 +960,9 @@ class CEAMCL:
                 )
                 if left is not None:
                     return left
+                at, held = self._held  # judged at the end of this update (_count_far_lost)
+                if at == self.t and held is not None:
+                    return PoseEstimate(held.pose.copy(), held.covariance.copy())
             else:  # departure 15: the state is read only when the leader has left the anchor
                 left = self._left_anchor(best)
                 if left is not None and self.state().state is State.LOST:
@@ -963,24 +980,56 @@ class CEAMCL:
             return None
         return PoseEstimate(pose, covariance)
 
+    def _anchor_holds(self, best: SpeciesStats) -> PoseEstimate | None:
+        """The anchor as an estimate, the leading species ``best`` standing beyond its drift
+        envelope, when a pose near the anchor fits this update's scan within
+        ``anchor_hold_margin`` of the leader's best sample (departure 18), else ``None``. Scores
+        a grid around the anchor (:data:`HOLD_RADIUS_M`, :data:`HOLD_RAD`) and the leader's
+        samples on every beam of the scan."""
+        margin = self.config.anchor_hold_margin
+        full = self._full
+        left = self._left_anchor(best) if margin is not None and full is not None else None
+        if left is None or margin is None or full is None:
+            return None
+        offsets = _look_around_offsets(HOLD_RADIUS_M, HOLD_STEP_M, HOLD_RAD, HOLD_STEP_RAD)
+        near = left.pose + offsets
+        near[:, 2] = angles.wrap(near[:, 2])
+        leader = self.particle_set.poses[best.members]
+        ll = sanitise_log_likelihood(self.sensor.log_likelihood(np.vstack([near, leader]), full))
+        self._evaluations += int(ll.size)
+        k = near.shape[0]
+        return left if ll[:k].max() >= ll[k:].max() - margin else None
+
     def _count_far_lost(self) -> None:
         """At the end of an update: one more consecutive update at which the state says LOST
-        with the leader beyond the drift envelope of the anchor, or none (departure 17;
-        counted once an update)."""
+        with the leader beyond the drift envelope of the anchor, or none (departure 17), and,
+        where that does not coast, whether the anchor holds against a leader that stands
+        beyond it and was not the last update's estimate (departure 18; judged once an
+        update)."""
         cfg = self.config
         if self._far_lost[0] == self.t:
             return
         best = self.fittest()
-        far = (
+        beyond = (
             cfg.coast_when_lost
             and cfg.anchor_envelope_sd is not None
             and self.t > 0
             and best is not None
             and self._left_anchor(best) is not None
-            and self.state().state is State.LOST
         )
+        far = beyond and self.state().state is State.LOST
         run = self._far_lost[1] + 1 if far and self._far_lost[0] == self.t - 1 else int(far)
         self._far_lost = (self.t, run)
+        at, source = self._estimate_from
+        # the leader moved the estimate here itself (departure 12's look-around or a wrong
+        # odometry can carry it metres in an update), or it leads anew (a recovery's place)
+        moved_on = at == self.t - 1 and best is not None and source == best.species_id
+        held = None
+        if beyond and best is not None and run < cfg.coast_after_updates and not moved_on:
+            held = self._anchor_holds(best)
+        self._held = (self.t, held)
+        own = best is not None and np.array_equal(self.estimate().pose, best.mean)
+        self._estimate_from = (self.t, best.species_id if own and best is not None else -1)
 
     def _drift_envelope(self) -> DriftEnvelope | None:
         """Departure 17's envelope from the config (``None``: ``anchor_envelope_sd`` is)."""
@@ -1092,6 +1141,15 @@ def _reported_fitness(s: SpeciesStats, peak: float | None = None) -> float:
     fitness of 0.20 and a median best of 0.91."""
     best = s.best_fitness if np.isfinite(s.best_fitness) else s.fitness
     return best if peak is None else max(best, peak)
+
+
+#: Departure 18's neighbourhood of the anchor: positions 0.1 m apart within 0.8 m, headings
+#: 0.05 rad apart within 0.2 rad (1,773 poses; where a look-alike led on fr079 raw, the anchor
+#: was 0.3-0.5 m off the truth).
+HOLD_RADIUS_M = 0.8
+HOLD_STEP_M = 0.1
+HOLD_RAD = 0.2
+HOLD_STEP_RAD = 0.05
 
 
 def _look_around_offsets(
