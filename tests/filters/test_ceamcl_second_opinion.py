@@ -637,3 +637,31 @@ def test_the_tracked_species_that_moved_on_stays_the_estimate() -> None:
     (hyp,) = f.hypotheses()
     assert position_error(hyp.pose, far) < 0.05
     assert np.array_equal(f.estimate().pose, hyp.pose)
+
+
+def test_while_not_localised_a_far_new_leader_yields_to_the_anchor_at_once() -> None:
+    """Departure 18: while the state is not LOCALISED, a leading species beyond the drift
+    envelope that was not the last estimate (a place a recovery proposed) yields the estimate
+    to the anchor at once, whatever fits near the anchor: departure 17 would wait for a second
+    LOST update. ``anchor_hold_margin=None``: the leader until then."""
+    for margin in (3.0, None):
+        f, _, _ = _lost_behind_an_obstacle(True)
+        f.config = replace(f.config, anchor_hold_margin=margin)
+        anchor = f.confident.anchor()
+        assert anchor is not None
+        # a new species 6 m away, where the obstructed scan fits no better
+        f.particle_set.labels[:] = f._next_id
+        f._next_id += 1
+        f.particle_set.poses[:, 0] += 6.0
+        f._refresh_stats()
+        f.t += 1
+        f._read = None
+        f._count_far_lost()
+        assert f.state().state is not State.LOCALISED
+        assert f._far_lost[1] < f.config.coast_after_updates  # departure 17 does not coast yet
+        lead = f.fittest()
+        assert lead is not None and position_error(lead.mean, anchor[0]) > 5.0
+        if margin is None:
+            assert np.array_equal(f.estimate().pose, lead.mean)
+        else:
+            assert np.array_equal(f.estimate().pose, anchor[0])

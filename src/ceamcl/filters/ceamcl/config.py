@@ -138,11 +138,12 @@ class CEAMCLConfig:
             ``anchor_envelope_sd=None``: departure 15 as first adopted, coasting only after a
             recovery and beyond ``recovery_drift_m`` / ``recovery_drift_rad``, and every
             LOCALISED pose the map vouches for replaces the last.
-        anchor_hold_margin: with an envelope, whatever the state, a leading species beyond it
-            yields the estimate to the anchor while a pose near the anchor (within 0.8 m and
-            0.2 rad) fits the update's scan within this margin of the leader's best sample
-            (tempered log-likelihood, every beam; docs/ceamcl.md, departure 18): a far
-            look-alike a recovery proposed needs to out-fit the place the odometry carried the
+        anchor_hold_margin: with an envelope, a leading species beyond it that was not the
+            last update's estimate (a place a recovery proposed) yields the estimate to the
+            anchor while the state is not LOCALISED, and, while it is, as long as a pose near
+            the anchor (within 0.8 m and 0.2 rad) fits the update's scan within this margin of
+            the leader's best sample (tempered log-likelihood, every beam; docs/ceamcl.md,
+            departure 18): a far look-alike needs to out-fit the place the odometry carried the
             robot to, not only to fit. ``None``: the leader unless the estimate coasts.
         recovery_prior_fades: ``False`` (the default): the handicap ``recovery_prior`` of a
             new species beyond ``recovery_drift_m`` stays in its weight while other species

@@ -982,14 +982,19 @@ class CEAMCL:
 
     def _anchor_holds(self, best: SpeciesStats) -> PoseEstimate | None:
         """The anchor as an estimate, the leading species ``best`` standing beyond its drift
-        envelope, when a pose near the anchor fits this update's scan within
-        ``anchor_hold_margin`` of the leader's best sample (departure 18), else ``None``. Scores
-        a grid around the anchor (:data:`HOLD_RADIUS_M`, :data:`HOLD_RAD`) and the leader's
-        samples on every beam of the scan."""
+        envelope (departure 18), else ``None``: while the state is not LOCALISED, at once;
+        while it is, when a pose near the anchor fits this update's scan within
+        ``anchor_hold_margin`` of the leader's best sample. Scores a grid around the anchor
+        (:data:`HOLD_RADIUS_M`, :data:`HOLD_RAD`) and the leader's samples on every beam of
+        the scan."""
         margin = self.config.anchor_hold_margin
+        left = self._left_anchor(best) if margin is not None else None
+        if left is None or margin is None:
+            return None
+        if self.state().state is not State.LOCALISED:
+            return left  # the far place is doubted too: no reason to leave the odometry
         full = self._full
-        left = self._left_anchor(best) if margin is not None and full is not None else None
-        if left is None or margin is None or full is None:
+        if full is None:
             return None
         offsets = _look_around_offsets(HOLD_RADIUS_M, HOLD_STEP_M, HOLD_RAD, HOLD_STEP_RAD)
         near = left.pose + offsets
