@@ -980,24 +980,22 @@ class CEAMCL:
             return None
         return PoseEstimate(pose, covariance)
 
-    def _anchor_holds(self, best: SpeciesStats) -> PoseEstimate | None:
-        """The anchor as an estimate, the leading species ``best`` standing beyond its drift
-        envelope (departure 18), else ``None``: while the state is not LOCALISED, at once;
-        while it is, when a pose near the anchor fits this update's scan within
+    def _anchor_holds(self, best: SpeciesStats, left: PoseEstimate) -> PoseEstimate | None:
+        """``left``, the anchor as an estimate, when the leading species ``best`` stands beyond
+        its drift envelope (departure 18), else ``None``: while the state is not LOCALISED, at
+        once; while it is, when a pose near the anchor fits this update's scan within
         ``anchor_hold_margin`` of the leader's best sample. Scores a grid around the anchor
         (:data:`HOLD_RADIUS_M`, :data:`HOLD_RAD`) and the leader's samples on every beam of
         the scan."""
         margin = self.config.anchor_hold_margin
-        left = self._left_anchor(best) if margin is not None else None
-        if left is None or margin is None:
+        if margin is None:
             return None
         if self.state().state is not State.LOCALISED:
             return left  # the far place is doubted too: no reason to leave the odometry
         full = self._full
         if full is None:
             return None
-        offsets = _look_around_offsets(HOLD_RADIUS_M, HOLD_STEP_M, HOLD_RAD, HOLD_STEP_RAD)
-        near = left.pose + offsets
+        near = left.pose + _HOLD_OFFSETS
         near[:, 2] = angles.wrap(near[:, 2])
         leader = self.particle_set.poses[best.members]
         ll = sanitise_log_likelihood(self.sensor.log_likelihood(np.vstack([near, leader]), full))
@@ -1015,25 +1013,27 @@ class CEAMCL:
         if self._far_lost[0] == self.t:
             return
         best = self.fittest()
-        beyond = (
-            cfg.coast_when_lost
+        left = (  # the anchor as an estimate, the leader beyond its envelope
+            self._left_anchor(best)
+            if cfg.coast_when_lost
             and cfg.anchor_envelope_sd is not None
             and self.t > 0
             and best is not None
-            and self._left_anchor(best) is not None
+            else None
         )
-        far = beyond and self.state().state is State.LOST
+        far = left is not None and self.state().state is State.LOST
         run = self._far_lost[1] + 1 if far and self._far_lost[0] == self.t - 1 else int(far)
         self._far_lost = (self.t, run)
+        coasts = left is not None and run >= cfg.coast_after_updates  # what estimate() reports
         at, source = self._estimate_from
         # the leader moved the estimate here itself (departure 12's look-around or a wrong
         # odometry can carry it metres in an update), or it leads anew (a recovery's place)
         moved_on = at == self.t - 1 and best is not None and source == best.species_id
         held = None
-        if beyond and best is not None and run < cfg.coast_after_updates and not moved_on:
-            held = self._anchor_holds(best)
+        if left is not None and best is not None and not coasts and not moved_on:
+            held = self._anchor_holds(best, left)
         self._held = (self.t, held)
-        own = best is not None and np.array_equal(self.estimate().pose, best.mean)
+        own = best is not None and not coasts and held is None
         self._estimate_from = (self.t, best.species_id if own and best is not None else -1)
 
     def _drift_envelope(self) -> DriftEnvelope | None:
@@ -1173,3 +1173,7 @@ def _look_around_offsets(
     out[:, :2] = np.repeat(xy, dth.size, axis=0)
     out[:, 2] = np.tile(dth, xy.shape[0])
     return out
+
+
+#: :func:`_look_around_offsets` of departure 18's grid, built once.
+_HOLD_OFFSETS = _look_around_offsets(HOLD_RADIUS_M, HOLD_STEP_M, HOLD_RAD, HOLD_STEP_RAD)
