@@ -547,13 +547,14 @@ def test_a_confident_pose_elsewhere_starts_the_disagreement_again() -> None:
 
 
 def _tracked_along_the_course(
-    seed: int, margin: float | None
+    seed: int, margin: float | None, species: bool = False
 ) -> tuple[Any, SimulatedLog, CEAMCL, int]:
     """CEAMCL tracking route 0 of the paper's course from its true start until the map has
     vouched for a confident pose (the anchor) and the robot has travelled 1 m since; the
-    course, the log, the filter and the last update's index."""
+    course, the log, the filter and the last update's index. ``species``: departure 19 on
+    (``anchor_species``)."""
     course, log, f = _anchor_on_the_paper_course(seed)
-    f.config = replace(f.config, anchor_hold_margin=margin)
+    f.config = replace(f.config, anchor_hold_margin=margin, anchor_species=species)
     truth = log.true_poses
     f.initialise_pose(truth[0], np.diag([0.05**2, 0.05**2, 0.03**2]))
     f.step(STILL, log.scan(0))
@@ -592,13 +593,13 @@ def _leader_moved_to(f: CEAMCL, pose: np.ndarray, new_species: bool = True) -> N
 def test_a_far_look_alike_leader_yields_to_the_anchor_that_fits_as_well(
     seed: int, margin: float | None
 ) -> None:
-    """Departure 18: when the leading species stands beyond the drift envelope of the last
-    confident pose (a look-alike a recovery proposed, in another room of the symmetric hall)
-    while a pose near that anchor, carried on by the odometry, fits the update's scan within
-    ``anchor_hold_margin`` of the leader, the estimate is that pose and not the far place; the
-    hypotheses stay the species'. Where the scan fits at the anchor no longer (the robot was
-    carried off), the leader is the estimate; ``anchor_hold_margin=None``: always the
-    leader."""
+    """Departure 18 (without departure 19, which would start a species there): when the
+    leading species stands beyond the drift envelope of the last confident pose (a look-alike a
+    recovery proposed, in another room of the symmetric hall) while a pose near that anchor,
+    carried on by the odometry, fits the update's scan within ``anchor_hold_margin`` of the
+    leader, the estimate is that pose and not the far place; the hypotheses stay the
+    species'. Where the scan fits at the anchor no longer (the robot was carried off), the
+    leader is the estimate; ``anchor_hold_margin=None``: always the leader."""
     course, log, f, k = _tracked_along_the_course(seed, margin)
     truth = log.true_poses[k]
     images = course.images(truth)
@@ -609,11 +610,18 @@ def test_a_far_look_alike_leader_yields_to_the_anchor_that_fits_as_well(
     (hyp,) = f.hypotheses()
     assert position_error(hyp.pose, far) < 0.05
     estimate = f.estimate().pose
+    assert f._species_state().state is State.LOCALISED  # one species, and it fits
+    state = f.state()
     if margin is None:
         assert np.array_equal(estimate, hyp.pose)
+        assert state.state is State.LOCALISED
     else:
         assert position_error(estimate, truth) < 0.2
-        assert f.state().state is not State.LOST
+        # the estimate is not the leader's place: two places fit, the state says so
+        assert state.state is State.AMBIGUOUS
+        assert state.n_hypotheses == 2 and len(state.weights) == 2
+        assert sum(state.weights) == pytest.approx(1.0)
+        assert min(state.weights) > 0.04  # within the margin (3 nats) of each other
     # the anchor carried off to where the scan does not fit (a kidnapped robot's old place):
     # the leader, wherever it stands
     anchor = f.confident._anchor
@@ -621,6 +629,7 @@ def test_a_far_look_alike_leader_yields_to_the_anchor_that_fits_as_well(
     anchor.pose = anchor.pose + np.array([0.0, 0.0, np.pi / 2])
     _leader_moved_to(f, far)
     assert np.array_equal(f.estimate().pose, f.hypotheses()[0].pose)
+    assert f.state().state is State.LOCALISED
 
 
 def test_the_tracked_species_that_moved_on_stays_the_estimate() -> None:
@@ -646,7 +655,7 @@ def test_while_not_localised_a_far_new_leader_yields_to_the_anchor_at_once() -> 
     LOST update. ``anchor_hold_margin=None``: the leader until then."""
     for margin in (3.0, None):
         f, _, _ = _lost_behind_an_obstacle(True)
-        f.config = replace(f.config, anchor_hold_margin=margin)
+        f.config = replace(f.config, anchor_hold_margin=margin, anchor_species=False)
         anchor = f.confident.anchor()
         assert anchor is not None
         # a new species 6 m away, where the obstructed scan fits no better
@@ -665,3 +674,43 @@ def test_while_not_localised_a_far_new_leader_yields_to_the_anchor_at_once() -> 
             assert np.array_equal(f.estimate().pose, lead.mean)
         else:
             assert np.array_equal(f.estimate().pose, anchor[0])
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_the_anchors_place_competes_when_it_fits_as_well_as_a_far_leader(seed: int) -> None:
+    """Departure 19: where departure 18 holds the estimate at the anchor (a far look-alike
+    leads, a pose near the anchor fits within the margin) and no species stands near the
+    anchor, that pose starts a species, with no handicap, at the leader's weight plus the
+    difference of their fits, so the competition can follow the truth instead of only the
+    estimate reporting it. Where the scan fits at the anchor no longer (a robot carried off),
+    none starts; ``anchor_species=False``: none either."""
+    for species in (True, False):
+        course, log, f, k = _tracked_along_the_course(seed, 3.0, species)
+        truth = log.true_poses[k]
+        images = course.images(truth)
+        far = images[int(np.argmax(np.hypot(*(images[:, :2] - truth[:2]).T)))]
+        f.events = type(f.events)()
+        _leader_moved_to(f, far)
+        hyps = f.hypotheses()
+        near = [h for h in hyps if position_error(h.pose, truth) < 0.2]
+        assert any(position_error(h.pose, far) < 0.05 for h in hyps)
+        assert f.events.sprouts == int(species)
+        if not species:
+            assert not near
+            continue
+        assert len(near) == 1 and near[0].weight > 0.1  # the images fit alike
+        (sid,) = (s.species_id for s in f.stats.values() if position_error(s.mean, truth) < 0.2)
+        assert f.log_prior.get(sid, 0.0) == 0.0
+        assert position_error(f.estimate().pose, truth) < 0.2
+    # the anchor turned to where the scan does not fit: no species starts there
+    course, log, f, k = _tracked_along_the_course(seed, 3.0, True)
+    truth = log.true_poses[k]
+    images = course.images(truth)
+    far = images[int(np.argmax(np.hypot(*(images[:, :2] - truth[:2]).T)))]
+    anchor = f.confident._anchor
+    assert anchor is not None
+    anchor.pose = anchor.pose + np.array([0.0, 0.0, np.pi / 2])
+    f.events = type(f.events)()
+    _leader_moved_to(f, far)
+    assert f.events.sprouts == 0
+    assert len(f.hypotheses()) == 1

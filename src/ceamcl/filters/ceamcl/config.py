@@ -144,7 +144,15 @@ class CEAMCLConfig:
             the anchor (within 0.8 m and 0.2 rad) fits the update's scan within this margin of
             the leader's best sample (tempered log-likelihood, every beam; docs/ceamcl.md,
             departure 18): a far look-alike needs to out-fit the place the odometry carried the
-            robot to, not only to fit. ``None``: the leader unless the estimate coasts.
+            robot to, not only to fit; a recovery's far place, by its handicap
+            (``recovery_prior``) as well (departure 19). ``None``: the leader unless the
+            estimate coasts.
+        anchor_species: with ``anchor_hold_margin``, when the leading species stands beyond
+            the anchor's envelope and no species stands near the anchor, the best pose of that
+            grid, if it fits as well as the leader (the same test), starts a species of
+            ``delta x epsilon`` samples at the leader's weight less what it fits worse at the
+            update's scan (docs/ceamcl.md, departure 19): the place the odometry carried the
+            robot to competes instead of being only reported.
         recovery_prior_fades: ``False`` (the default): the handicap ``recovery_prior`` of a
             new species beyond ``recovery_drift_m`` stays in its weight while other species
             live, so a far place must out-fit the near ones by that much in the evidence the
@@ -237,6 +245,7 @@ class CEAMCLConfig:
     anchor_conflict_m: float = 2.0
     coast_after_updates: int = 2
     anchor_hold_margin: float | None = 3.0
+    anchor_species: bool = True
     recovery_lost_updates: int | None = 3
     beam_skip: BeamSkipConfig | None = field(default_factory=BeamSkipConfig)
     confirm_fit_below: float | None = DEFAULT_THRESHOLDS.fit_min

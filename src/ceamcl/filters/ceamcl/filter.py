@@ -165,6 +165,9 @@ class CEAMCL:
         #: beyond the drift envelope of the last confident pose (departure 17)
         self._far_lost: tuple[int, int] = (0, 0)
         self._held: tuple[int, PoseEstimate | None] = (0, None)  # departure 18, this update
+        #: the update and the anchor's place's share of the weight when departure 18 held the
+        #: estimate there against a LOCALISED leader (the state then says AMBIGUOUS)
+        self._held_share: tuple[int, float] = (-1, 0.0)
         #: the update and the species whose mean was its estimate (-1: the anchor; departure 18)
         self._estimate_from: tuple[int, int] = (-1, -1)
 
@@ -177,6 +180,7 @@ class CEAMCL:
         self.confident.reset()
         self._far_lost = (0, 0)
         self._held = (0, None)
+        self._held_share = (-1, 0.0)
         self._estimate_from = (-1, -1)
         self.events = Events()
         self._evaluations = 0
@@ -299,6 +303,7 @@ class CEAMCL:
         self.confident.reset()
         self._far_lost = (0, 0)
         self._held = (0, None)
+        self._held_share = (-1, 0.0)
         self._estimate_from = (-1, -1)
         self.particle_set = gaussian(pose, covariance, self.config.tracking_samples, self.rng)
         self.particle_set.labels[:] = sid
@@ -322,6 +327,7 @@ class CEAMCL:
         self.confident.reset()
         self._far_lost = (0, 0)
         self._held = (0, None)
+        self._held_share = (-1, 0.0)
         self._estimate_from = (-1, -1)
         parts = []
         for pose in centres:
@@ -980,18 +986,37 @@ class CEAMCL:
             return None
         return PoseEstimate(pose, covariance)
 
-    def _anchor_holds(self, best: SpeciesStats, left: PoseEstimate) -> PoseEstimate | None:
-        """``left``, the anchor as an estimate, when the leading species ``best`` stands beyond
-        its drift envelope (departure 18), else ``None``: while the state is not LOCALISED, at
-        once; while it is, when a pose near the anchor fits this update's scan within
-        ``anchor_hold_margin`` of the leader's best sample. Scores a grid around the anchor
-        (:data:`HOLD_RADIUS_M`, :data:`HOLD_RAD`) and the leader's samples on every beam of
-        the scan."""
+    def _anchor_holds(self, left: PoseEstimate, fits: bool) -> PoseEstimate | None:
+        """``left``, the anchor as an estimate, when the leading species stands beyond its
+        drift envelope (departure 18), else ``None``: while the state is not LOCALISED, at
+        once; while it is, when the anchor's place ``fits`` this update's scan as well as the
+        leader (:meth:`_fits_as_well`)."""
+        if self.config.anchor_hold_margin is None:
+            return None
+        if not self._localised():
+            return left  # the far place is doubted too: no reason to leave the odometry
+        return left if fits else None
+
+    def _localised(self) -> bool:
+        """Whether the species read LOCALISED (what departures 18 and 19 ask)."""
+        return self._species_state().state is State.LOCALISED
+
+    def _fits_as_well(self, best: SpeciesStats, near: float, lead: float) -> bool:
+        """Whether the best pose near the anchor (tempered log-likelihood ``near``, every
+        beam) fits within ``anchor_hold_margin`` of the leading species ``best`` (its best
+        sample's ``lead``), and, when ``best`` is a recovery's far place, within its handicap
+        as well (departures 18 and 19)."""
         margin = self.config.anchor_hold_margin
         if margin is None:
-            return None
-        if self.state().state is not State.LOCALISED:
-            return left  # the far place is doubted too: no reason to leave the odometry
+            return False
+        return near >= lead - margin + self.log_prior.get(best.species_id, 0.0)
+
+    def _score_anchor(
+        self, best: SpeciesStats, left: PoseEstimate
+    ) -> tuple[NDArray[np.float64], float, float] | None:
+        """The pose of a grid around the anchor (:data:`HOLD_RADIUS_M`, :data:`HOLD_RAD`)
+        that fits this update's scan best, on every beam, its tempered log-likelihood and the
+        best of the leading species' samples; ``None`` without a scan."""
         full = self._full
         if full is None:
             return None
@@ -1001,14 +1026,45 @@ class CEAMCL:
         ll = sanitise_log_likelihood(self.sensor.log_likelihood(np.vstack([near, leader]), full))
         self._evaluations += int(ll.size)
         k = near.shape[0]
-        return left if ll[:k].max() >= ll[k:].max() - margin else None
+        i = int(np.argmax(ll[:k]))
+        return near[i].copy(), float(ll[i]), float(ll[k:].max())
+
+    def _sprout(self, pose: NDArray[np.float64], log_weight: float) -> None:
+        """Departure 19: a new species of ``delta x epsilon`` samples around ``pose`` (the
+        mutation's Sigma), weighed on every beam of this update's scan, at ``log_weight``
+        against the leading species' 0 and with no handicap (where the odometry says the
+        robot is, as departure 14 has it for a recovery's species)."""
+        full = self._full
+        assert full is not None
+        cfg = self.config
+        n = max(cfg.viable_size, round(cfg.delta_per_m2 * cfg.epsilon_m2))
+        ev = cfg.evolution
+        sigma = [ev.mutation_sigma_xy_m, ev.mutation_sigma_xy_m, ev.mutation_sigma_theta_rad]
+        poses = gaussian_poses(pose, np.diag(np.square(sigma)), n, self.rng)
+        poses[0] = pose
+        sid = self._next_id
+        self._next_id += 1
+        new = ParticleSet.from_poses(poses, np.full(n, sid, dtype=np.int64))
+        new.loglik = sanitise_log_likelihood(self.sensor.log_likelihood(poses, full))
+        new.fitness = fitness(new.loglik, full, self.sensor)
+        self._evaluations += n
+        ps = self.particle_set
+        ps.extend(new)
+        ps.log_weights = uniform_log_weights(ps.n)
+        self.log_weight[sid] = log_weight
+        self.competition.dn[sid] = 0.0
+        self._normalise_weights()
+        self._refresh_stats()
+        self._read = None  # the hypotheses and the state include it
+        self.events.sprouts += 1
 
     def _count_far_lost(self) -> None:
         """At the end of an update: one more consecutive update at which the state says LOST
         with the leader beyond the drift envelope of the anchor, or none (departure 17), and,
         where that does not coast, whether the anchor holds against a leader that stands
         beyond it and was not the last update's estimate (departure 18; judged once an
-        update)."""
+        update); where the anchor's place fits as well and no species stands there, a species
+        starts there (departure 19)."""
         cfg = self.config
         if self._far_lost[0] == self.t:
             return
@@ -1021,7 +1077,7 @@ class CEAMCL:
             and best is not None
             else None
         )
-        far = left is not None and self.state().state is State.LOST
+        far = left is not None and self._species_state().state is State.LOST
         run = self._far_lost[1] + 1 if far and self._far_lost[0] == self.t - 1 else int(far)
         self._far_lost = (self.t, run)
         coasts = left is not None and run >= cfg.coast_after_updates  # what estimate() reports
@@ -1030,11 +1086,47 @@ class CEAMCL:
         # odometry can carry it metres in an update), or it leads anew (a recovery's place)
         moved_on = at == self.t - 1 and best is not None and source == best.species_id
         held = None
-        if left is not None and best is not None and not coasts and not moved_on:
-            held = self._anchor_holds(best, left)
+        if left is not None and best is not None and not moved_on:
+            judged = self._score_anchor(best, left) if self._judges_anchor(left) else None
+            fits = judged is not None and self._fits_as_well(best, judged[1], judged[2])
+            if not coasts:
+                held = self._anchor_holds(left, fits)
+            if held is not None and judged is not None and self._localised():
+                # two places fit: the anchor's and the leader's, at odds of this scan's fit
+                # with the leader's handicap
+                odds = judged[2] + self.log_prior.get(best.species_id, 0.0) - judged[1]
+                self._held_share = (self.t, float(1.0 / (1.0 + np.exp(min(odds, 700.0)))))
+            if judged is not None and fits and self._anchor_vacant(left):
+                # departure 19: the anchor's place competes, at the leader's weight less what
+                # it fits worse at this scan (never ahead on the leader's handicap: a robot
+                # carried off)
+                pose, near, lead = judged
+                self._sprout(pose, self.log_weight.get(best.species_id, 0.0) + near - lead)
+                best = self.fittest()
         self._held = (self.t, held)
         own = best is not None and not coasts and held is None
         self._estimate_from = (self.t, best.species_id if own and best is not None else -1)
+
+    def _judges_anchor(self, left: PoseEstimate) -> bool:
+        """Whether this update scores the grid around the anchor (:meth:`_score_anchor`):
+        while the state is LOCALISED (departure 18's fit test), and whenever a species may
+        start there (:meth:`_anchor_vacant`)."""
+        if self.config.anchor_hold_margin is None:
+            return False
+        return self._localised() or self._anchor_vacant(left)
+
+    def _anchor_vacant(self, left: PoseEstimate) -> bool:
+        """Whether, with ``anchor_species``, no species' mean lies within the reach of the
+        anchor (``left``'s pose): its drift envelope, :meth:`_near`'s heading."""
+        cfg = self.config
+        if not cfg.anchor_species:
+            return False
+        coasting = self.confident.coasting(cfg.recovery_drift_m)
+        reach = None if coasting is None else coasting[2]
+        if reach is None:
+            return False
+        means = np.array([s.mean for s in self.stats.values()]).reshape(-1, 3)
+        return not bool(self._near(means, left.pose[None, :], reach).any())
 
     def _drift_envelope(self) -> DriftEnvelope | None:
         """Departure 17's envelope from the config (``None``: ``anchor_envelope_sd`` is)."""
@@ -1080,7 +1172,27 @@ class CEAMCL:
         """Read from the species: their evidence shares and fitness
         (:func:`ceamcl.filters.state.read_hypotheses`), and the map's agreement with the
         scans (:class:`ceamcl.filters.state.MapAgreement`); INITIALISING until the first
-        step."""
+        step. AMBIGUOUS, the anchor's place and the leader's, where the species read LOCALISED
+        but departure 18 holds the estimate at the anchor (the estimate is not the leader's
+        place: two places fit the scan)."""
+        read = self._species_state(hypotheses)
+        at, share = self._held_share
+        if at != self.t or read.state is not State.LOCALISED:
+            return read
+        weights = (max(share, 1.0 - share), min(share, 1.0 - share))
+        return LocalisationState(
+            State.AMBIGUOUS,
+            read.confidence,
+            2,
+            weights,
+            "the leading place lies beyond the odometry's reach of the last confident pose, "
+            f"which fits the scan as well: the estimate stays there ({share:.0%} of the "
+            f"weight, the leader {1.0 - share:.0%})",
+            read.map_explained,
+        )
+
+    def _species_state(self, hypotheses: Sequence[Hypothesis] | None = None) -> LocalisationState:
+        """:meth:`state` as the species read it."""
         if not self.stats or self.t == 0:
             return initialising()
         if self._read is not None and (

@@ -41,6 +41,7 @@ class Events:
     recoveries: int = 0
     skipped_beams: int = 0
     look_arounds: int = 0
+    sprouts: int = 0
     n0: int = 0
     v_cells: int = 0
 
