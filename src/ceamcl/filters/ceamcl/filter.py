@@ -164,10 +164,10 @@ class CEAMCL:
         #: consecutive updates (up to ``self.t``) at which the state said LOST with the leader
         #: beyond the drift envelope of the last confident pose (departure 17)
         self._far_lost: tuple[int, int] = (0, 0)
-        self._held: tuple[int, PoseEstimate | None] = (0, None)  # departure 18, this update
-        #: the update and the anchor's place's share of the weight when departure 18 held the
-        #: estimate there against a LOCALISED leader (the state then says AMBIGUOUS)
-        self._held_share: tuple[int, float] = (-1, 0.0)
+        #: departure 18, this update: the anchor as the estimate, and its place's share of the
+        #: weight when it was held against a leader the species read LOCALISED (the state then
+        #: says AMBIGUOUS)
+        self._held: tuple[int, PoseEstimate | None, float | None] = (0, None, None)
         #: the update and the species whose mean was its estimate (-1: the anchor; departure 18)
         self._estimate_from: tuple[int, int] = (-1, -1)
 
@@ -179,8 +179,7 @@ class CEAMCL:
         self.last_scan = scan
         self.confident.reset()
         self._far_lost = (0, 0)
-        self._held = (0, None)
-        self._held_share = (-1, 0.0)
+        self._held = (0, None, None)
         self._estimate_from = (-1, -1)
         self.events = Events()
         self._evaluations = 0
@@ -302,8 +301,7 @@ class CEAMCL:
         self._read = None
         self.confident.reset()
         self._far_lost = (0, 0)
-        self._held = (0, None)
-        self._held_share = (-1, 0.0)
+        self._held = (0, None, None)
         self._estimate_from = (-1, -1)
         self.particle_set = gaussian(pose, covariance, self.config.tracking_samples, self.rng)
         self.particle_set.labels[:] = sid
@@ -326,8 +324,7 @@ class CEAMCL:
         self._read = None
         self.confident.reset()
         self._far_lost = (0, 0)
-        self._held = (0, None)
-        self._held_share = (-1, 0.0)
+        self._held = (0, None, None)
         self._estimate_from = (-1, -1)
         parts = []
         for pose in centres:
@@ -617,11 +614,7 @@ class CEAMCL:
             return evaluations
         k = max(1, round(cfg.look_around_share * idx.size))
         worst = idx[np.argsort(ps.loglik[idx], kind="stable")[:k]]
-        ev = cfg.evolution
-        sigma = [ev.mutation_sigma_xy_m, ev.mutation_sigma_xy_m, ev.mutation_sigma_theta_rad]
-        new = gaussian_poses(found, np.diag(np.square(sigma)), k, self.rng)
-        new[0] = found
-        ps.poses[worst] = new
+        ps.poses[worst] = self._mutation_cloud(found, k)
         ps.loglik[idx] = sanitise_log_likelihood(self.sensor.log_likelihood(ps.poses[idx], there))
         ps.fitness[idx] = fitness(ps.loglik[idx], there, self.sensor)
         evaluations += int(idx.size)
@@ -630,6 +623,15 @@ class CEAMCL:
         self._peak_fitness[sid] = fit
         self.events.look_arounds += 1
         return evaluations
+
+    def _mutation_cloud(self, centre: NDArray[np.float64], n: int) -> NDArray[np.float64]:
+        """``n`` poses around ``centre`` with the mutation's Sigma, the first on ``centre``
+        (departures 12 and 19)."""
+        ev = self.config.evolution
+        sigma = [ev.mutation_sigma_xy_m, ev.mutation_sigma_xy_m, ev.mutation_sigma_theta_rad]
+        poses = gaussian_poses(centre, np.diag(np.square(sigma)), n, self.rng)
+        poses[0] = centre
+        return poses
 
     def _fit_in_doubt(self, members: dict[int, NDArray[np.intp]]) -> bool:
         """Whether a lone species' fittest individual scores below ``confirm_fit_below``:
@@ -966,7 +968,7 @@ class CEAMCL:
                 )
                 if left is not None:
                     return left
-                at, held = self._held  # judged at the end of this update (_count_far_lost)
+                at, held, _ = self._held  # judged at the end of this update (_count_far_lost)
                 if at == self.t and held is not None:
                     return PoseEstimate(held.pose.copy(), held.covariance.copy())
             else:  # departure 15: the state is read only when the leader has left the anchor
@@ -985,21 +987,6 @@ class CEAMCL:
         if reach is not None and self._near(best.mean[None, :], pose[None, :], reach)[0]:
             return None
         return PoseEstimate(pose, covariance)
-
-    def _anchor_holds(self, left: PoseEstimate, fits: bool) -> PoseEstimate | None:
-        """``left``, the anchor as an estimate, when the leading species stands beyond its
-        drift envelope (departure 18), else ``None``: while the state is not LOCALISED, at
-        once; while it is, when the anchor's place ``fits`` this update's scan as well as the
-        leader (:meth:`_fits_as_well`)."""
-        if self.config.anchor_hold_margin is None:
-            return None
-        if not self._localised():
-            return left  # the far place is doubted too: no reason to leave the odometry
-        return left if fits else None
-
-    def _localised(self) -> bool:
-        """Whether the species read LOCALISED (what departures 18 and 19 ask)."""
-        return self._species_state().state is State.LOCALISED
 
     def _fits_as_well(self, best: SpeciesStats, near: float, lead: float) -> bool:
         """Whether the best pose near the anchor (tempered log-likelihood ``near``, every
@@ -1038,10 +1025,7 @@ class CEAMCL:
         assert full is not None
         cfg = self.config
         n = max(cfg.viable_size, round(cfg.delta_per_m2 * cfg.epsilon_m2))
-        ev = cfg.evolution
-        sigma = [ev.mutation_sigma_xy_m, ev.mutation_sigma_xy_m, ev.mutation_sigma_theta_rad]
-        poses = gaussian_poses(pose, np.diag(np.square(sigma)), n, self.rng)
-        poses[0] = pose
+        poses = self._mutation_cloud(pose, n)
         sid = self._next_id
         self._next_id += 1
         new = ParticleSet.from_poses(poses, np.full(n, sid, dtype=np.int64))
@@ -1085,35 +1069,31 @@ class CEAMCL:
         # the leader moved the estimate here itself (departure 12's look-around or a wrong
         # odometry can carry it metres in an update), or it leads anew (a recovery's place)
         moved_on = at == self.t - 1 and best is not None and source == best.species_id
-        held = None
-        if left is not None and best is not None and not moved_on:
-            judged = self._score_anchor(best, left) if self._judges_anchor(left) else None
+        held, share = None, None
+        margin = cfg.anchor_hold_margin
+        if left is not None and best is not None and not moved_on and margin is not None:
+            localised = self._species_state().state is State.LOCALISED
+            vacant = self._anchor_vacant(left)
+            # departure 18's fit test while LOCALISED; departure 19's, where a species may start
+            judged = self._score_anchor(best, left) if localised or vacant else None
             fits = judged is not None and self._fits_as_well(best, judged[1], judged[2])
-            if not coasts:
-                held = self._anchor_holds(left, fits)
-            if held is not None and judged is not None and self._localised():
-                # two places fit: the anchor's and the leader's, at odds of this scan's fit
-                # with the leader's handicap
-                odds = judged[2] + self.log_prior.get(best.species_id, 0.0) - judged[1]
-                self._held_share = (self.t, float(1.0 / (1.0 + np.exp(min(odds, 700.0)))))
-            if judged is not None and fits and self._anchor_vacant(left):
+            if not coasts and (fits or not localised):
+                held = left  # not LOCALISED: the far place is doubted too
+                if judged is not None and localised:
+                    # two places fit: the anchor's and the leader's, at odds of this scan's
+                    # fit with the leader's handicap
+                    odds = judged[2] + self.log_prior.get(best.species_id, 0.0) - judged[1]
+                    share = float(1.0 / (1.0 + np.exp(min(odds, 700.0))))
+            if judged is not None and fits and vacant:
                 # departure 19: the anchor's place competes, at the leader's weight less what
                 # it fits worse at this scan (never ahead on the leader's handicap: a robot
                 # carried off)
                 pose, near, lead = judged
                 self._sprout(pose, self.log_weight.get(best.species_id, 0.0) + near - lead)
                 best = self.fittest()
-        self._held = (self.t, held)
+        self._held = (self.t, held, share)
         own = best is not None and not coasts and held is None
         self._estimate_from = (self.t, best.species_id if own and best is not None else -1)
-
-    def _judges_anchor(self, left: PoseEstimate) -> bool:
-        """Whether this update scores the grid around the anchor (:meth:`_score_anchor`):
-        while the state is LOCALISED (departure 18's fit test), and whenever a species may
-        start there (:meth:`_anchor_vacant`)."""
-        if self.config.anchor_hold_margin is None:
-            return False
-        return self._localised() or self._anchor_vacant(left)
 
     def _anchor_vacant(self, left: PoseEstimate) -> bool:
         """Whether, with ``anchor_species``, no species' mean lies within the reach of the
@@ -1176,8 +1156,8 @@ class CEAMCL:
         but departure 18 holds the estimate at the anchor (the estimate is not the leader's
         place: two places fit the scan)."""
         read = self._species_state(hypotheses)
-        at, share = self._held_share
-        if at != self.t or read.state is not State.LOCALISED:
+        at, _, share = self._held
+        if at != self.t or share is None or read.state is not State.LOCALISED:
             return read
         weights = (max(share, 1.0 - share), min(share, 1.0 - share))
         return LocalisationState(
