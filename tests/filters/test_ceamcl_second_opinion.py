@@ -149,10 +149,53 @@ def test_a_new_species_near_a_kept_one_starts_level(
     new, old = _two_sets([new_pose, (30.0, 30.0, 0.0)], [(0.0, 0.0, 0.0), (-20.0, 0.0, 2.0)])
     f.particle_set = new
     log_p = float(np.log(1e-6))
-    handicaps = f._recovery_handicaps(old, log_p)
+    handicaps = f._recovery_handicaps(old, log_p, {})
     assert handicaps == {10: 0.0 if near else log_p, 11: log_p}
     f.config = replace(f.config, recovery_drift_m=None)
-    assert f._recovery_handicaps(old, log_p) == {10: log_p, 11: log_p}
+    assert f._recovery_handicaps(old, log_p, {}) == {10: log_p, 11: log_p}
+
+
+def test_a_new_species_near_a_handicapped_one_inherits_its_handicap() -> None:
+    """Departure 21 (docs/ceamcl.md): a new species near a kept one that carries a recovery's
+    handicap is that far place again and carries the handicap too; near one without, it starts
+    level (departure 11); near neither, it gets the handicap."""
+    course = paper_course()
+    f = make_filter("ceamcl", course.grid(), np.random.default_rng(0))
+    assert isinstance(f, CEAMCL)
+    new, old = _two_sets(
+        [(0.3, 0.0, 0.0), (20.3, 0.0, 0.0), (40.0, 0.0, 0.0)], [(0.0, 0.0, 0.0), (20.0, 0.0, 0.0)]
+    )
+    f.particle_set = new
+    log_p = float(np.log(1e-6))
+    assert f._recovery_handicaps(old, log_p, {2: log_p}) == {10: 0.0, 11: log_p, 12: log_p}
+    assert f._recovery_handicaps(old, log_p, {}) == {10: 0.0, 11: 0.0, 12: log_p}
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_second_recovery_keeps_the_far_places_handicaps(seed: int) -> None:
+    """After a recovery the far look-alikes carry the handicap; when the kidnap test fires
+    again, the kept ones keep it and the new ones proposed near them inherit it, so every
+    species beyond ``recovery_drift_m`` of the tracked place still starts behind (the
+    handicaps were dropped at a second recovery before departure 21)."""
+    f, truth, _ = tracked_then_recovered(seed, CEAMCLConfig())
+    assert f.config.recovery_prior is not None and f.config.recovery_drift_m is not None
+    log_p = float(np.log(f.config.recovery_prior))
+    reach = f.config.recovery_drift_m
+    far = [sid for sid, s in f.stats.items() if position_error(s.mean, truth) > reach]
+    assert far and all(f.log_prior.get(sid) == log_p for sid in far)
+    course = paper_course()
+    log = course.scenario(0).simulate(np.random.default_rng(seed), course.grid())
+    f._steps_since_init = f.config.recovery_warmup_steps + 1
+    f._fit_slow, f._fit_fast = 1.0, 0.0
+    record = f.step(STILL, log.scan(0))
+    assert record.reinitialised
+    far_now = {sid: s for sid, s in f.stats.items() if position_error(s.mean, truth) > reach}
+    print(f"{len(far)} far species after the first recovery, {len(far_now)} after the second")
+    assert far_now
+    for sid in far_now:
+        assert f.log_prior.get(sid) == log_p, f"species {sid} lost its handicap"
+    assert f.estimate() is not None
+    assert position_error(f.estimate().pose, truth) < 0.5
 
 
 @pytest.mark.parametrize(
@@ -181,9 +224,9 @@ def test_a_new_species_near_the_last_confident_pose_starts_level(
     f.particle_set = new
     f.confident._anchor = _Carried(np.zeros(3), 0.0)
     log_p = float(np.log(1e-6))
-    assert f._recovery_handicaps(old, log_p) == {10: 0.0 if level else log_p, 11: log_p}
+    assert f._recovery_handicaps(old, log_p, {}) == {10: 0.0 if level else log_p, 11: log_p}
     f.confident.reset()  # no confident pose (or one older than recovery_anchor_m)
-    assert f._recovery_handicaps(old, log_p) == {10: log_p, 11: log_p}
+    assert f._recovery_handicaps(old, log_p, {}) == {10: log_p, 11: log_p}
 
 
 def test_the_last_confident_pose_follows_the_odometry_and_is_forgotten() -> None:

@@ -190,13 +190,14 @@ class CEAMCL:
         self,
         prepared: PreparedScan | None,
         *,
-        kept: tuple[ParticleSet, dict[int, float]] | None = None,
+        kept: tuple[ParticleSet, dict[int, float], dict[int, float]] | None = None,
         prior: float = 1.0,
     ) -> None:
         """Section 3.1 (:func:`~ceamcl.filters.ceamcl.initialisation.initial_species`) with
         a scan's usable beams (none: the species spread uniformly over free space). ``kept``:
         particles of earlier species to keep beside the new ones, with each species' log
-        evidence in the scale of the new species' log-likelihoods; the new species then start
+        evidence in the scale of the new species' log-likelihoods and the handicaps they hold
+        (which they keep); the new species then start
         at ``prior`` times their own evidence, or at their own evidence when near a kept
         species, a handicap kept apart in ``log_prior`` unless ``recovery_prior_fades``
         (:meth:`_recover`, :meth:`_recovery_handicaps`)."""
@@ -240,17 +241,18 @@ class CEAMCL:
         self._accumulate_evidence(label_groups(labels), memory=0.0)
         self.log_prior = {}
         if kept is not None:
-            old, evidence = kept
+            old, evidence, old_priors = kept
             # one x-y region can hold a place at several headings (below): split first, so
             # that each part is near the old species or not by its own mean pose
             self._split_and_merge()
             finite = loglik[np.isfinite(loglik)]
             # back to the log-likelihoods' scale (the largest new species' evidence is 0 now)
             scale = float(np.max(finite)) if finite.size else -np.inf
-            handicap = self._recovery_handicaps(old, float(np.log(prior)))
+            handicap = self._recovery_handicaps(old, float(np.log(prior)), old_priors)
             self.log_weight = {sid: v + scale + handicap[sid] for sid, v in self.log_weight.items()}
             if not self.config.recovery_prior_fades:
                 self.log_prior = {sid: h for sid, h in handicap.items() if h < 0.0}
+                self.log_prior.update(old_priors)
             self.log_weight.update(evidence)
             self.particle_set.extend(old)
             self.particle_set.log_weights = uniform_log_weights(self.particle_set.n)
@@ -266,13 +268,19 @@ class CEAMCL:
         self.events.n0 += init.n0
         self.events.v_cells += init.v_size
 
-    def _recovery_handicaps(self, old: ParticleSet, log_prior: float) -> dict[int, float]:
-        """Each new species' log prior against the species the filter had (``old``): 0 when
-        its mean pose lies within ``recovery_drift_m`` and ``recovery_drift_rad`` of an old
-        species' mean, ``log_prior`` otherwise (docs/ceamcl.md, departures 9 and 11)."""
+    def _recovery_handicaps(
+        self, old: ParticleSet, log_prior: float, old_priors: dict[int, float]
+    ) -> dict[int, float]:
+        """Each new species' log prior against the species the filter had (``old``, holding
+        the handicaps ``old_priors``): the smallest handicap of an old species whose mean lies
+        within ``recovery_drift_m`` and ``recovery_drift_rad`` of its own (0 for one without,
+        and for the anchor), ``log_prior`` where none does (docs/ceamcl.md, departures 9, 11
+        and 21: a place near a far place that carried a handicap is that far place again)."""
         new = label_groups(self.particle_set.labels)
         reach = self.config.recovery_drift_m
-        olds = [pose_mean(old.poses[idx]) for idx in label_groups(old.labels).values()]
+        groups = label_groups(old.labels)
+        olds = [pose_mean(old.poses[idx]) for idx in groups.values()]
+        held = [old_priors.get(sid, 0.0) for sid in groups]
         confident = self.confident.anchor()
         if reach is None or not (olds or confident is not None):
             return {sid: log_prior for sid in new}
@@ -281,19 +289,30 @@ class CEAMCL:
             # where the odometry says the robot is since it was last localised, when no
             # species the filter still has stands there (departure 14)
             b = np.vstack([b, confident[0]])
+            held.append(0.0)
         a = np.array([pose_mean(self.particle_set.poses[idx]) for idx in new.values()])
-        near = self._near(a, b, reach)
-        return {sid: 0.0 if ok else log_prior for sid, ok in zip(new, near, strict=True)}
+        inherited = np.where(self._close(a, b, reach), np.array(held)[None, :], -np.inf)
+        best = inherited.max(axis=1)
+        return {
+            sid: float(h) if np.isfinite(h) else log_prior
+            for sid, h in zip(new, best, strict=True)
+        }
+
+    def _close(
+        self, a: NDArray[np.float64], b: NDArray[np.float64], reach: float
+    ) -> NDArray[np.bool_]:
+        """``(A, B)``: whether pose ``b[j]`` lies within ``reach`` metres and
+        ``recovery_drift_rad`` of heading of pose ``a[i]``."""
+        apart = np.hypot(a[:, None, 0] - b[None, :, 0], a[:, None, 1] - b[None, :, 1])
+        turned = np.abs(angles.wrap(a[:, None, 2] - b[None, :, 2]))
+        return np.asarray((apart <= reach) & (turned <= self.config.recovery_drift_rad))
 
     def _near(
         self, a: NDArray[np.float64], b: NDArray[np.float64], reach: float
     ) -> NDArray[np.bool_]:
         """For each pose of ``a``, whether a pose of ``b`` lies within ``reach`` metres and
         ``recovery_drift_rad`` of heading."""
-        apart = np.hypot(a[:, None, 0] - b[None, :, 0], a[:, None, 1] - b[None, :, 1])
-        turned = np.abs(angles.wrap(a[:, None, 2] - b[None, :, 2]))
-        close = (apart <= reach) & (turned <= self.config.recovery_drift_rad)
-        return np.asarray(close.any(axis=1), dtype=np.bool_)
+        return np.asarray(self._close(a, b, reach).any(axis=1), dtype=np.bool_)
 
     def initialise_pose(self, pose: ArrayLike, covariance: ArrayLike) -> None:
         """Pose tracking: one species of ``tracking_samples`` around a known pose."""
@@ -825,7 +844,11 @@ class CEAMCL:
         kept = None
         if lead is not None and np.isfinite(gains[lead]):
             # evidence in the new species' scale: the leader's relative weight is 0
-            kept = (old, {sid: v + gains[lead] for sid, v in past.items()})
+            kept = (
+                old,
+                {sid: v + gains[lead] for sid, v in past.items()},
+                {sid: h for sid, h in self.log_prior.items() if sid in past},
+            )
         self._initialise_from(prepared, kept=kept, prior=prior)
         self._evaluations += spent
         self.events.restarts += 1
