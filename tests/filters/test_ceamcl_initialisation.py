@@ -14,6 +14,10 @@ from ceamcl.motion.odometry import OdometryMotionModel
 from ceamcl.sensors import LikelihoodFieldModel
 from ceamcl.simulation import Simulator, paper_scenario
 
+#: departure 20's measured setting (docs/ceamcl.md): 450 test poses per m^2 and ten more around
+#: each of the best 1 %
+SECOND_ROUND = CEAMCLConfig(test_poses_per_m2=450.0, init_refine_share=0.01)
+
 
 # ---------------------------------------------------------------- SKIZ
 def test_skiz_partition_city_block_influence_zones() -> None:
@@ -174,9 +178,14 @@ def test_public_initialisation_phases_give_the_filters_species() -> None:
     sc = paper_scenario(0)
     grid = sc.grid()
     log = sc.simulate(np.random.default_rng(3), grid)
-    # exactly n_test test poses and no polishing: the phases below are section 3.1 alone
+    # exactly n_test test poses, no second round and no polishing: the phases below are
+    # section 3.1 alone
     cfg = CEAMCLConfig(
-        n_test=20_000, test_batch=7_000, test_poses_per_m2=None, init_polish_rounds=0
+        n_test=20_000,
+        test_batch=7_000,
+        test_poses_per_m2=None,
+        init_refine_share=0.0,
+        init_polish_rounds=0,
     )
     f = CEAMCL(
         grid, OdometryMotionModel(), LikelihoodFieldModel(grid), cfg, rng=np.random.default_rng(4)
@@ -195,18 +204,105 @@ def test_public_initialisation_phases_give_the_filters_species() -> None:
 
 def test_test_poses_follow_the_free_area_up_to_n_test() -> None:
     """``test_poses_per_m2`` of free space, at most ``n_test``: the hall (213 m^2 free) gets
-    about 320,000, a building of 5,000 m^2 the paper's 10^6, and ``None`` always ``n_test``."""
+    about 320,000, a building of 5,000 m^2 the paper's 10^6, and ``None`` always ``n_test``;
+    with a second round (departure 20) both rounds together stay within ``n_test``."""
     from ceamcl.filters.ceamcl.initialisation import sample_test_poses
 
     init = CEAMCLConfig().initialisation
     assert init.test_pose_count(213.0) == 319_500
     assert init.test_pose_count(5_000.0) == init.n_test == 1_000_000
     assert init.test_pose_count(0.0) == 1
+    assert init.refine_count(319_500) == 0
     fixed = CEAMCLConfig(test_poses_per_m2=None).initialisation
     assert fixed.test_pose_count(213.0) == fixed.n_test
     grid = paper_scenario(0).grid()
     poses = sample_test_poses(grid, init, np.random.default_rng(0))
     assert poses.shape == (round(1500.0 * grid.free_area_m2), 3)
+    two = SECOND_ROUND.initialisation
+    assert two.test_pose_count(213.0) == 95_850
+    first = two.test_pose_count(5_000.0)
+    assert first == int(two.n_test / (1 + two.refine_share * two.refine_per_pose))
+    assert first + two.refine_count(first) * two.refine_per_pose <= two.n_test
+
+
+def test_second_round_draws_around_the_best_test_poses_in_free_space() -> None:
+    """The second round (departure 20) draws ``refine_per_pose`` poses around each of the best
+    ``refine_share`` of the first round, keeps those in free space, reproduces with the seed,
+    and puts several times more test poses near each of the four images of the true pose
+    than the first round's uniform draws, nearer their peak, for a tenth of the evaluations."""
+    from ceamcl.filters.ceamcl.initialisation import (
+        refine_test_poses,
+        sample_test_poses,
+        score_test_poses,
+    )
+
+    sc = paper_scenario(2)
+    grid = sc.grid()
+    start = sc.true_path()[:1]
+    log = Simulator(grid, sc.config).run(start, np.random.default_rng(8))
+    sensor = LikelihoodFieldModel(grid)
+    prepared = sensor.prepare(log.scan(0))
+    init = SECOND_ROUND.initialisation
+    test = sample_test_poses(grid, init, np.random.default_rng(9))
+    ll, _, _ = score_test_poses(test, sensor, prepared, init)
+    more = refine_test_poses(grid, test, ll, init, np.random.default_rng(10))
+    again = refine_test_poses(grid, test, ll, init, np.random.default_rng(10))
+    np.testing.assert_array_equal(more, again)
+    k = init.refine_count(test.shape[0])
+    assert k == int(np.ceil(init.refine_share * test.shape[0]))
+    assert 0.9 * k * init.refine_per_pose <= more.shape[0] <= k * init.refine_per_pose
+    assert np.all(grid.is_free(more[:, 0], more[:, 1]))
+    assert np.all(np.abs(more[:, 2]) <= np.pi)
+    # every drawn pose lies within 5 sigma of one of the best first-round poses
+    best = test[np.argsort(-ll)[:k]]
+    sxy, sth = init.refine_sigma
+    dxy = np.hypot(more[:, None, 0] - best[None, :, 0], more[:, None, 1] - best[None, :, 1])
+    dth = np.abs(np.angle(np.exp(1j * (more[:, None, 2] - best[None, :, 2]))))
+    assert np.all(((dxy <= 5 * sxy * np.sqrt(2)) & (dth <= 5 * sth)).any(axis=1))
+    more_ll, _, _ = score_test_poses(more, sensor, prepared, init)
+    for image in symmetric_images(start[0]):
+        near = [
+            (np.hypot(p[:, 0] - image[0], p[:, 1] - image[1]) < 0.3)
+            & (np.abs(np.angle(np.exp(1j * (p[:, 2] - image[2])))) < 0.15)
+            for p in (test, more)
+        ]
+        best_first = np.max(ll[near[0]], initial=-np.inf)
+        best_second = np.max(more_ll[near[1]], initial=-np.inf)
+        print(
+            f"image {np.round(image, 2)}: test poses within 0.3 m and 0.15 rad "
+            f"{near[0].sum()} -> +{near[1].sum()}, best log-likelihood there "
+            f"{best_first:.1f} -> {best_second:.1f}"
+        )
+        assert near[1].sum() >= 3 * max(1, near[0].sum())
+        assert best_second > best_first
+
+
+@pytest.mark.parametrize("room", START_ROOMS)
+def test_the_second_round_finds_the_four_images_for_a_third_of_the_evaluations(room: int) -> None:
+    """With departure 20's setting the initial species cover the four images of the true pose
+    as with the default, from a third of the default's test poses (both rounds counted)."""
+    sc = paper_scenario(room)
+    grid = sc.grid()
+    sim_seed, filter_seed = np.random.SeedSequence(300 + room).spawn(2)
+    start = sc.true_path()[:1]
+    log = Simulator(grid, sc.config).run(start, np.random.default_rng(sim_seed))
+    spent = {}
+    for name, config in (("default", CEAMCLConfig()), ("second round", SECOND_ROUND)):
+        f = CEAMCL(
+            grid,
+            OdometryMotionModel(),
+            LikelihoodFieldModel(grid),
+            config,
+            rng=np.random.default_rng(filter_seed),
+        )
+        spent[name] = f.initialise_global(log.scan(0)).likelihood_evaluations
+        means = np.array([s.mean for s in f.stats.values()])
+        for image in symmetric_images(start[0]):
+            dist = np.hypot(means[:, 0] - image[0], means[:, 1] - image[1])
+            dth = np.abs(np.angle(np.exp(1j * (means[:, 2] - image[2]))))
+            assert np.any((dist < 0.5) & (dth < 0.3)), f"{name}: no species near {image}"
+    print(f"room {room}: evaluations {spent}")
+    assert spent["second round"] < 0.4 * spent["default"]
 
 
 def test_polish_moves_initial_samples_uphill_and_nearer_the_pose() -> None:

@@ -46,12 +46,14 @@ CELL_BYTES = 256
 @dataclass(frozen=True)
 class InitialisationConfig:
     """The settings of section 3.1 (``CEAMCLConfig().initialisation`` gives them with the
-    paper's defaults): ``n_test`` test poses (``test_poses_per_m2`` of free space, at most
-    ``n_test``, where that is set) scored ``test_batch`` at a time, cells of
+    paper's defaults): ``n_test`` test poses (``test_poses_per_m2`` of free space, where that
+    is set; both rounds together at most ``n_test``) scored ``test_batch`` at a time, cells of
     ``cell_m``, threshold ``mu``, eq. 5 factor ``eta``, how a cell's weight is formed
     (``cell_top_k``, ``cell_fitness_exponent``, ``cell_smoothing``), the smallest viable
-    species and the cap on the total sample size; ``polish_rounds`` greedy moves of the
-    chosen samples with ``polish_sigma`` (x-y metres, heading radians) halved each round."""
+    species and the cap on the total sample size; a second round of test poses,
+    ``refine_per_pose`` drawn around each of the best ``refine_share`` of the first with
+    ``refine_sigma`` (x-y metres, heading radians); ``polish_rounds`` greedy moves of the
+    chosen samples with ``polish_sigma`` halved each round."""
 
     n_test: int
     test_batch: int
@@ -64,15 +66,30 @@ class InitialisationConfig:
     min_species_size: int
     max_samples: int
     test_poses_per_m2: float | None = None
+    refine_share: float = 0.0
+    refine_per_pose: int = 0
+    refine_sigma: tuple[float, float] = (0.1, 0.1)
     polish_rounds: int = 0
     polish_sigma: tuple[float, float] = (0.1, 0.06)
 
     def test_pose_count(self, free_area_m2: float) -> int:
-        """How many test poses a map with ``free_area_m2`` of free space gets:
-        ``test_poses_per_m2`` per square metre, at most ``n_test`` (at least 1)."""
+        """How many test poses the first round gives a map with ``free_area_m2`` of free
+        space: ``test_poses_per_m2`` per square metre (``None``: as many as the budget
+        allows), at least 1, and at most what leaves the second round its share of the
+        ``n_test`` budget (:meth:`refine_count`)."""
+        cap = max(1, int(self.n_test / (1 + self.refine_share * self.refine_per_pose)))
         if self.test_poses_per_m2 is None:
-            return self.n_test
-        return int(np.clip(round(self.test_poses_per_m2 * free_area_m2), 1, self.n_test))
+            return cap
+        return int(np.clip(round(self.test_poses_per_m2 * free_area_m2), 1, cap))
+
+    def refine_count(self, first: int) -> int:
+        """How many of a first round of ``first`` test poses the second round draws around:
+        the best ``refine_share`` of them (at least one), as many as the ``n_test`` budget
+        leaves ``refine_per_pose`` draws for; 0 without a second round."""
+        if self.refine_share <= 0 or self.refine_per_pose <= 0 or first <= 0:
+            return 0
+        k = min(first, max(1, int(np.ceil(self.refine_share * first))))
+        return max(0, min(k, (self.n_test - first) // self.refine_per_pose))
 
 
 @dataclass(frozen=True, eq=False)
@@ -326,6 +343,31 @@ def sample_test_poses(
     return grid.sample_free_poses(config.test_pose_count(grid.free_area_m2), rng)
 
 
+def refine_test_poses(
+    grid: OccupancyGrid,
+    test_poses: NDArray[np.float64],
+    test_loglik: NDArray[np.float64],
+    config: InitialisationConfig,
+    rng: np.random.Generator,
+) -> NDArray[np.float64]:
+    """A second round of test poses (not in the paper; docs/ceamcl.md, departure 20):
+    ``refine_per_pose`` Gaussian draws (``refine_sigma``) around each of the best
+    ``refine_share`` of the first round's poses (at least one), those in free space. A sparse
+    first round finds every place that fits the scan somewhere near its peak; the second
+    puts test poses at the peaks, so the cells of section 3.1 weigh a place by how well it
+    can fit rather than by how near a uniform draw happened to fall. With the first round,
+    at most ``n_test`` (:meth:`InitialisationConfig.refine_count`)."""
+    k = config.refine_count(test_poses.shape[0])
+    if k == 0:
+        return test_poses[:0]
+    best = np.sort(np.argpartition(-test_loglik, k - 1)[:k])
+    centres = np.repeat(test_poses[best], config.refine_per_pose, axis=0)
+    sxy, sth = config.refine_sigma
+    drawn = centres + rng.standard_normal(centres.shape) * np.array([sxy, sxy, sth])
+    drawn[:, 2] = np.arctan2(np.sin(drawn[:, 2]), np.cos(drawn[:, 2]))
+    return drawn[grid.is_free(drawn[:, 0], drawn[:, 1])]
+
+
 def polish(
     poses: NDArray[np.float64],
     loglik: NDArray[np.float64],
@@ -394,7 +436,16 @@ def initial_species(
     config: InitialisationConfig,
     rng: np.random.Generator,
 ) -> tuple[InitialSpecies, int]:
-    """Section 3.1 whole: test poses, their scores, the species; and the evaluations spent."""
+    """Section 3.1 whole: test poses (with the second round of :func:`refine_test_poses`
+    where the scan has beams to score them), their scores, the species; and the evaluations
+    spent."""
     test = sample_test_poses(grid, config, rng)
     ll, fit, evaluations = score_test_poses(test, sensor, prepared, config)
+    if evaluations:
+        more = refine_test_poses(grid, test, ll, config, rng)
+        if more.shape[0]:
+            ll2, fit2, spent = score_test_poses(more, sensor, prepared, config)
+            test = np.vstack([test, more])
+            ll, fit = np.concatenate([ll, ll2]), np.concatenate([fit, fit2])
+            evaluations += spent
     return generate_initial_species(grid, test, ll, fit, config), evaluations
