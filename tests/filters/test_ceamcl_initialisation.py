@@ -3,20 +3,35 @@ the first scan of the paper's run produces in the symmetric hall."""
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 
+from ceamcl.experiments.metrics import covers, within
 from ceamcl.filters import make_filter
 from ceamcl.filters.ceamcl import CEAMCL, CEAMCLConfig
 from ceamcl.filters.ceamcl.initialisation import skiz_partition, top_k_mean_per_cell
+from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.maps.worlds import symmetric_images
 from ceamcl.motion.odometry import OdometryMotionModel
 from ceamcl.sensors import LikelihoodFieldModel
+from ceamcl.sensors.scan import LaserScan
 from ceamcl.simulation import Simulator, paper_scenario
 
 #: departure 20's measured setting (docs/ceamcl.md): 450 test poses per m^2 and ten more around
 #: each of the best 1 %
 SECOND_ROUND = CEAMCLConfig(test_poses_per_m2=450.0, init_refine_share=0.01)
+
+
+def _first_scan(room: int, seed: Any) -> tuple[OccupancyGrid, np.ndarray, LaserScan]:
+    """The paper route from ``room``: its map, its true start pose and the first scan there,
+    simulated with ``seed`` (anything ``np.random.default_rng`` takes)."""
+    sc = paper_scenario(room)
+    grid = sc.grid()
+    start = sc.true_path()[:1]
+    log = Simulator(grid, sc.config).run(start, np.random.default_rng(seed))
+    return grid, start[0], log.scan(0)
 
 
 # ---------------------------------------------------------------- SKIZ
@@ -236,12 +251,9 @@ def test_second_round_draws_around_the_best_test_poses_in_free_space() -> None:
         score_test_poses,
     )
 
-    sc = paper_scenario(2)
-    grid = sc.grid()
-    start = sc.true_path()[:1]
-    log = Simulator(grid, sc.config).run(start, np.random.default_rng(8))
+    grid, truth, scan = _first_scan(2, 8)
     sensor = LikelihoodFieldModel(grid)
-    prepared = sensor.prepare(log.scan(0))
+    prepared = sensor.prepare(scan)
     init = SECOND_ROUND.initialisation
     test = sample_test_poses(grid, init, np.random.default_rng(9))
     ll, _, _ = score_test_poses(test, sensor, prepared, init)
@@ -260,12 +272,8 @@ def test_second_round_draws_around_the_best_test_poses_in_free_space() -> None:
     dth = np.abs(np.angle(np.exp(1j * (more[:, None, 2] - best[None, :, 2]))))
     assert np.all(((dxy <= 5 * sxy * np.sqrt(2)) & (dth <= 5 * sth)).any(axis=1))
     more_ll, _, _ = score_test_poses(more, sensor, prepared, init)
-    for image in symmetric_images(start[0]):
-        near = [
-            (np.hypot(p[:, 0] - image[0], p[:, 1] - image[1]) < 0.3)
-            & (np.abs(np.angle(np.exp(1j * (p[:, 2] - image[2])))) < 0.15)
-            for p in (test, more)
-        ]
+    for image in symmetric_images(truth):
+        near = [within(p, image, 0.3, 0.15) for p in (test, more)]
         best_first = np.max(ll[near[0]], initial=-np.inf)
         best_second = np.max(more_ll[near[1]], initial=-np.inf)
         print(
@@ -281,11 +289,8 @@ def test_second_round_draws_around_the_best_test_poses_in_free_space() -> None:
 def test_the_second_round_finds_the_four_images_for_a_third_of_the_evaluations(room: int) -> None:
     """With departure 20's setting the initial species cover the four images of the true pose
     as with the default, from a third of the default's test poses (both rounds counted)."""
-    sc = paper_scenario(room)
-    grid = sc.grid()
     sim_seed, filter_seed = np.random.SeedSequence(300 + room).spawn(2)
-    start = sc.true_path()[:1]
-    log = Simulator(grid, sc.config).run(start, np.random.default_rng(sim_seed))
+    grid, truth, scan = _first_scan(room, sim_seed)
     spent = {}
     for name, config in (("default", CEAMCLConfig()), ("second round", SECOND_ROUND)):
         f = CEAMCL(
@@ -295,12 +300,10 @@ def test_the_second_round_finds_the_four_images_for_a_third_of_the_evaluations(r
             config,
             rng=np.random.default_rng(filter_seed),
         )
-        spent[name] = f.initialise_global(log.scan(0)).likelihood_evaluations
+        spent[name] = f.initialise_global(scan).likelihood_evaluations
         means = np.array([s.mean for s in f.stats.values()])
-        for image in symmetric_images(start[0]):
-            dist = np.hypot(means[:, 0] - image[0], means[:, 1] - image[1])
-            dth = np.abs(np.angle(np.exp(1j * (means[:, 2] - image[2]))))
-            assert np.any((dist < 0.5) & (dth < 0.3)), f"{name}: no species near {image}"
+        found = covers(means, symmetric_images(truth)).any(axis=0)
+        assert found.all(), f"{name}: no species near images {np.flatnonzero(~found)}"
     print(f"room {room}: evaluations {spent}")
     assert spent["second round"] < 0.4 * spent["default"]
 
@@ -311,14 +314,10 @@ def test_polish_moves_initial_samples_uphill_and_nearer_the_pose() -> None:
     around the true pose nearer to it; with no rounds nothing moves and nothing is spent."""
     from ceamcl.filters.ceamcl.initialisation import polish
 
-    sc = paper_scenario(1)
-    grid = sc.grid()
-    start = sc.true_path()[:1]
-    log = Simulator(grid, sc.config).run(start, np.random.default_rng(5))
+    grid, truth, scan = _first_scan(1, 5)
     sensor = LikelihoodFieldModel(grid)
-    prepared = sensor.prepare(log.scan(0))
+    prepared = sensor.prepare(scan)
     rng = np.random.default_rng(6)
-    truth = start[0]
     poses = truth + rng.normal(scale=[0.15, 0.15, 0.08], size=(300, 3))
     ll0 = sensor.log_likelihood(poses, prepared)
     init = CEAMCLConfig().initialisation

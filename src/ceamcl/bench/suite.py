@@ -31,9 +31,9 @@ from ceamcl.filters import registry
 from ceamcl.filters.ceamcl import CEAMCL, CEAMCLConfig
 from ceamcl.filters.ceamcl.initialisation import (
     generate_initial_species,
-    refine_test_poses,
     sample_test_poses,
     score_test_poses,
+    with_second_round,
 )
 from ceamcl.filters.ceamcl.records import species_of
 from ceamcl.maps.grid import FREE, OCCUPIED, OccupancyGrid
@@ -334,11 +334,7 @@ def measure_init(grid: OccupancyGrid, log: SimulatedLog, s: BenchSettings) -> di
     phases["likelihood and fitness"] = c.wall
     first = test.shape[0]
     with _Clock() as c:
-        more = refine_test_poses(grid, test, ll, init, rng)
-        if more.shape[0]:
-            more_ll, more_fit, _ = score_test_poses(more, sensor, prepared, init)
-            test = np.vstack([test, more])
-            ll, fit = np.concatenate([ll, more_ll]), np.concatenate([fit, more_fit])
+        test, ll, fit, _ = with_second_round(grid, test, ll, fit, sensor, prepared, init, rng)
     phases["second round (none by default)"] = c.wall
     with _Clock() as c:
         generate_initial_species(grid, test, ll, fit, init)

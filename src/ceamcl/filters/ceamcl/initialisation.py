@@ -368,6 +368,31 @@ def refine_test_poses(
     return drawn[grid.is_free(drawn[:, 0], drawn[:, 1])]
 
 
+def with_second_round(
+    grid: OccupancyGrid,
+    test_poses: NDArray[np.float64],
+    test_loglik: NDArray[np.float64],
+    test_fitness: NDArray[np.float64],
+    sensor: SensorModel,
+    prepared: PreparedScan | None,
+    config: InitialisationConfig,
+    rng: np.random.Generator,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], int]:
+    """The scored first round with :func:`refine_test_poses`' second round scored and
+    appended (unchanged where there is none): poses, log-likelihoods, fitness and the
+    evaluations the second round spent."""
+    more = refine_test_poses(grid, test_poses, test_loglik, config, rng)
+    if more.shape[0] == 0:
+        return test_poses, test_loglik, test_fitness, 0
+    ll, fit, spent = score_test_poses(more, sensor, prepared, config)
+    return (
+        np.vstack([test_poses, more]),
+        np.concatenate([test_loglik, ll]),
+        np.concatenate([test_fitness, fit]),
+        spent,
+    )
+
+
 def polish(
     poses: NDArray[np.float64],
     loglik: NDArray[np.float64],
@@ -442,10 +467,6 @@ def initial_species(
     test = sample_test_poses(grid, config, rng)
     ll, fit, evaluations = score_test_poses(test, sensor, prepared, config)
     if evaluations:
-        more = refine_test_poses(grid, test, ll, config, rng)
-        if more.shape[0]:
-            ll2, fit2, spent = score_test_poses(more, sensor, prepared, config)
-            test = np.vstack([test, more])
-            ll, fit = np.concatenate([ll, ll2]), np.concatenate([fit, fit2])
-            evaluations += spent
+        test, ll, fit, spent = with_second_round(grid, test, ll, fit, sensor, prepared, config, rng)
+        evaluations += spent
     return generate_initial_species(grid, test, ll, fit, config), evaluations
