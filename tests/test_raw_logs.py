@@ -194,7 +194,7 @@ def test_ceamcl_recovers_near_the_track_after_fr079s_odometry_fault(
     assert any(d.record.columns().get("recoveries", 0) for d in result.diagnostics)
     scored = errors[result.truth_known]
     assert scored.size >= 150
-    assert scored[5:].max() < 6.0  # measured 3.1-3.9 m (seeds 0-5)
+    assert scored[5:].max() < 6.0  # measured 0.20-0.23 m (seeds 0-5; 3.1-3.9 m in an earlier code)
     assert scored[-1] < 0.5
 
 
@@ -239,18 +239,21 @@ def test_ceamcl_follows_fr079_backing_up_with_unsigned_odometry(
 
 
 def test_fr079s_truth_is_doubtful_in_one_room(fr079_raw: tuple[Any, Any]) -> None:
-    """At the corrected log's poses, fr079 raw's scans fit the map built from that log
-    (a median 89 % of the end points within 0.15 m of an obstacle), except in one room, scans
-    1148-1239 (down to 4 %), where every filter's error measures the truth as much as the
-    filter (docs/real-data.md, departure 12)."""
+    """At the true poses (the corrected log's laser poses, less fr079's laser mount), fr079
+    raw's scans fit the map built from that log (a median 90 % of the end points within 0.15 m
+    of an obstacle), except in one room, scans 1148-1239 (down to 4 %), where every filter's
+    error measures the truth as much as the filter (docs/real-data.md, departure 12). Elsewhere
+    the share dips below a half only for a few scans (measured: 1626-1633, lowest 0.46)."""
     from ceamcl.io.truth_check import doubtful_truth
 
     prepared, grid = fr079_raw
     doubt = doubtful_truth(prepared.log, grid)
     assert 0.85 < doubt.median < 0.95
-    ((first, last, lowest),) = doubt.stretches
+    room = [(a, b, low) for a, b, low in doubt.stretches if b - a >= 20]
+    ((first, last, lowest),) = room
     assert 1140 <= first <= 1150 and 1235 <= last <= 1245
     assert lowest < 0.1
+    assert all(low > 0.3 for a, b, low in doubt.stretches if b - a < 20)
 
 
 def _local_steps(poses: np.ndarray) -> np.ndarray:
@@ -310,31 +313,31 @@ def _fr079_tracking_errors(seed: int, end: int, **config: Any) -> tuple[np.ndarr
     return np.arange(len(window)) + first, np.where(result.truth_known, errors, np.nan)
 
 
-@pytest.mark.parametrize(("anchor", "after_room_max"), [(20.0, 0.6), (None, None)])
-def test_ceamcl_comes_back_to_fr079s_track_after_the_doubtful_room(
-    anchor: float | None, after_room_max: float | None
+@pytest.mark.parametrize(("anchor", "room_max"), [(20.0, 1.5), (None, None)])
+def test_ceamcl_holds_fr079s_track_through_the_doubtful_room(
+    anchor: float | None, room_max: float | None
 ) -> None:
     """fr079 raw (odometry read with its sign), tracked from the first scan with truth,
     perturbed by 0.5 m / 0.3 rad, seed 1, to scan 1450. In the room of scans 1148-1239 the map
-    lacks what the scans show: the tracked species drifts 1.7 m and recoveries fire (scans 1213
-    and 1230). Without departure 14 (``None``) every new species beyond ``recovery_drift_m``
-    of the drifted ones starts at ``recovery_prior``; a place 27.6 m away takes the lead at scan
-    1237, its species then holds no handicap, the true place a later recovery proposes (scan
-    1273, fitting better) never pays its own back, and the estimate stays 9-16 m off until a
-    recovery at scan 1347. With it, the filter's last confident pose, carried on by the
-    odometry (0.5 m from the truth at scan 1230), counts as a place it had: the species the
-    recovery at 1230 finds near the truth start level and the estimate is back within 0.43 m
-    at scan 1234 (measured: at most 0.34 m off from scan 1240, 0.25 m from 1290; docs/ceamcl.md,
-    departure 14)."""
+    lacks what the scans show: the tracked species drifts and recoveries fire. Without the
+    last confident pose (``recovery_anchor_m=None``: departure 14, and with it the coasting
+    and holding of departures 15-19 that read it) every new species beyond
+    ``recovery_drift_m`` of the drifted ones starts at ``recovery_prior`` and nothing holds
+    the estimate: a place far away leads in the room (measured 29.3 m off). With it, the
+    filter's last confident pose, carried on by the odometry, counts as a place it had, and
+    the estimate stays within 0.96 m of the truth through the room. Both are back on the
+    track after it (measured at most 0.21 / 0.22 m off from scan 1290; docs/ceamcl.md,
+    departure 14, and docs/real-data.md, "whose pose" for the truth these figures use)."""
     need(RAW, CORRECTED)
     scan, errors = _fr079_tracking_errors(1, 1450, recovery_anchor_m=anchor)
     after = np.isfinite(errors) & (scan >= 1290)
-    assert after.sum() > 100
-    late = errors[after]
-    if after_room_max is not None:
-        assert late.max() < after_room_max
+    room = np.isfinite(errors) & (scan >= 1148) & (scan <= 1260)
+    assert after.sum() > 100 and room.sum() > 80
+    assert errors[after].max() < 0.6
+    if room_max is not None:
+        assert errors[room].max() < room_max
     else:
-        assert late.max() > 5.0
+        assert errors[room].max() > 5.0
 
 
 @pytest.mark.parametrize("envelope", [3.0, None])
@@ -348,7 +351,7 @@ def test_in_fr079s_doubtful_room_a_sliding_species_yields_to_the_odometry(
     confident pose carried by the odometry once the species has stood beyond the envelope at
     two updates running, and the slid pose does not replace that pose at once: measured 11 of
     113 scans more than 1 m off, room RMSE 0.62 m. With departure 15 alone
-    (``anchor_envelope_sd=None``): 63 scans, 1.13 m (docs/ceamcl.md, departure 17)."""
+    (``anchor_envelope_sd=None``): 68 scans, 1.20 m (docs/ceamcl.md, departure 17)."""
     need(RAW, CORRECTED)
     scan, errors = _fr079_tracking_errors(0, 1300, anchor_envelope_sd=envelope)
     room = np.isfinite(errors) & (scan >= 1148) & (scan <= 1260)
@@ -369,8 +372,8 @@ def test_while_lost_in_fr079s_doubtful_room_ceamcl_reports_the_odometrys_pose(
     map holds poorly: recoveries fire and propose places up to several metres off. With
     departure 15 the estimate, while the state says LOST after a recovery, is the last pose the
     map vouched for, carried on by the odometry, when the leading species stands beyond
-    ``recovery_drift_m`` of it: measured at most 2.12 m off in the room. With
-    ``coast_when_lost=False`` it follows the leading species: measured 4.73 m (docs/ceamcl.md,
+    ``recovery_drift_m`` of it: measured at most 1.71 m off in the room. With
+    ``coast_when_lost=False`` it follows the leading species: measured 4.86 m (docs/ceamcl.md,
     departure 15)."""
     need(RAW, CORRECTED)
     scan, errors = _fr079_tracking_errors(0, 1300, coast_when_lost=coast)

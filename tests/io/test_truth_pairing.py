@@ -12,15 +12,23 @@ from ceamcl.errors import InputWarning, LogFormatError
 from ceamcl.io.recorded import RecordedLog
 from ceamcl.io.truth import pair_truth
 from ceamcl.replay import prepare_log
+from ceamcl.sensors.scan import laser_poses
 
 DATA = Path(__file__).resolve().parents[2] / ".." / "shared" / "data"
 
 
-def make_log(ranges: list[list[float]], times: list[float], name: str) -> RecordedLog:
+def make_log(
+    ranges: list[list[float]],
+    times: list[float],
+    name: str,
+    mount: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    headings: list[float] | None = None,
+) -> RecordedLog:
     n = len(ranges)
     flat = np.concatenate([np.asarray(r, dtype=np.float64) for r in ranges])
     offsets = np.concatenate([[0], np.cumsum([len(r) for r in ranges])]).astype(np.intp)
-    poses = np.column_stack([np.arange(n, dtype=np.float64), np.zeros(n), np.zeros(n)])
+    th = np.zeros(n) if headings is None else np.asarray(headings, dtype=np.float64)
+    poses = np.column_stack([np.arange(n, dtype=np.float64), np.zeros(n), th])
     return RecordedLog(
         path=name,
         times=np.asarray(times, dtype=np.float64),
@@ -31,7 +39,7 @@ def make_log(ranges: list[list[float]], times: list[float], name: str) -> Record
         angle_increment=np.full(n, 0.1),
         range_min=np.zeros(n),
         range_max=np.full(n, 30.0),
-        laser_mount=np.zeros((n, 3)),
+        laser_mount=np.tile(np.asarray(mount, dtype=np.float64), (n, 1)),
     )
 
 
@@ -51,6 +59,38 @@ def test_pairs_by_ranges_across_a_clock_offset_and_printing_differences() -> Non
     truth = p.truth_at_raw_scans()
     assert np.isnan(truth[[0, 2, 5]]).all()
     assert truth[3].tolist() == corrected.poses[1].tolist()
+
+
+def test_the_truth_is_the_raw_robots_pose_where_the_lasers_sit_apart() -> None:
+    """The corrected log's scans were taken at its laser pose (its pose plus its mount); the
+    raw log's robot carries its laser at its own mount (fr079: 4 cm behind the centre). The
+    truth at a raw scan is the robot pose that puts the raw laser where the corrected laser
+    was, so a filter that fits the scan to the map is scored without the mount as a bias."""
+    scans = [[1.0, 2.0], [3.0, 4.0], [5.0, 6.0]]
+    headings = [0.0, np.pi / 2, 3.0]
+    raw = make_log(scans, [10.0, 11.0, 12.0], "raw", mount=(-0.04, 0.01, 0.05))
+    corrected = make_log(scans, [0.0, 1.0, 2.0], "corrected", headings=headings)
+    p = pair_truth(raw, corrected)
+    assert p.mount_moved == 3
+    assert "truth moved to the raw log's robot at 3 pairs" in p.summary()
+    assert p.mount_shift_m == pytest.approx(np.hypot(0.04, 0.01))
+    # the raw laser at the truth is where the corrected log's laser was
+    at = laser_poses(p.truth_poses, raw.laser_mount[p.raw_index])
+    np.testing.assert_allclose(at[:, :2], corrected.poses[:, :2], atol=1e-12)
+    np.testing.assert_allclose(np.cos(at[:, 2] - corrected.poses[:, 2]), 1.0)
+    # fr079's mount, the robot heading along +y: it stood 4 cm ahead of the laser pose
+    fr079 = make_log(scans, [10.0, 11.0, 12.0], "raw", mount=(-0.04, 0.0, 0.0))
+    q = pair_truth(fr079, corrected)
+    np.testing.assert_allclose(q.truth_poses[1], corrected.poses[1] + [0.0, 0.04, 0.0])
+
+
+def test_equal_mounts_keep_the_corrected_pose_bit_for_bit() -> None:
+    scans = [[1.0, 2.0], [3.0, 4.0]]
+    raw = make_log(scans, [10.0, 11.0], "raw", mount=(0.2, 0.0, 0.0))
+    corrected = make_log(scans, [0.0, 1.0], "corrected", mount=(0.2, 0.0, 0.0), headings=[1, 2])
+    p = pair_truth(raw, corrected)
+    assert p.mount_moved == 0 and "moved" not in p.summary()
+    assert p.truth_poses.tobytes() == corrected.poses.tobytes()
 
 
 def test_a_repeated_scan_is_told_apart_by_its_time() -> None:
@@ -108,6 +148,10 @@ def test_every_corrected_scan_of_the_shared_logs_has_its_raw_twin(
     raw, corrected = read_carmen(raw_path), read_carmen(cor_path)
     p = pair_truth(raw, corrected)
     assert p.n_matched == n_corrected == len(corrected)
+    # fr079's laser sits 4 cm behind its robot's centre (PARAM robot_frontlaser_offset -0.04,
+    # and the raw FLASER lines' laser pose); the corrected log's laser pose is its pose
+    assert p.mount_moved == (n_corrected if raw_name == "fr079.clf.gz" else 0)
+    assert p.mount_shift_m == pytest.approx(0.04 if raw_name == "fr079.clf.gz" else 0.0, abs=1e-4)
     assert np.all(np.diff(p.raw_index) > 0)
     # twins have the same ranges
     for k in (0, p.n_matched // 2, p.n_matched - 1):
