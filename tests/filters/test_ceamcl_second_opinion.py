@@ -114,6 +114,33 @@ def test_a_far_look_alike_stays_at_its_prior_while_it_fits_no_better() -> None:
         assert seen_far >= 3  # the look-alikes lived for a while
 
 
+@pytest.mark.parametrize(
+    ("held", "anchored", "kept"), [(True, True, True), (False, True, False), (True, False, False)]
+)
+def test_a_far_place_left_alone_keeps_its_handicap_while_the_anchor_is_held(
+    held: bool, anchored: bool, kept: bool
+) -> None:
+    """Departure 22 (docs/ceamcl.md): when every species but a recovery's far place dies out,
+    its handicap was odds against species no longer there and was dropped, so the far place
+    needed to out-fit the anchor's place by the margin alone (the default). With
+    ``lone_handicap_held`` the handicap stays while the filter holds its last confident pose;
+    without an anchor, nothing is left to hold it against."""
+    f, truth, _ = tracked_then_recovered(0, replace(CEAMCLConfig(), lone_handicap_held=held))
+    assert f.confident.held()  # the tracked pose, confident before the recovery
+    if not anchored:
+        f.confident.reset()
+    reach = f.config.recovery_drift_m
+    assert reach is not None and f.config.recovery_prior is not None
+    far = [sid for sid, s in f.stats.items() if position_error(s.mean, truth) > reach]
+    lone = far[0]
+    f.particle_set.take(f.particle_set.labels == lone)
+    f._refresh_stats()
+    f._normalise_weights(living=True)
+    assert list(f.stats) == [lone]
+    expected = {lone: float(np.log(f.config.recovery_prior))} if kept else {}
+    assert f.log_prior == expected
+
+
 def _two_sets(
     new: list[tuple[float, float, float]], old: list[tuple[float, float, float]]
 ) -> tuple[ParticleSet, ParticleSet]:

@@ -163,6 +163,10 @@ class ConfidentPose:
             return None
         return self._anchor.pose.copy(), self._anchor.travel
 
+    def held(self) -> bool:
+        """Whether an anchor is held, as it stands (no waiting candidate judged)."""
+        return self._anchor is not None
+
     def search(self) -> None:
         """A recovery fired: the filter is looking elsewhere for the robot, and its leading
         species may be a place the recovery proposed, not the pose it tracked, until the map

@@ -755,12 +755,16 @@ class CEAMCL:
 
     def _normalise_weights(self, living: bool = False) -> None:
         """The largest log-weight 0 (all 0 when none is finite); with ``living``, only the
-        species in ``stats`` keep one (a species new to them starts at 0, the leader's)."""
+        species in ``stats`` keep one (a species new to them starts at 0, the leader's), and
+        a handicap in ``log_prior`` stays while another species lives (or, with
+        ``lone_handicap_held``, while the anchor is held: departure 22)."""
         if living:
             lw = {sid: self.log_weight.get(sid, 0.0) for sid in self.stats}
-            # a prior is odds against the other species: none left, nothing to hold
+            # a prior is odds against the other species (with lone_handicap_held, against
+            # the last confident pose too while it is held: departure 22): none, nothing held
             held = {sid: v for sid, v in self.log_prior.items() if sid in self.stats}
-            self.log_prior = held if len(self.stats) > 1 else {}
+            anchored = self.config.lone_handicap_held and self.confident.held()
+            self.log_prior = held if len(self.stats) > 1 or anchored else {}
         else:
             lw = dict(self.log_weight)
         top = max(lw.values(), default=0.0)
