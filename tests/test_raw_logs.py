@@ -63,6 +63,9 @@ def test_run_raw_with_truth_from_the_corrected_log(
     pairing = summary["truth_pairing"]
     assert summary["scans"] == 300 and summary["odometry"] == "recorded"
     assert 200 <= pairing["matched_scans"] <= 250
+    # fr079's laser sits 4 cm behind its robot's centre: the truth is the robot's pose
+    assert pairing["mount_moved_pairs"] == pairing["matched_scans"]
+    assert abs(pairing["mount_shift_m"] - 0.04) < 1e-3
     assert "corrected log" in summary["map"]  # the raw odometry drifts: map from the truth
     # the filter was stepped at the robot's pace, not at every scan
     assert summary["update_policy"].startswith("update when moved 0.25 m or turned 0.2 rad")
