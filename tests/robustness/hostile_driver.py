@@ -68,7 +68,7 @@ def run_case(case: Case, root: Path) -> dict[str, Any]:
     os.environ.update(case.env)
     cwd = os.getcwd()
     os.chdir(folder)
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), time.process_time()
     signal.alarm(CASE_TIMEOUT_S)
     try:
         with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
@@ -84,6 +84,7 @@ def run_case(case: Case, root: Path) -> dict[str, Any]:
     finally:
         signal.alarm(0)
         elapsed = time.perf_counter() - start
+        cpu = time.process_time() - cpu_start
         os.chdir(cwd)
         for k, v in saved_env.items():
             if v is None:
@@ -97,6 +98,7 @@ def run_case(case: Case, root: Path) -> dict[str, Any]:
         "stderr": err.getvalue(),
         "stdout": out.getvalue(),
         "seconds": elapsed,
+        "cpu_seconds": cpu,
         "left_behind": sorted(set(after) - set(before)),
     }
 

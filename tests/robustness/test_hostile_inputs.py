@@ -26,7 +26,8 @@ from tests.robustness.hostile_cases import Case, all_cases, box_log_lines, write
 
 MEMORY_CAP = 6 << 30
 TIME_LIMIT_S = 30.0
-#: An oversized input is refused quickly (issue 16 target; measured well under a second).
+#: An oversized input is refused quickly (issue 16 target; measured well under a second of
+#: processor time).
 REFUSAL_S = 2.0
 DRIVER = Path(__file__).with_name("hostile_driver.py")
 ROOT = Path(__file__).resolve().parents[2]
@@ -110,8 +111,12 @@ def test_hostile_case(case: Case, results: dict[str, dict[str, Any]]) -> None:
 
 
 def test_oversized_inputs_are_refused_quickly(results: dict[str, dict[str, Any]]) -> None:
+    """The work done before refusing, in processor time: a refusal that allocated or read
+    what the input asked for would spend seconds of it, and processor time does not grow when
+    other jobs share the machine (wall time did: 2.3-2.6 s for the same cases beside a
+    two-worker experiment). Waiting without bound is the per-case time limit's to catch."""
     memory = [results[c.id] for c in CASES if c.category == "memory"]
-    slow = {r["id"]: round(r["seconds"], 2) for r in memory if r["seconds"] > REFUSAL_S}
+    slow = {r["id"]: round(r["cpu_seconds"], 2) for r in memory if r["cpu_seconds"] > REFUSAL_S}
     assert not slow
 
 
