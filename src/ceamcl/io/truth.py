@@ -43,6 +43,7 @@ from numpy.typing import NDArray
 from ceamcl.angles import wrap
 from ceamcl.errors import LogFormatError
 from ceamcl.io.recorded import RecordedLog
+from ceamcl.pose import relative_poses
 from ceamcl.sensors.scan import laser_poses
 
 #: Ranges are compared after rounding to millimetres (the logs print centimetres or finer).
@@ -217,11 +218,8 @@ def raw_robot_truth(
     if moved.any():
         laser = laser_poses(truth_poses[moved], truth_mounts[moved])
         m = raw_mounts[moved]
-        c, s = np.cos(m[:, 2]), np.sin(m[:, 2])
-        inverse = np.column_stack(
-            [-(c * m[:, 0] + s * m[:, 1]), s * m[:, 0] - c * m[:, 1], -m[:, 2]]
-        )
-        robot = laser_poses(laser, inverse)
+        # the robot in the laser's frame: the origin seen from the mount
+        robot = laser_poses(laser, relative_poses(m, np.zeros_like(m)))
         robot[:, 2] = wrap(robot[:, 2])
         out[moved] = robot
     return out, moved

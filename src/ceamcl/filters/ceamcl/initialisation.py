@@ -363,9 +363,18 @@ def refine_test_poses(
     best = np.sort(np.argpartition(-test_loglik, k - 1)[:k])
     centres = np.repeat(test_poses[best], config.refine_per_pose, axis=0)
     sxy, sth = config.refine_sigma
-    drawn = centres + rng.standard_normal(centres.shape) * np.array([sxy, sxy, sth])
-    drawn[:, 2] = np.arctan2(np.sin(drawn[:, 2]), np.cos(drawn[:, 2]))
+    drawn = gaussian_step(centres, np.array([sxy, sxy, sth]), rng)
     return drawn[grid.is_free(drawn[:, 0], drawn[:, 1])]
+
+
+def gaussian_step(
+    poses: NDArray[np.float64], sigma: NDArray[np.float64], rng: np.random.Generator
+) -> NDArray[np.float64]:
+    """Each pose moved by one Gaussian draw with standard deviations ``sigma`` (x, y,
+    heading), the heading wrapped: the second round's draws and :func:`polish`'s moves."""
+    moved = poses + rng.standard_normal(poses.shape) * sigma
+    moved[:, 2] = np.arctan2(np.sin(moved[:, 2]), np.cos(moved[:, 2]))
+    return moved
 
 
 def with_second_round(
@@ -416,8 +425,7 @@ def polish(
     sigma = np.array([sxy, sxy, sth])
     evaluations = 0
     for _ in range(config.polish_rounds):
-        trial = poses + rng.standard_normal((n, 3)) * sigma
-        trial[:, 2] = np.arctan2(np.sin(trial[:, 2]), np.cos(trial[:, 2]))
+        trial = gaussian_step(poses, sigma, rng)
         ll = sanitise_log_likelihood(sensor.log_likelihood(trial, prepared))
         evaluations += n
         better = ll > loglik
