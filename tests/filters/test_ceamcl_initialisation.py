@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from ceamcl import angles
 from ceamcl.experiments.metrics import covers, within
 from ceamcl.filters import make_filter
 from ceamcl.filters.ceamcl import CEAMCL, CEAMCLConfig
@@ -269,7 +270,7 @@ def test_second_round_draws_around_the_best_test_poses_in_free_space() -> None:
     best = test[np.argsort(-ll)[:k]]
     sxy, sth = init.refine_sigma
     dxy = np.hypot(more[:, None, 0] - best[None, :, 0], more[:, None, 1] - best[None, :, 1])
-    dth = np.abs(np.angle(np.exp(1j * (more[:, None, 2] - best[None, :, 2]))))
+    dth = np.abs(angles.diff(more[:, None, 2], best[None, :, 2]))
     assert np.all(((dxy <= 5 * sxy * np.sqrt(2)) & (dth <= 5 * sth)).any(axis=1))
     more_ll, _, _ = score_test_poses(more, sensor, prepared, init)
     for image in symmetric_images(truth):
