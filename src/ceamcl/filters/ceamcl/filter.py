@@ -84,7 +84,6 @@ from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel, apply
 from ceamcl.pose import pose_mean
 from ceamcl.sensors.base import SensorModel, fitness
 from ceamcl.sensors.beam_skip import skip_unexplained_beams
-from ceamcl.sensors.map_agreement import explained_share
 from ceamcl.sensors.scan import LaserScan, PreparedScan
 from ceamcl.sensors.see_through import see_through_penalty
 
@@ -785,9 +784,9 @@ class CEAMCL:
         if not cfg.lone_handicap_vouched or self.last_scan is None:
             return True
         (lone,) = self.stats.values()
-        t = self.map_agreement.thresholds
-        share = explained_share(self.grid, lone.mean, self.last_scan, t.explained_tol_m)
-        return not share >= t.explained_below  # NaN (nothing to judge): it stays
+        share = self.map_agreement.share_at(self.t, self.last_scan, lone.mean)
+        # NaN (nothing to judge): it stays
+        return not share >= self.map_agreement.thresholds.explained_below
 
     def _competition_fitness(self) -> dict[int, float] | None:
         """The ``w`` of eqs. 9 and 16 by species: the accumulated evidence relative to the
