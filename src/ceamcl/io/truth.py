@@ -184,12 +184,13 @@ def pair_truth(
         )
     truth_index = np.asarray(pairs_truth, dtype=np.intp)
     raw_index = np.asarray(pairs_raw, dtype=np.intp)
+    corrected = np.asarray(truth.poses, dtype=np.float64)[truth_index]
     poses, moved = raw_robot_truth(
-        np.asarray(truth.poses, dtype=np.float64)[truth_index],
+        corrected,
         np.asarray(truth.laser_mount, dtype=np.float64)[truth_index],
         np.asarray(raw.laser_mount, dtype=np.float64)[raw_index],
     )
-    shift = np.hypot(*(poses - np.asarray(truth.poses)[truth_index])[moved, :2].T)
+    shift = np.hypot(*(poses - corrected)[moved, :2].T)
     return TruthPairing(
         raw_path=raw.path,
         truth_path=truth.path,
