@@ -392,10 +392,17 @@ def test_while_lost_in_fr079s_doubtful_room_ceamcl_reports_the_odometrys_pose(
 
 
 @pytest.mark.parametrize(
-    ("held", "vouched", "stays"), [(True, True, True), (True, False, True), (False, False, False)]
+    ("held", "vouched", "far", "stays"),
+    [
+        (True, True, 0.63, True),
+        (True, True, None, True),
+        (True, False, None, True),
+        (False, False, None, False),
+        (False, False, 0.63, True),
+    ],
 )
 def test_a_far_place_that_outlives_the_rest_does_not_take_fr079s_estimate(
-    held: bool, vouched: bool, stays: bool
+    held: bool, vouched: bool, far: float | None, stays: bool
 ) -> None:
     """Tracking fr079 raw at Nav2's pace with 200 samples (seed 10) through the doubtful room:
     a recovery proposes a place 21 m away that fits the room's scans better than the truth,
@@ -409,7 +416,12 @@ def test_a_far_place_that_outlives_the_rest_does_not_take_fr079s_estimate(
     departure 22)."""
     need(RAW, CORRECTED)
     scan, errors = _fr079_tracking_errors(
-        10, 1300, samples=200, lone_handicap_held=held, lone_handicap_vouched=vouched
+        10,
+        1300,
+        samples=200,
+        lone_handicap_held=held,
+        lone_handicap_vouched=vouched,
+        far_vouch_share=far,
     )
     room = np.isfinite(errors) & (scan >= 1148) & (scan <= 1260)
     assert room.sum() > 80

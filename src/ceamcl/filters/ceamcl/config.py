@@ -161,6 +161,15 @@ class CEAMCLConfig:
             ``delta x epsilon`` samples at the leader's weight less what it fits worse at the
             update's scan (docs/ceamcl.md, departure 19): the place the odometry carried the
             robot to competes instead of being only reported.
+        far_vouch_share: with ``anchor_hold_margin``, a leading species beyond the anchor's
+            envelope that was not the last update's estimate and that the species read
+            LOCALISED takes the estimate from the anchor only where the map explains at least
+            this share of the scan at its mean (:class:`~ceamcl.filters.state.MapAgreement`'s
+            share; the state then says AMBIGUOUS): a robot carried off and found again is
+            explained there as a tracked pose is, a far look-alike of a room the map holds
+            poorly is not (docs/ceamcl.md, departure 23). 0.63: the share the map gives at
+            least at 95 % of the true poses of intel-corrected and fhw (their 5th percentile,
+            0.639, rounded down). ``None``: no such test.
         lone_handicap_held, lone_handicap_vouched: a recovery's far place that outlives every
             other species keeps its handicap while the filter holds its last confident pose
             (the anchor), so departures 18 and 19 still ask it to out-fit the anchor's place
@@ -267,6 +276,7 @@ class CEAMCLConfig:
     coast_after_updates: int = 2
     anchor_hold_margin: float | None = 3.0
     anchor_species: bool = True
+    far_vouch_share: float | None = 0.63
     lone_handicap_held: bool = True
     lone_handicap_vouched: bool = True
     recovery_lost_updates: int | None = 3
@@ -298,6 +308,7 @@ class CEAMCLConfig:
             "viable_fit_margin": self.viable_fit_margin is None or self.viable_fit_margin >= 0,
             "viable_size": self.viable_size >= self.min_species_size,
             "viable_weight_min": 0 < self.viable_weight_min <= 1,
+            "far_vouch_share": self.far_vouch_share is None or 0 <= self.far_vouch_share <= 1,
             "viable_memory": 0 < self.viable_memory <= 1,
             "split_cell_m": self.split_cell_m > 0,
             "split_cell_rad": 0 < self.split_cell_rad <= np.pi,

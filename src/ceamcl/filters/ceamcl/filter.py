@@ -168,6 +168,9 @@ class CEAMCL:
         #: weight when it was held against a leader the species read LOCALISED (the state then
         #: says AMBIGUOUS)
         self._held: tuple[int, PoseEstimate | None, float | None] = (0, None, None)
+        #: departure 23, this update: the share of the scan the map explains at a far leader
+        #: held back for it (NaN: none held back for that)
+        self._unvouched: tuple[int, float] = (0, float("nan"))
         #: the update and the species whose mean was its estimate (-1: the anchor; departure 18)
         self._estimate_from: tuple[int, int] = (-1, -1)
 
@@ -180,6 +183,7 @@ class CEAMCL:
         self.confident.reset()
         self._far_lost = (0, 0)
         self._held = (0, None, None)
+        self._unvouched = (0, float("nan"))
         self._estimate_from = (-1, -1)
         self.events = Events()
         self._evaluations = 0
@@ -321,6 +325,7 @@ class CEAMCL:
         self.confident.reset()
         self._far_lost = (0, 0)
         self._held = (0, None, None)
+        self._unvouched = (0, float("nan"))
         self._estimate_from = (-1, -1)
         self.particle_set = gaussian(pose, covariance, self.config.tracking_samples, self.rng)
         self.particle_set.labels[:] = sid
@@ -344,6 +349,7 @@ class CEAMCL:
         self.confident.reset()
         self._far_lost = (0, 0)
         self._held = (0, None, None)
+        self._unvouched = (0, float("nan"))
         self._estimate_from = (-1, -1)
         parts = []
         for pose in centres:
@@ -1119,7 +1125,9 @@ class CEAMCL:
             # departure 18's fit test while LOCALISED; departure 19's, where a species may start
             judged = self._score_anchor(best, left) if localised or vacant else None
             fits = judged is not None and self._fits_as_well(best, judged[1], judged[2])
-            if not coasts and (fits or not localised):
+            # departure 23: nor does the leader take it where the map does not vouch for it
+            unvouched = self._far_share(best) if localised and not fits else float("nan")
+            if not coasts and (fits or not localised or np.isfinite(unvouched)):
                 held = left  # not LOCALISED: the far place is doubted too
                 if judged is not None and localised:
                     # two places fit: the anchor's and the leader's, at odds of this scan's
@@ -1134,8 +1142,19 @@ class CEAMCL:
                 self._sprout(pose, self.log_weight.get(best.species_id, 0.0) + near - lead)
                 best = self.fittest()
         self._held = (self.t, held, share)
+        self._unvouched = (self.t, unvouched if held is not None else float("nan"))
         own = best is not None and not coasts and held is None
         self._estimate_from = (self.t, best.species_id if own and best is not None else -1)
+
+    def _far_share(self, best: SpeciesStats) -> float:
+        """Departure 23: the share of the scan the map explains at the far leader ``best``
+        when it falls short of ``far_vouch_share`` (the map does not vouch for it as for a
+        robot found again), else NaN (no test, no scan, or vouched for)."""
+        floor = self.config.far_vouch_share
+        if floor is None:
+            return float("nan")
+        share = self.map_agreement.share_at(self.t, self.last_scan, best.mean)
+        return share if share < floor else float("nan")
 
     def _anchor_vacant(self, left: PoseEstimate) -> bool:
         """Whether, with ``anchor_species``, no species' mean lies within the reach of the
@@ -1202,15 +1221,22 @@ class CEAMCL:
         if at != self.t or share is None or read.state is not State.LOCALISED:
             return read
         weights = (max(share, 1.0 - share), min(share, 1.0 - share))
+        far = "the leading place lies beyond the odometry's reach of the last confident pose"
+        u_at, unvouched = self._unvouched
+        if u_at == self.t and np.isfinite(unvouched):
+            why = (
+                f"{far}, and the map explains {unvouched:.0%} of the scan there, less than a "
+                f"place the robot is found at ({self.config.far_vouch_share:.0%}): the "
+                f"estimate stays at that pose ({share:.0%} of the weight by this scan's fit, "
+                f"the leader {1.0 - share:.0%})"
+            )
+        else:
+            why = (
+                f"{far}, which fits the scan as well: the estimate stays there ({share:.0%} of "
+                f"the weight, the leader {1.0 - share:.0%})"
+            )
         return LocalisationState(
-            State.AMBIGUOUS,
-            read.confidence,
-            2,
-            weights,
-            "the leading place lies beyond the odometry's reach of the last confident pose, "
-            f"which fits the scan as well: the estimate stays there ({share:.0%} of the "
-            f"weight, the leader {1.0 - share:.0%})",
-            read.map_explained,
+            State.AMBIGUOUS, read.confidence, 2, weights, why, read.map_explained
         )
 
     def _species_state(self, hypotheses: Sequence[Hypothesis] | None = None) -> LocalisationState:
