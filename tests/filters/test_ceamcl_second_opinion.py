@@ -621,8 +621,7 @@ def test_a_confident_pose_elsewhere_starts_the_disagreement_again() -> None:
         travel += abs(inc.trans)
         pose, image = truth[k], False
         if restarted is None and travel > 1.0:
-            images = course.images(truth[k])
-            pose = images[int(np.argmax(np.hypot(*(images[:, :2] - truth[k, :2]).T)))]
+            pose = _farthest_image(course, truth[k])
             assert position_error(pose, truth[k]) > 3.0
             restarted, image = travel, True
         cp.propose(pose, log.scan(k), k)
@@ -659,6 +658,20 @@ def _tracked_along_the_course(
     return course, log, f, k
 
 
+def _farthest_image(course: Any, truth: np.ndarray) -> np.ndarray:
+    """The symmetric image of ``truth`` farthest from it (another room of the hall)."""
+    images = course.images(truth)
+    return np.asarray(images[int(np.argmax(np.hypot(*(images[:, :2] - truth[:2]).T)))])
+
+
+def _turn_the_anchor_away(f: CEAMCL) -> None:
+    """Turn the anchor a quarter turn, to where the scan fits no longer (a kidnapped robot's
+    old place)."""
+    anchor = f.confident._anchor
+    assert anchor is not None
+    anchor.pose = anchor.pose + np.array([0.0, 0.0, np.pi / 2])
+
+
 def _leader_moved_to(f: CEAMCL, pose: np.ndarray, new_species: bool = True) -> None:
     """Carry the lone species' samples to ``pose`` (its mean there, its spread kept), as a new
     species (as a recovery proposes) or as the tracked one. Then end the update as the filter
@@ -692,8 +705,7 @@ def test_a_far_look_alike_leader_yields_to_the_anchor_that_fits_as_well(
     leader is the estimate; ``anchor_hold_margin=None``: always the leader."""
     course, log, f, k = _tracked_along_the_course(seed, margin)
     truth = log.true_poses[k]
-    images = course.images(truth)
-    far = images[int(np.argmax(np.hypot(*(images[:, :2] - truth[:2]).T)))]
+    far = _farthest_image(course, truth)
     assert position_error(far, truth) > 3.0
     _leader_moved_to(f, far)
     assert f.state().state is not State.LOST  # the look-alike fits the scan
@@ -714,9 +726,7 @@ def test_a_far_look_alike_leader_yields_to_the_anchor_that_fits_as_well(
         assert min(state.weights) > 0.04  # within the margin (3 nats) of each other
     # the anchor carried off to where the scan does not fit (a kidnapped robot's old place):
     # the leader, wherever it stands
-    anchor = f.confident._anchor
-    assert anchor is not None
-    anchor.pose = anchor.pose + np.array([0.0, 0.0, np.pi / 2])
+    _turn_the_anchor_away(f)
     _leader_moved_to(f, far)
     assert np.array_equal(f.estimate().pose, f.hypotheses()[0].pose)
     assert f.state().state is State.LOCALISED
@@ -743,11 +753,8 @@ def test_a_far_leader_the_map_explains_poorly_does_not_take_the_estimate(seed: i
         course, log, f, k = _tracked_along_the_course(seed, 3.0)
         f.config = replace(f.config, far_vouch_share=floor)
         truth = log.true_poses[k]
-        images = course.images(truth)
-        far = images[int(np.argmax(np.hypot(*(images[:, :2] - truth[:2]).T)))]
-        anchor = f.confident._anchor
-        assert anchor is not None
-        anchor.pose = anchor.pose + np.array([0.0, 0.0, np.pi / 2])
+        far = _farthest_image(course, truth)
+        _turn_the_anchor_away(f)
         assert f.last_scan is not None
         f.last_scan = _cluttered(f.last_scan, hidden)
         _leader_moved_to(f, far)
@@ -774,8 +781,7 @@ def test_the_tracked_species_that_moved_on_stays_the_estimate() -> None:
     ``test_ceamcl_follows_fr079_backing_up_with_unsigned_odometry``)."""
     course, log, f, k = _tracked_along_the_course(1, 3.0)
     truth = log.true_poses[k]
-    images = course.images(truth)
-    far = images[int(np.argmax(np.hypot(*(images[:, :2] - truth[:2]).T)))]
+    far = _farthest_image(course, truth)
     _leader_moved_to(f, far, new_species=False)
     (hyp,) = f.hypotheses()
     assert position_error(hyp.pose, far) < 0.05
@@ -821,8 +827,7 @@ def test_the_anchors_place_competes_when_it_fits_as_well_as_a_far_leader(seed: i
     for species in (True, False):
         course, log, f, k = _tracked_along_the_course(seed, 3.0, species)
         truth = log.true_poses[k]
-        images = course.images(truth)
-        far = images[int(np.argmax(np.hypot(*(images[:, :2] - truth[:2]).T)))]
+        far = _farthest_image(course, truth)
         f.events = type(f.events)()
         _leader_moved_to(f, far)
         hyps = f.hypotheses()
@@ -839,11 +844,8 @@ def test_the_anchors_place_competes_when_it_fits_as_well_as_a_far_leader(seed: i
     # the anchor turned to where the scan does not fit: no species starts there
     course, log, f, k = _tracked_along_the_course(seed, 3.0, True)
     truth = log.true_poses[k]
-    images = course.images(truth)
-    far = images[int(np.argmax(np.hypot(*(images[:, :2] - truth[:2]).T)))]
-    anchor = f.confident._anchor
-    assert anchor is not None
-    anchor.pose = anchor.pose + np.array([0.0, 0.0, np.pi / 2])
+    far = _farthest_image(course, truth)
+    _turn_the_anchor_away(f)
     f.events = type(f.events)()
     _leader_moved_to(f, far)
     assert f.events.sprouts == 0
