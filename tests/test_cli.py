@@ -147,6 +147,26 @@ def test_particles_message_names_the_problem(capsys: pytest.CaptureFixture[str])
     assert "--particles" in err and "-3" in err
 
 
+@pytest.mark.parametrize(
+    ("mount", "says"),
+    [
+        ("0.1,0", "three numbers"),
+        ("a,b,c", "three numbers"),
+        ("nan,0,0", "finite"),
+        ("3,0,0", "within 2 m"),
+        ("0,0,4", "[-pi, pi]"),
+    ],
+)
+def test_a_bad_laser_mount_is_refused_naming_the_option(
+    mount: str, says: str, capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    with pytest.raises(SystemExit) as info:
+        main(["run", str(tmp_path / "log.clf"), "--laser-mount", mount])
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert "--laser-mount" in err and says in err and "Traceback" not in err
+
+
 def test_world_without_output_is_a_clean_error(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["world", "symmetric-hall"]) == 2
     err = capsys.readouterr().err

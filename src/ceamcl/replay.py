@@ -96,6 +96,7 @@ def prepare_log(
     noise: OdometryNoise = DEFAULT_SYNTHETIC_NOISE,
     repair_times: bool = False,
     truth_from: str | os.PathLike[str] | None = None,
+    laser_mount: tuple[float, float, float] | None = None,
     **open_kwargs: Any,
 ) -> PreparedLog:
     """Open a log and decide ground truth and odometry (module docstring, steps 1-2).
@@ -103,9 +104,13 @@ def prepare_log(
     ``truth="auto"`` takes the poses as ground truth when the log's content shows a corrected
     log (:func:`ceamcl.io.logs.poses_look_corrected`); ``truth_reason`` says what was decided
     and why. Scan times are checked (:func:`ceamcl.io.timestamps.check_times`), and repaired
-    with ``repair_times``.
+    with ``repair_times``. ``laser_mount``: the laser's pose on the robot ``(x, y, yaw)`` at
+    every scan, in place of the log's (``--laser-mount``; with ``truth_from`` the truth is the
+    robot's under that mount, :mod:`ceamcl.io.truth`).
     """
     log = check_times(open_log(path, **open_kwargs), repair=repair_times)
+    if laser_mount is not None:
+        log = with_laser_mount(log, laser_mount)
     if truth_from is not None:
         return _truth_from(log, truth_from, seed, repair_times, open_kwargs)
     looks, why = poses_look_corrected(log)
@@ -119,6 +124,14 @@ def prepare_log(
     return PreparedLog(
         log.with_synthetic_odometry(noise, odo_rng), True, "synthetic", noise, seed, reason
     )
+
+
+def with_laser_mount(log: RecordedLog, mount: tuple[float, float, float]) -> RecordedLog:
+    """``log`` with the laser at ``mount`` (``x, y, yaw`` on the robot) at every scan."""
+    m = np.asarray(mount, dtype=np.float64)
+    if m.shape != (3,) or not np.all(np.isfinite(m)):
+        raise ConfigError(f"laser mount: expected three finite numbers x, y, yaw, got {mount!r}")
+    return replace(log, laser_mount=np.tile(m, (len(log), 1)))
 
 
 def _truth_from(

@@ -68,6 +68,31 @@ def non_negative_float(text: str) -> float:
     return value
 
 
+#: A laser farther than this from the robot's axis is not a mount (a typo, or millimetres).
+MAX_MOUNT_M = 2.0
+
+
+def laser_mount(text: str) -> tuple[float, float, float]:
+    """argparse type: ``X,Y,YAW``, the laser's pose on the robot (m, m, rad), its position
+    within :data:`MAX_MOUNT_M` of the axis and its yaw within [-pi, pi]."""
+    parts = text.split(",")
+    shape = f"expected X,Y,YAW (three numbers), got {text!r}"
+    if len(parts) != 3:
+        raise argparse.ArgumentTypeError(shape)
+    try:
+        x, y, yaw = (float(t) for t in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(shape) from None
+    if not all(math.isfinite(v) for v in (x, y, yaw)):
+        raise argparse.ArgumentTypeError(f"expected finite numbers, got {text!r}")
+    if math.hypot(x, y) > MAX_MOUNT_M or abs(yaw) > math.pi:
+        raise argparse.ArgumentTypeError(
+            f"expected a laser within {MAX_MOUNT_M:g} m of the robot's axis and a yaw within "
+            f"[-pi, pi] rad, got {text!r}"
+        )
+    return x, y, yaw
+
+
 def require_available(algorithm: str) -> None:
     """Refuse, with the reason, an algorithm that is registered but cannot run here (the Nav2
     peer without its optional extra)."""

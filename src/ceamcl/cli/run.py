@@ -15,6 +15,7 @@ from ceamcl.checks import physical_warnings
 from ceamcl.cli.common import (
     RunProgress,
     add_output_arguments,
+    laser_mount,
     make_progress,
     non_negative_float,
     non_negative_int,
@@ -115,6 +116,15 @@ def add_truth_arguments(p: argparse.ArgumentParser) -> None:
         "scan and is scored at the matched scans; without --map the map is built from CORRECTED",
     )
     p.add_argument(
+        "--laser-mount",
+        type=laser_mount,
+        default=None,
+        metavar="X,Y,YAW",
+        help="the laser's pose on the robot (m, m, rad) at every scan, in place of the log's (a "
+        "CARMEN log without one says 0,0,0); with --truth-from the truth is the robot's under "
+        "it, and the pairing prints the mount the corrected poses and the odometry suggest",
+    )
+    p.add_argument(
         "--repair-times",
         action="store_true",
         help="raise scan times that go back by more than 1 s (or are not numbers) to the "
@@ -164,6 +174,7 @@ def open_inputs(
         truth=args.truth,
         repair_times=args.repair_times,
         truth_from=args.truth_from,
+        laser_mount=args.laser_mount,
         **open_kwargs(args),
     )
     grid, map_source = obtain_map(
