@@ -66,6 +66,7 @@ def test_run_raw_with_truth_from_the_corrected_log(
     # fr079's laser sits 4 cm behind its robot's centre: the truth is the robot's pose
     assert pairing["mount_moved_pairs"] == pairing["matched_scans"]
     assert abs(pairing["mount_shift_m"] - 0.04) < 1e-3
+    assert np.allclose(pairing["laser_mount_used"], [-0.04, 0.0, 0.0], atol=1e-4)
     assert "corrected log" in summary["map"]  # the raw odometry drifts: map from the truth
     # the filter was stepped at the robot's pace, not at every scan
     assert summary["update_policy"].startswith("update when moved 0.25 m or turned 0.2 rad")
@@ -78,6 +79,19 @@ def test_run_raw_with_truth_from_the_corrected_log(
     assert np.isfinite(summary["final_position_error_m"])
     fit = summary["truth_fit"]  # how well the truth explains its scans on the map
     assert 0.5 < fit["median_share"] <= 1 and isinstance(fit["doubtful_scans"], list)
+
+
+def test_a_laser_mount_given_replaces_the_logs(cut_logs: tuple[Path, Path], tmp_path: Path) -> None:
+    """``--laser-mount``: the filter's laser sits there at every scan and the truth is the
+    robot's under it (the corrected log's laser pose less that mount), as summary.json says."""
+    raw, corrected = cut_logs
+    out = tmp_path / "run"
+    args = ["run", str(raw), "--truth-from", str(corrected), "--algorithm", "mcl"]
+    assert main([*args, "--laser-mount=0.092,0.005,0", "--quiet", "--out", str(out)]) == 0
+    pairing = json.loads((out / "summary.json").read_text())["truth_pairing"]
+    assert pairing["laser_mount_used"] == [0.092, 0.005, 0.0]
+    assert pairing["mount_moved_pairs"] == pairing["matched_scans"]
+    assert abs(pairing["mount_shift_m"] - np.hypot(0.092, 0.005)) < 1e-6
 
 
 def test_logs_of_different_runs_are_a_one_line_error(
