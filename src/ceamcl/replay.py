@@ -321,7 +321,7 @@ def truth_source(prepared: PreparedLog) -> str | None:
             ""
             if p.suggested_mount is None
             else f"; the corrected poses and the odometry suggest ({p.suggested_mount[0]:.3f}, "
-            f"{p.suggested_mount[1]:.3f}) m, --laser-mount"
+            f"{p.suggested_mount[1]:.3f}) m (--laser-mount sets it)"
         )
         return (
             f"the SLAM-corrected poses of {p.truth_path} at the {p.n_matched} of "

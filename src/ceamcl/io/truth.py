@@ -209,15 +209,13 @@ def pair_truth(
     truth_index = np.asarray(pairs_truth, dtype=np.intp)
     raw_index = np.asarray(pairs_raw, dtype=np.intp)
     corrected = np.asarray(truth.poses, dtype=np.float64)[truth_index]
-    poses, moved = raw_robot_truth(
-        corrected,
-        np.asarray(truth.laser_mount, dtype=np.float64)[truth_index],
-        np.asarray(raw.laser_mount, dtype=np.float64)[raw_index],
-    )
-    shift = np.hypot(*(poses - corrected)[moved, :2].T)
+    truth_mounts = np.asarray(truth.laser_mount, dtype=np.float64)[truth_index]
     raw_mounts = np.asarray(raw.laser_mount, dtype=np.float64)[raw_index]
-    laser = laser_poses(corrected, np.asarray(truth.laser_mount, dtype=np.float64)[truth_index])
-    suggested = suggest_mount(laser, np.asarray(raw.odometry, dtype=np.float64)[raw_index])
+    poses, moved = raw_robot_truth(corrected, truth_mounts, raw_mounts)
+    shift = np.hypot(*(poses - corrected)[moved, :2].T)
+    suggested = suggest_mount(
+        laser_poses(corrected, truth_mounts), np.asarray(raw.odometry, dtype=np.float64)[raw_index]
+    )
     return TruthPairing(
         raw_path=raw.path,
         truth_path=truth.path,
@@ -257,17 +255,12 @@ def suggest_mount(
     laser, odometry = laser[ok], odometry[ok]
     if laser.shape[0] < 2:
         return None
-    th0, th1 = laser[:-1, 2], laser[1:, 2]
-    dth = th1 - th0
-    c0, s0 = np.cos(th0), np.sin(th0)
-    dl = laser[1:, :2] - laser[:-1, :2]
-    # the laser's displacement in the first pose's frame, less the odometry's in its own frame
-    phi = odometry[:-1, 2]
-    du = odometry[1:, :2] - odometry[:-1, :2]
-    bx = c0 * dl[:, 0] + s0 * dl[:, 1] - (np.cos(phi) * du[:, 0] + np.sin(phi) * du[:, 1])
-    by = -s0 * dl[:, 0] + c0 * dl[:, 1] - (-np.sin(phi) * du[:, 0] + np.cos(phi) * du[:, 1])
-    # (Rot(dth) - I) m = b, one pair of rows a pair
-    a11, a21 = np.cos(dth) - 1.0, np.sin(dth)
+    # each pair's step in the frame of its first pose: the laser's (dL), the odometry's (du)
+    step = relative_poses(laser[:-1], laser[1:])
+    du = relative_poses(odometry[:-1], odometry[1:])
+    bx, by = step[:, 0] - du[:, 0], step[:, 1] - du[:, 1]
+    # (Rot(dtheta) - I) m = b, one pair of rows a pair
+    a11, a21 = np.cos(step[:, 2]) - 1.0, np.sin(step[:, 2])
 
     def solve(keep: NDArray[np.bool_]) -> NDArray[np.float64] | None:
         k11, k21, kx, ky = a11[keep], a21[keep], bx[keep], by[keep]
@@ -277,7 +270,7 @@ def suggest_mount(
         # A^T b with A = [[a11, -a21], [a21, a11]]
         return np.array([np.sum(k11 * kx + k21 * ky), np.sum(-k21 * kx + k11 * ky)]) / turning
 
-    first = solve(np.ones(dth.size, dtype=bool))
+    first = solve(np.ones(bx.size, dtype=bool))
     if first is None:
         return None
     rx = a11 * first[0] - a21 * first[1] - bx

@@ -90,6 +90,8 @@ from ceamcl.sensors.see_through import see_through_penalty
 #: A species' log-weight never falls below this (exp of it is still a positive number, so
 #: shares stay well defined; the competition has long ended such a species).
 LOG_WEIGHT_FLOOR = -700.0
+#: ``CEAMCL._held`` before any update has judged the anchor: nothing held.
+_NOT_HELD: tuple[int, None, None, float] = (0, None, None, float("nan"))
 
 
 class CEAMCL:
@@ -164,13 +166,11 @@ class CEAMCL:
         #: consecutive updates (up to ``self.t``) at which the state said LOST with the leader
         #: beyond the drift envelope of the last confident pose (departure 17)
         self._far_lost: tuple[int, int] = (0, 0)
-        #: departure 18, this update: the anchor as the estimate, and its place's share of the
+        #: departure 18, this update: the anchor as the estimate, its place's share of the
         #: weight when it was held against a leader the species read LOCALISED (the state then
-        #: says AMBIGUOUS)
-        self._held: tuple[int, PoseEstimate | None, float | None] = (0, None, None)
-        #: departure 23, this update: the share of the scan the map explains at a far leader
-        #: held back for it (NaN: none held back for that)
-        self._unvouched: tuple[int, float] = (0, float("nan"))
+        #: says AMBIGUOUS), and the share of the scan the map explains at a leader held back
+        #: because the map does not vouch for it (departure 23; NaN: not held back for that)
+        self._held: tuple[int, PoseEstimate | None, float | None, float] = _NOT_HELD
         #: the update and the species whose mean was its estimate (-1: the anchor; departure 18)
         self._estimate_from: tuple[int, int] = (-1, -1)
 
@@ -182,8 +182,7 @@ class CEAMCL:
         self.last_scan = scan
         self.confident.reset()
         self._far_lost = (0, 0)
-        self._held = (0, None, None)
-        self._unvouched = (0, float("nan"))
+        self._held = _NOT_HELD
         self._estimate_from = (-1, -1)
         self.events = Events()
         self._evaluations = 0
@@ -324,8 +323,7 @@ class CEAMCL:
         self._read = None
         self.confident.reset()
         self._far_lost = (0, 0)
-        self._held = (0, None, None)
-        self._unvouched = (0, float("nan"))
+        self._held = _NOT_HELD
         self._estimate_from = (-1, -1)
         self.particle_set = gaussian(pose, covariance, self.config.tracking_samples, self.rng)
         self.particle_set.labels[:] = sid
@@ -348,8 +346,7 @@ class CEAMCL:
         self._read = None
         self.confident.reset()
         self._far_lost = (0, 0)
-        self._held = (0, None, None)
-        self._unvouched = (0, float("nan"))
+        self._held = _NOT_HELD
         self._estimate_from = (-1, -1)
         parts = []
         for pose in centres:
@@ -1016,7 +1013,7 @@ class CEAMCL:
                 )
                 if left is not None:
                     return left
-                at, held, _ = self._held  # judged at the end of this update (_count_far_lost)
+                at, held, _, _ = self._held  # judged at the end of this update (_count_far_lost)
                 if at == self.t and held is not None:
                     return PoseEstimate(held.pose.copy(), held.covariance.copy())
             else:  # departure 15: the state is read only when the leader has left the anchor
@@ -1117,7 +1114,7 @@ class CEAMCL:
         # the leader moved the estimate here itself (departure 12's look-around or a wrong
         # odometry can carry it metres in an update), or it leads anew (a recovery's place)
         moved_on = at == self.t - 1 and best is not None and source == best.species_id
-        held, share = None, None
+        held, share, unvouched = None, None, float("nan")
         margin = cfg.anchor_hold_margin
         if left is not None and best is not None and not moved_on and margin is not None:
             localised = self._species_state().state is State.LOCALISED
@@ -1126,7 +1123,8 @@ class CEAMCL:
             judged = self._score_anchor(best, left) if localised or vacant else None
             fits = judged is not None and self._fits_as_well(best, judged[1], judged[2])
             # departure 23: nor does the leader take it where the map does not vouch for it
-            unvouched = self._far_share(best) if localised and not fits else float("nan")
+            doubted = localised and not fits and not coasts
+            unvouched = self._far_share(best) if doubted else float("nan")
             if not coasts and (fits or not localised or np.isfinite(unvouched)):
                 held = left  # not LOCALISED: the far place is doubted too
                 if judged is not None and localised:
@@ -1141,8 +1139,7 @@ class CEAMCL:
                 pose, near, lead = judged
                 self._sprout(pose, self.log_weight.get(best.species_id, 0.0) + near - lead)
                 best = self.fittest()
-        self._held = (self.t, held, share)
-        self._unvouched = (self.t, unvouched if held is not None else float("nan"))
+        self._held = (self.t, held, share, unvouched)  # a finite unvouched was held
         own = best is not None and not coasts and held is None
         self._estimate_from = (self.t, best.species_id if own and best is not None else -1)
 
@@ -1217,13 +1214,12 @@ class CEAMCL:
         but departure 18 holds the estimate at the anchor (the estimate is not the leader's
         place: two places fit the scan)."""
         read = self._species_state(hypotheses)
-        at, _, share = self._held
+        at, _, share, unvouched = self._held
         if at != self.t or share is None or read.state is not State.LOCALISED:
             return read
         weights = (max(share, 1.0 - share), min(share, 1.0 - share))
         far = "the leading place lies beyond the odometry's reach of the last confident pose"
-        u_at, unvouched = self._unvouched
-        if u_at == self.t and np.isfinite(unvouched):
+        if np.isfinite(unvouched):
             why = (
                 f"{far}, and the map explains {unvouched:.0%} of the scan there, less than a "
                 f"place the robot is found at ({self.config.far_vouch_share:.0%}): the "
