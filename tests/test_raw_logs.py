@@ -21,6 +21,10 @@ DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 RAW = DATA / "carmen-raw" / "fr079.clf.gz"
 CORRECTED = DATA / "carmen" / "freiburg-079-corrected.log.gz"
 OTHER = DATA / "carmen" / "intel-corrected.log.gz"
+#: the global initialisation the doubtful-room scenarios below were traced with: one round of
+#: 1,500 test poses per m^2, the default until docs/ceamcl.md's departure 24. A recovery's
+#: proposals depend on it; with the default's second round the same seeds meet other places.
+ONE_ROUND: dict[str, Any] = {"test_poses_per_m2": 1500.0, "init_refine_share": 0.0}
 
 
 def need(*paths: Path) -> None:
@@ -332,9 +336,12 @@ def _fr079_tracking_errors(
     return np.arange(len(window)) + first, np.where(result.truth_known, errors, np.nan)
 
 
-@pytest.mark.parametrize(("anchor", "room_max"), [(20.0, 1.5), (None, None)])
+@pytest.mark.parametrize(
+    ("anchor", "init", "room_max"),
+    [(20.0, {}, 1.5), (20.0, ONE_ROUND, 1.5), (None, ONE_ROUND, None)],
+)
 def test_ceamcl_holds_fr079s_track_through_the_doubtful_room(
-    anchor: float | None, room_max: float | None
+    anchor: float | None, init: dict[str, Any], room_max: float | None
 ) -> None:
     """fr079 raw (odometry read with its sign), tracked from the first scan with truth,
     perturbed by 0.5 m / 0.3 rad, seed 1, to scan 1450. In the room of scans 1148-1239 the map
@@ -346,9 +353,11 @@ def test_ceamcl_holds_fr079s_track_through_the_doubtful_room(
     filter's last confident pose, carried on by the odometry, counts as a place it had, and
     the estimate stays within 0.96 m of the truth through the room. Both are back on the
     track after it (measured at most 0.21 / 0.22 m off from scan 1290; docs/ceamcl.md,
-    departure 14, and docs/real-data.md, "whose pose" for the truth these figures use)."""
+    departure 14, and docs/real-data.md, "whose pose" for the truth these figures use). The
+    figures are with the initialisation they were traced with (``ONE_ROUND``); the default's
+    holds the track through the room as well."""
     need(RAW, CORRECTED)
-    scan, errors = _fr079_tracking_errors(1, 1450, recovery_anchor_m=anchor)
+    scan, errors = _fr079_tracking_errors(1, 1450, recovery_anchor_m=anchor, **init)
     after = np.isfinite(errors) & (scan >= 1290)
     room = np.isfinite(errors) & (scan >= 1148) & (scan <= 1260)
     assert after.sum() > 100 and room.sum() > 80
@@ -406,17 +415,18 @@ def test_while_lost_in_fr079s_doubtful_room_ceamcl_reports_the_odometrys_pose(
 
 
 @pytest.mark.parametrize(
-    ("held", "vouched", "far", "stays"),
+    ("held", "vouched", "far", "init", "stays"),
     [
-        (True, True, 0.63, True),
-        (True, True, None, True),
-        (True, False, None, True),
-        (False, False, None, False),
-        (False, False, 0.63, True),
+        (True, True, 0.63, {}, True),
+        (True, True, 0.63, ONE_ROUND, True),
+        (True, True, None, ONE_ROUND, True),
+        (True, False, None, ONE_ROUND, True),
+        (False, False, None, ONE_ROUND, False),
+        (False, False, 0.63, ONE_ROUND, True),
     ],
 )
 def test_a_far_place_that_outlives_the_rest_does_not_take_fr079s_estimate(
-    held: bool, vouched: bool, far: float | None, stays: bool
+    held: bool, vouched: bool, far: float | None, init: dict[str, Any], stays: bool
 ) -> None:
     """Tracking fr079 raw at Nav2's pace with 200 samples (seed 10) through the doubtful room:
     a recovery proposes a place 21 m away that fits the room's scans better than the truth,
@@ -427,7 +437,8 @@ def test_a_far_place_that_outlives_the_rest_does_not_take_fr079s_estimate(
     while the anchor is held and the map explains less than 45 % of the scan there (35 % at
     scan 1231, where it is left alone): the anchor's place competes again and wins (measured
     at most 1.04 m off in the room, with or without the map's test; docs/ceamcl.md,
-    departure 22)."""
+    departure 22). The scenario is the one traced with ``ONE_ROUND``; the default's
+    initialisation, with every departure on, stays within 2 m as well."""
     need(RAW, CORRECTED)
     scan, errors = _fr079_tracking_errors(
         10,
@@ -436,6 +447,7 @@ def test_a_far_place_that_outlives_the_rest_does_not_take_fr079s_estimate(
         lone_handicap_held=held,
         lone_handicap_vouched=vouched,
         far_vouch_share=far,
+        **init,
     )
     room = np.isfinite(errors) & (scan >= 1148) & (scan <= 1260)
     assert room.sum() > 80

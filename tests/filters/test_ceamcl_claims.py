@@ -245,6 +245,42 @@ def test_only_an_ambiguous_filter_keeps_equal_species_viable() -> None:
     assert raised([0.0, float(np.log(1e-3)), float(np.log(1e-3))], 1.0) == dict.fromkeys(ids, 0.0)
 
 
+def test_a_light_species_fitting_best_for_one_update_does_not_starve_the_others() -> None:
+    """The viable size's bar is the leading species' fitness less ``viable_fit_margin``, not
+    the best fitness of any species: on marked-hall, room 1, repetition 15 one light species'
+    climb read 0.99 for one update while the leader and the true image read 0.89-0.90, so a
+    bar at the best excluded every other species and the true image, at its viable size,
+    died (docs/ceamcl.md, departure 13)."""
+    sc = paper_scenario(0)
+    grid = sc.grid()
+    sim_rng, filter_rng = generators(0)
+    log = sc.simulate(sim_rng, grid)
+    f = ceamcl(grid, filter_rng)
+    f.initialise_hypotheses(symmetric_images(log.true_poses[0]), np.diag([0.0025] * 3))
+    f.step(increment_between(log.odometry[0], log.odometry[1]), log.scan(1))
+    ids = sorted(f.stats)
+    assert len(ids) == 4
+    heavy, second, light, spiking = ids
+    # two species hold nearly all the weight; two light ones, which have fitted as well
+    # as the best at every recent update
+    f.log_weight = dict(zip(ids, [0.0, 0.0, float(np.log(1e-3)), float(np.log(2e-3))], strict=True))
+
+    def floors(fitness: dict[int, float]) -> dict[int, int]:
+        f._equal_record = dict.fromkeys(ids, 1.0)
+        f._peak_fitness = dict(fitness)
+        return f._viable_floors()
+
+    level = {sid: 0.9 for sid in ids}
+    assert set(floors(level)) == set(ids)
+    # the light species' climb finds a peak far above everyone's for one update: the rest
+    # still fit as well as the leader, and keep the viable size
+    spiked = {**level, spiking: 0.99}
+    assert set(floors(spiked)) == set(ids)
+    # the leader fits clearly better than the light one: that one is left to eq. 9
+    ahead = {**level, heavy: 0.99, second: 0.99}
+    assert light not in floors(ahead) and heavy in floors(ahead)
+
+
 def test_a_species_seeing_through_walls_loses_evidence_the_likelihood_field_alone_gives() -> None:
     # the same two species (the truth at a room's centre, and half a turn from it: the room
     # fits, but the readings out of the door now run through the wall behind) and the same

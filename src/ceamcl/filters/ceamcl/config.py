@@ -57,11 +57,10 @@ class CEAMCLConfig:
         init_refine_share, init_refine_per_pose, init_refine_sigma_xy_m,
             init_refine_sigma_rad: a second round of test poses, ``init_refine_per_pose``
             Gaussian draws around each of the best ``init_refine_share`` of the first, so that
-            the cells see each place near its peak; ``init_refine_share=0`` (the default): one
-            round, as in the paper. With 450 test poses per m^2 and a 1 % second round the
-            global initialisation costs a third to a half as much for the same success
-            (docs/ceamcl.md, departure 20, measured and not the default: it also finds a far
-            look-alike at its peak when a recovery fires while tracking).
+            the cells see each place near its peak; ``init_refine_share=0``: one round, as in
+            the paper. The default, 450 test poses per m^2 and a 1 % second round, costs a
+            third to a half of one round of 1,500 per m^2 for the same success
+            (docs/ceamcl.md, departure 20).
         init_polish_rounds: greedy rounds that move each initial sample to a better pose
             nearby (the mutation's Sigma doubled, halved each round) before the first step.
 
@@ -88,7 +87,8 @@ class CEAMCLConfig:
         viable_fit_margin, viable_size, viable_weight_min, viable_memory: while the filter is
             ambiguous (at least two species hold ``viable_weight_min`` of the weight each), a
             species whose fitness (its fittest individual's, or its climb's peak) is within
-            ``viable_fit_margin`` of the best species' and fits (``confirm_fit_below``), and
+            ``viable_fit_margin`` of the leading species' (departure 24) and fits
+            (``confirm_fit_below``), and
             has at a running share (``viable_memory`` an update) of at least a half of the
             recent updates, keeps at least ``viable_size`` samples: equal species coexist,
             and the competition cannot starve one that fits as well as the leader before the
@@ -216,8 +216,8 @@ class CEAMCLConfig:
     """
 
     n_test: int = 1_000_000
-    test_poses_per_m2: float | None = 1500.0
-    init_refine_share: float = 0.0
+    test_poses_per_m2: float | None = 450.0
+    init_refine_share: float = 0.01
     init_refine_per_pose: int = 10
     init_refine_sigma_xy_m: float = 0.1
     init_refine_sigma_rad: float = 0.1

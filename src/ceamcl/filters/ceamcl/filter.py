@@ -460,13 +460,14 @@ class CEAMCL:
         """Departure 13 (docs/ceamcl.md): the species that keep ``viable_size`` samples
         whatever eq. 9 says. While at least two species hold ``viable_weight_min`` of the
         weight each, a species qualifies when its fitness as the state reads it (fittest
-        individual or climb peak) is within ``viable_fit_margin`` of the best species' and at
-        least ``confirm_fit_below``, and has been at a running share of at least a half of
-        the recent updates (``viable_memory`` an update, the share kept across updates in
-        ``_equal_record``). Eq. 9 with ``alpha_ij = w_j / w_i`` shrinks a species whose
-        accumulated evidence fell behind a transient contest, even while it fits as well as
-        its rivals again; now it lives while it does, and its weight is what its evidence
-        says. Updates the record."""
+        individual or climb peak) is within ``viable_fit_margin`` of the leading species'
+        (not the best of any: one light species' lucky climb would strip the rest for an
+        update, departure 24) and at least ``confirm_fit_below``, and has been at a running
+        share of at least a half of the recent updates (``viable_memory`` an update, the
+        share kept across updates in ``_equal_record``). Eq. 9 with ``alpha_ij = w_j / w_i``
+        shrinks a species whose accumulated evidence fell behind a transient contest, even
+        while it fits as well as its rivals again; now it lives while it does, and its weight
+        is what its evidence says. Updates the record."""
         cfg = self.config
         margin = cfg.viable_fit_margin
         if margin is None or len(self.stats) < 2:
@@ -482,7 +483,7 @@ class CEAMCL:
             )
             for s in stats
         }
-        bar = max(max(fit.values()) - margin, cfg.confirm_fit_below or 0.0)
+        bar = max(fit[stats[0].species_id] - margin, cfg.confirm_fit_below or 0.0)
         a = cfg.viable_memory
         equal = {sid: f >= bar for sid, f in fit.items()}
         self._equal_record = {
