@@ -250,7 +250,7 @@ def test_a_light_species_fitting_best_for_one_update_does_not_starve_the_others(
     the best fitness of any species: on marked-hall, room 1, repetition 15 one light species'
     climb read 0.99 for one update while the leader and the true image read 0.89-0.90, so a
     bar at the best excluded every other species and the true image, at its viable size,
-    died (docs/ceamcl.md, departure 13)."""
+    died (docs/ceamcl.md, departures 13 and 24)."""
     sc = paper_scenario(0)
     grid = sc.grid()
     sim_rng, filter_rng = generators(0)

@@ -23,7 +23,7 @@ from ceamcl.simulation import Simulator, paper_scenario
 #: departure 20 (docs/ceamcl.md), the default: 450 test poses per m^2 and ten more around each
 #: of the best 1 %
 SECOND_ROUND = CEAMCLConfig()
-#: the default before departure 20: 1,500 test poses per m^2 in one round
+#: the default until departure 24: 1,500 test poses per m^2 in one round
 ONE_ROUND = CEAMCLConfig(test_poses_per_m2=1500.0, init_refine_share=0.0)
 
 

@@ -88,12 +88,11 @@ class CEAMCLConfig:
             ambiguous (at least two species hold ``viable_weight_min`` of the weight each), a
             species whose fitness (its fittest individual's, or its climb's peak) is within
             ``viable_fit_margin`` of the leading species' (departure 24) and fits
-            (``confirm_fit_below``), and
-            has at a running share (``viable_memory`` an update) of at least a half of the
-            recent updates, keeps at least ``viable_size`` samples: equal species coexist,
-            and the competition cannot starve one that fits as well as the leader before the
-            evidence can turn (docs/ceamcl.md, departure 13). Its weight stays what its
-            evidence says. ``viable_fit_margin=None``: eq. 9 alone.
+            (``confirm_fit_below``), and has at a running share (``viable_memory`` an update)
+            of at least a half of the recent updates, keeps at least ``viable_size`` samples:
+            equal species coexist, and the competition cannot starve one that fits as well as
+            the leader before the evidence can turn (docs/ceamcl.md, departure 13). Its weight
+            stays what its evidence says. ``viable_fit_margin=None``: eq. 9 alone.
         see_through_margin_m, see_through_tolerance: with the likelihood field, each step's
             evidence of a species is taken at its best sample with the readings that pass
             more than ``see_through_margin_m`` through a mapped wall scored as unexplained,
