@@ -317,16 +317,10 @@ def truth_source(prepared: PreparedLog) -> str | None:
     if prepared.pairing is not None:
         p = prepared.pairing
         x, y, yaw = (float(v) for v in prepared.log.laser_mount[0])
-        suggested = (
-            ""
-            if p.suggested_mount is None
-            else f"; the corrected poses and the odometry suggest ({p.suggested_mount[0]:.3f}, "
-            f"{p.suggested_mount[1]:.3f}) m (--laser-mount sets it)"
-        )
         return (
             f"the SLAM-corrected poses of {p.truth_path} at the {p.n_matched} of "
             f"{p.n_raw} scans that match, for a robot whose laser sits at ({x:.3f}, {y:.3f}) m, "
-            f"{yaw:.3f} rad{suggested}"
+            f"{yaw:.3f} rad{p.mount_suggestion()}"
         )
     return "the log's poses (SLAM-corrected)" if prepared.has_truth else None
 
@@ -400,9 +394,7 @@ def run_summary(
             "mount_shift_m": p.mount_shift_m,
             # the laser's (x, y) on the robot the corrected poses and the odometry agree on
             "laser_mount_used": [float(v) for v in prepared.log.laser_mount[0]],
-            "laser_mount_suggested": None
-            if p.suggested_mount is None
-            else [p.suggested_mount[0], p.suggested_mount[1]],
+            "laser_mount_suggested": None if p.suggested_mount is None else [*p.suggested_mount],
         }
     if prepared.noise is not None:
         summary["odometry_noise"] = {

@@ -219,14 +219,8 @@ def test_the_mount_the_poses_and_the_odometry_agree_on_is_found() -> None:
     robot = _course(400, rng)
     mount = np.array([0.09, 0.01, 0.0])
     laser = laser_poses(robot, mount)
-    c, s = np.cos(0.7), np.sin(0.7)
-    odometry = np.column_stack(
-        [
-            5.0 + c * robot[:, 0] - s * robot[:, 1],
-            -2.0 + s * robot[:, 0] + c * robot[:, 1],
-            robot[:, 2] + 0.7,
-        ]
-    )
+    # the odometry's frame: the robot's poses composed onto (5, -2, 0.7)
+    odometry = laser_poses(np.tile([5.0, -2.0, 0.7], (400, 1)), robot)
     odometry[:, :2] += rng.normal(0.0, 0.002, (400, 2))
     odometry[100:, 0] += 0.5  # a glitch: the odometry jumps once
     odometry[250, 2] = np.nan  # and one reading is not a number

@@ -110,18 +110,25 @@ class TruthPairing:
             if self.mount_moved
             else ""
         )
-        suggested = (
-            f"; the corrected poses move against the raw odometry as a laser at "
-            f"({self.suggested_mount[0]:.3f}, {self.suggested_mount[1]:.3f}) m on the robot "
-            f"would (the raw log says ({self.raw_mount[0]:.3f}, {self.raw_mount[1]:.3f}); "
-            "--laser-mount sets it)"
-            if self.suggested_mount is not None
-            else ""
-        )
+        suggested = self.mount_suggestion()
+        if suggested:
+            rx, ry = self.raw_mount
+            suggested += f", where the raw log says ({rx:.3f}, {ry:.3f})"
         return (
             f"{self.n_matched} of {self.n_truth} scans of {self.truth_path} matched among "
             f"{self.n_raw} scans of {self.raw_path} (clock offset {self.clock_offset_s:.3f} s, "
             f"largest residual {self.max_time_residual_s:.3f} s{moved}{suggested})"
+        )
+
+    def mount_suggestion(self) -> str:
+        """``"; ..."``: the mount the corrected poses and the raw odometry agree on, in the
+        words the pairing's summary and the reports' ground-truth line use ("" without one)."""
+        if self.suggested_mount is None:
+            return ""
+        x, y = self.suggested_mount
+        return (
+            f"; the corrected poses and the odometry suggest a laser at ({x:.3f}, {y:.3f}) m "
+            "on the robot (--laser-mount sets it)"
         )
 
 
