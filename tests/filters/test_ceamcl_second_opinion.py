@@ -431,6 +431,52 @@ def test_the_coasting_estimate_widens_with_the_travel(envelope: bool) -> None:
         assert reaches == [drift_reach] * 3
 
 
+@pytest.mark.parametrize("seed", [3, 5])
+@pytest.mark.parametrize("continues", [True, False])
+def test_the_tracked_species_under_a_new_id_still_continues_the_estimate(
+    seed: int, continues: bool
+) -> None:
+    """Departure 25: a robot standing and turning on the spot, read by the odometry as a turn,
+    0.8 m sideways and a turn back (a lever arm, or synthetic odometry drawn from such poses):
+    the anchor is carried 0.8 m off, beyond its envelope, while the species follows the scans.
+    A merge can then give the tracked species a new id (the less fit of two overlapping
+    species joins the fitter, a recovery's newcomer at the same place). The leader within
+    ``estimate_continues_m`` of the last estimate carried on by the odometry continues it: the
+    estimate stays the species'. ``estimate_continues_m=None`` (the species' id alone):
+    departure 18 judges the leader as a recovery's far place, holds the anchor, and departure
+    19 starts a species where the anchor's grid fits: the estimate is the anchor, 0.8 m off."""
+    _, log, f = _anchor_on_the_paper_course(seed)
+    f.config = replace(f.config, estimate_continues_m=1.0 if continues else None)
+    truth = log.true_poses
+    f.initialise_pose(truth[0], np.diag([0.05**2, 0.05**2, 0.03**2]))
+    f.step(STILL, log.scan(0))
+    k = 0
+    for k in range(1, 30):
+        f.step(increment_between(log.odometry[k - 1], log.odometry[k]), log.scan(k))
+    assert f.state().state is State.LOCALISED
+    (tracked,) = f.stats
+    f.step(OdometryIncrement(-1.2, 0.8, 1.2), log.scan(k))  # the robot stands at truth[k]
+    anchor = f.confident.anchor()
+    assert anchor is not None and position_error(anchor[0], truth[k]) > 0.6
+    assert position_error(f.estimate().pose, truth[k]) < 0.4
+    # the tracked species under a new id, as a merge into a fitter newcomer leaves it
+    new = f._next_id
+    f._next_id += 1
+    f.particle_set.labels[f.particle_set.labels == tracked] = new
+    f.log_weight[new] = f.log_weight.pop(tracked)
+    f.competition.dn[new] = f.competition.dn.pop(tracked)
+    f._refresh_stats()
+    f.step(STILL, log.scan(k))
+    lead = f.fittest()
+    assert lead is not None and position_error(lead.mean, truth[k]) < 0.4
+    if continues:
+        assert np.array_equal(f.estimate().pose, lead.mean)
+        assert f.state().state is State.LOCALISED
+    else:
+        assert np.array_equal(f.estimate().pose, anchor[0])
+        assert f.state().state is not State.LOCALISED
+
+
 def _lost_behind_an_obstacle(
     coast: bool,
 ) -> tuple[CEAMCL, SimulatedLog, int]:

@@ -145,6 +145,14 @@ class CEAMCLConfig:
             ``anchor_envelope_sd=None``: departure 15 as first adopted, coasting only after a
             recovery and beyond ``recovery_drift_m`` / ``recovery_drift_rad``, and every
             LOCALISED pose the map vouches for replaces the last.
+        estimate_continues_m: a leading species within this many metres (and
+            ``recovery_drift_rad``) of the last update's estimate carried on by the odometry
+            continues that estimate even under another id (docs/ceamcl.md, departure 25): the
+            tracked species a recovery keeps, or departure 19's species beside it, unless the
+            species read the state LOST at that update. Departure 18 judges only a leader that
+            moves the estimate further, a place a recovery proposed (metres away;
+            :data:`~ceamcl.filters.ceamcl.anchor.CHAIN_M` bounds what a species following the
+            scans moves in an update). ``None``: the same species only.
         anchor_hold_margin: with an envelope, a leading species beyond it that was not the
             last update's estimate (a place a recovery proposed) yields the estimate to the
             anchor while the state is not LOCALISED, and, while it is, as long as a pose near
@@ -272,6 +280,7 @@ class CEAMCLConfig:
     anchor_envelope_sd: float | None = 3.0
     anchor_envelope_min_m: float = 0.5
     anchor_conflict_m: float = 2.0
+    estimate_continues_m: float | None = 1.0
     coast_after_updates: int = 2
     anchor_hold_margin: float | None = 3.0
     anchor_species: bool = True
@@ -356,6 +365,8 @@ class CEAMCLConfig:
             "anchor_envelope_sd": self.anchor_envelope_sd is None or self.anchor_envelope_sd > 0,
             "anchor_envelope_min_m": self.anchor_envelope_min_m >= 0,
             "anchor_conflict_m": self.anchor_conflict_m >= 0,
+            "estimate_continues_m": self.estimate_continues_m is None
+            or (math.isfinite(self.estimate_continues_m) and self.estimate_continues_m >= 0),
             "coast_after_updates": self.coast_after_updates >= 1,
             "anchor_hold_margin": self.anchor_hold_margin is None
             or (math.isfinite(self.anchor_hold_margin) and self.anchor_hold_margin >= 0),

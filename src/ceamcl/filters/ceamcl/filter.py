@@ -173,6 +173,9 @@ class CEAMCL:
         self._held: tuple[int, PoseEstimate | None, float | None, float] = _NOT_HELD
         #: the update and the species whose mean was its estimate (-1: the anchor; departure 18)
         self._estimate_from: tuple[int, int] = (-1, -1)
+        #: that species' mean, carried on by the odometry since (departure 25; None: the
+        #: estimate was the anchor, or no update yet)
+        self._estimate_pose: NDArray[np.float64] | None = None
 
     # ================================================================== initialisation
     def initialise_global(self, scan: LaserScan) -> CEAMCLRecord:
@@ -184,6 +187,7 @@ class CEAMCL:
         self._far_lost = (0, 0)
         self._held = _NOT_HELD
         self._estimate_from = (-1, -1)
+        self._estimate_pose = None
         self.events = Events()
         self._evaluations = 0
         self._initialise_from(usable(self.sensor, scan))
@@ -325,6 +329,7 @@ class CEAMCL:
         self._far_lost = (0, 0)
         self._held = _NOT_HELD
         self._estimate_from = (-1, -1)
+        self._estimate_pose = None
         self.particle_set = gaussian(pose, covariance, self.config.tracking_samples, self.rng)
         self.particle_set.labels[:] = sid
         self._next_id = sid + 1
@@ -348,6 +353,7 @@ class CEAMCL:
         self._far_lost = (0, 0)
         self._held = _NOT_HELD
         self._estimate_from = (-1, -1)
+        self._estimate_pose = None
         parts = []
         for pose in centres:
             part = gaussian(pose, covariance, self.config.tracking_samples, self.rng)
@@ -401,6 +407,10 @@ class CEAMCL:
         # 3. Prediction.
         propagate(ps, self.motion, increment, self.rng)
         self.confident.carry(increment, self.config.recovery_anchor_m)
+        if self._estimate_pose is not None:
+            self._estimate_pose = apply_increment(
+                self._estimate_pose, increment.rot1, increment.trans, increment.rot2
+            )[0]
         if prepared is None:
             # No information: sizes freeze (dN = 0) and the particles, just resampled, keep
             # equal weights (no evidence is counted twice at the next resampling).
@@ -1111,10 +1121,9 @@ class CEAMCL:
         run = self._far_lost[1] + 1 if far and self._far_lost[0] == self.t - 1 else int(far)
         self._far_lost = (self.t, run)
         coasts = left is not None and run >= cfg.coast_after_updates  # what estimate() reports
-        at, source = self._estimate_from
         # the leader moved the estimate here itself (departure 12's look-around or a wrong
         # odometry can carry it metres in an update), or it leads anew (a recovery's place)
-        moved_on = at == self.t - 1 and best is not None and source == best.species_id
+        moved_on = best is not None and self._continues_estimate(best)
         held, share, unvouched = None, None, float("nan")
         margin = cfg.anchor_hold_margin
         if left is not None and best is not None and not moved_on and margin is not None:
@@ -1143,6 +1152,31 @@ class CEAMCL:
         self._held = (self.t, held, share, unvouched)  # a finite unvouched was held
         own = best is not None and not coasts and held is None
         self._estimate_from = (self.t, best.species_id if own and best is not None else -1)
+        # departure 25: a species the filter believed (the species' own reading of the state,
+        # made this update for the recovery, is not LOST) that a new leader may continue
+        read = self._read
+        believed = read is not None and read[1].state is not State.LOST
+        self._estimate_pose = best.mean.copy() if own and believed and best is not None else None
+
+    def _continues_estimate(self, best: SpeciesStats) -> bool:
+        """Whether the leader ``best`` was the last update's estimate: the same species, or
+        (departure 25, ``estimate_continues_m``) another one within that many metres and
+        ``recovery_drift_rad`` of that estimate carried on by the odometry, as the tracked
+        species a recovery kept under a new id, or a species started where the anchor's place
+        fits (departure 19) beside it. Not after an update at which the species read the state
+        LOST: a species sliding where the map holds little continues nothing. Only a leader
+        that would move the estimate further (a recovery's other place) is judged against the
+        anchor (departure 18)."""
+        at, source = self._estimate_from
+        if at != self.t - 1 or source < 0:
+            return False
+        if source == best.species_id:
+            return True
+        reach = self.config.estimate_continues_m
+        last = self._estimate_pose
+        if reach is None or last is None:
+            return False
+        return bool(self._near(best.mean[None, :], last[None, :], reach)[0])
 
     def _far_share(self, best: SpeciesStats) -> float:
         """Departure 23: the share of the scan the map explains at the far leader ``best``
