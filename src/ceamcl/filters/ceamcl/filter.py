@@ -1153,7 +1153,8 @@ class CEAMCL:
         own = best is not None and not coasts and held is None
         self._estimate_from = (self.t, best.species_id if own and best is not None else -1)
         # departure 25: a species the filter believed (the species' own reading of the state,
-        # made this update for the recovery, is not LOST) that a new leader may continue
+        # made this update for the recovery, is not LOST; no reading, as with the recovery
+        # off or after a sprout: not believed) that a new leader may continue
         read = self._read
         believed = read is not None and read[1].state is not State.LOST
         self._estimate_pose = best.mean.copy() if own and believed and best is not None else None
