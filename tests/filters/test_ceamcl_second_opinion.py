@@ -16,7 +16,6 @@ from typing import Any
 import numpy as np
 import pytest
 
-from ceamcl import angles
 from ceamcl.experiments.routes import paper_course
 from ceamcl.filters import make_filter
 from ceamcl.filters.ceamcl import CEAMCL, CEAMCLConfig
@@ -116,49 +115,21 @@ def test_a_far_look_alike_stays_at_its_prior_while_it_fits_no_better() -> None:
         assert seen_far >= 3  # the look-alikes lived for a while
 
 
-@pytest.mark.parametrize(
-    ("held", "vouched", "anchored", "turned", "kept"),
-    [
-        (True, False, True, False, True),  # departure 22 as first measured
-        (False, False, True, False, False),  # before departure 22
-        (True, False, False, False, False),  # no anchor: nothing to hold it against
-        (True, True, True, False, False),  # the map vouches for the far place: dropped
-        (True, True, True, True, True),  # the map does not vouch for it: it stays
-        (True, True, False, True, False),
-    ],
-)
-def test_a_far_place_left_alone_keeps_its_handicap_while_the_anchor_is_held(
-    held: bool, vouched: bool, anchored: bool, turned: bool, kept: bool
-) -> None:
-    """Departure 22 (docs/ceamcl.md): when every species but a recovery's far place dies out,
-    its handicap was odds against species no longer there and was dropped, so the far place
-    needed to out-fit the anchor's place by the margin alone. With ``lone_handicap_held`` the
-    handicap stays while the filter holds its last confident pose (without an anchor, nothing
-    is left to hold it against); with ``lone_handicap_vouched`` as well (the default), only
-    while the map does not vouch for the far place. Here the far place is another room that
-    looks alike, which the map vouches for, or the same place turned by 0.6 rad, where the
-    map explains too little of the scan."""
-    config = replace(CEAMCLConfig(), lone_handicap_held=held, lone_handicap_vouched=vouched)
-    f, truth, _ = tracked_then_recovered(0, config)
+def test_a_far_place_left_alone_holds_no_handicap() -> None:
+    """A recovery's far place carries a handicap (``recovery_prior``): odds against the other
+    species. When every other species dies out it is dropped, anchor or not (docs/ceamcl.md,
+    departure 22, removed: departure 23 judges such a place against the anchor by the map's
+    agreement instead)."""
+    f, truth, _ = tracked_then_recovered(0, CEAMCLConfig())
     assert f.confident.held()  # the tracked pose, confident before the recovery
-    if not anchored:
-        f.confident.reset()
     reach = f.config.recovery_drift_m
     assert reach is not None and f.config.recovery_prior is not None
     far = [sid for sid, s in f.stats.items() if position_error(s.mean, truth) > reach]
-    lone = far[0]
-    f.particle_set.take(f.particle_set.labels == lone)
-    if turned:
-        f.particle_set.poses[:, 2] = angles.wrap(f.particle_set.poses[:, 2] + 0.6)
+    assert far and far[0] in f.log_prior  # handicapped while the others live
+    f.particle_set.take(f.particle_set.labels == far[0])
     f._refresh_stats()
-    assert f.last_scan is not None
-    share = explained_share(f.grid, f.stats[lone].mean, f.last_scan)
-    threshold = f.map_agreement.thresholds.explained_below
-    assert (share < threshold) if turned else (share >= threshold)
     f._normalise_weights(living=True)
-    assert list(f.stats) == [lone]
-    expected = {lone: float(np.log(f.config.recovery_prior))} if kept else {}
-    assert f.log_prior == expected
+    assert list(f.stats) == [far[0]] and f.log_prior == {}
 
 
 def _two_sets(

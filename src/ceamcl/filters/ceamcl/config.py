@@ -177,15 +177,6 @@ class CEAMCLConfig:
             poorly is not (docs/ceamcl.md, departure 23). 0.63: the share the map gives at
             least at 95 % of the true poses of intel-corrected and fhw (their 5th percentile,
             0.639, rounded down). ``None``: no such test.
-        lone_handicap_held, lone_handicap_vouched: a recovery's far place that outlives every
-            other species keeps its handicap while the filter holds its last confident pose
-            (the anchor), so departures 18 and 19 still ask it to out-fit the anchor's place
-            by that handicap as well as the margin; with ``lone_handicap_vouched`` only while
-            the map does not vouch for the far place (it explains less than the state's
-            ``explained_below`` of the scan there, the test an anchor passes): a robot carried
-            off and found again keeps no handicap (docs/ceamcl.md, departure 22; both
-            ``True`` by default). ``lone_handicap_held=False``: a lone species holds no
-            handicap (the odds were against the other species, and none is left).
         recovery_prior_fades: ``False`` (the default): the handicap ``recovery_prior`` of a
             new species beyond ``recovery_drift_m`` stays in its weight while other species
             live, so a far place must out-fit the near ones by that much in the evidence the
@@ -285,8 +276,6 @@ class CEAMCLConfig:
     anchor_hold_margin: float | None = 3.0
     anchor_species: bool = True
     far_vouch_share: float | None = 0.63
-    lone_handicap_held: bool = True
-    lone_handicap_vouched: bool = True
     recovery_lost_updates: int | None = 3
     beam_skip: BeamSkipConfig | None = field(default_factory=BeamSkipConfig)
     confirm_fit_below: float | None = DEFAULT_THRESHOLDS.fit_min

@@ -770,15 +770,12 @@ class CEAMCL:
     def _normalise_weights(self, living: bool = False) -> None:
         """The largest log-weight 0 (all 0 when none is finite); with ``living``, only the
         species in ``stats`` keep one (a species new to them starts at 0, the leader's), and
-        a handicap in ``log_prior`` stays while another species lives (or, alone, while the
-        anchor is held and the map does not vouch for its place: departure 22)."""
+        a handicap in ``log_prior`` stays while another species lives."""
         if living:
             lw = {sid: self.log_weight.get(sid, 0.0) for sid in self.stats}
-            # a prior is odds against the other species, and against the last confident pose
-            # while it is held (departure 22): with neither, nothing is held
+            # a prior is odds against the other species: with none left, nothing is held
             held = {sid: v for sid, v in self.log_prior.items() if sid in self.stats}
-            lone_held = len(self.stats) == 1 and bool(held) and self._lone_handicap_stays()
-            self.log_prior = held if len(self.stats) > 1 or lone_held else {}
+            self.log_prior = held if len(self.stats) > 1 else {}
         else:
             lw = dict(self.log_weight)
         top = max(lw.values(), default=0.0)
@@ -786,21 +783,6 @@ class CEAMCL:
             self.log_weight = {sid: 0.0 for sid in lw}
             return
         self.log_weight = {sid: max(v - top, LOG_WEIGHT_FLOOR) for sid, v in lw.items()}
-
-    def _lone_handicap_stays(self) -> bool:
-        """Does the handicap of the one species left stay (departure 22)? With
-        ``lone_handicap_held``, while the anchor is held; with ``lone_handicap_vouched`` too,
-        only while the map does not vouch for the species' place (the share of the scan it
-        explains there below the state's ``explained_below``, as an anchor is vouched for)."""
-        cfg = self.config
-        if not (cfg.lone_handicap_held and self.confident.held()):
-            return False
-        if not cfg.lone_handicap_vouched or self.last_scan is None:
-            return True
-        (lone,) = self.stats.values()
-        share = self.map_agreement.share_at(self.t, self.last_scan, lone.mean)
-        # NaN (nothing to judge): it stays
-        return not share >= self.map_agreement.thresholds.explained_below
 
     def _competition_fitness(self) -> dict[int, float] | None:
         """The ``w`` of eqs. 9 and 16 by species: the accumulated evidence relative to the
