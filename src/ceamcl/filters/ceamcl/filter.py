@@ -92,6 +92,7 @@ from ceamcl.sensors.see_through import see_through_penalty
 LOG_WEIGHT_FLOOR = -700.0
 #: ``CEAMCL._held`` before any update has judged the anchor: nothing held.
 _NOT_HELD: tuple[int, None, None, float] = (0, None, None, float("nan"))
+_NO_ESTIMATE: tuple[int, int, None] = (-1, -1, None)
 
 
 class CEAMCL:
@@ -171,11 +172,10 @@ class CEAMCL:
         #: says AMBIGUOUS), and the share of the scan the map explains at a leader held back
         #: because the map does not vouch for it (departure 23; NaN: not held back for that)
         self._held: tuple[int, PoseEstimate | None, float | None, float] = _NOT_HELD
-        #: the update and the species whose mean was its estimate (-1: the anchor; departure 18)
-        self._estimate_from: tuple[int, int] = (-1, -1)
-        #: that species' mean, carried on by the odometry since (departure 25; None: the
-        #: estimate was the anchor, or no update yet)
-        self._estimate_pose: NDArray[np.float64] | None = None
+        #: the update and the species whose mean was its estimate (-1: the anchor; departure
+        #: 18), and that mean carried on by the odometry since (departure 25; None: the
+        #: estimate was the anchor, or a species read LOST)
+        self._estimate_from: tuple[int, int, NDArray[np.float64] | None] = _NO_ESTIMATE
 
     # ================================================================== initialisation
     def initialise_global(self, scan: LaserScan) -> CEAMCLRecord:
@@ -183,11 +183,7 @@ class CEAMCL:
         self.t = 0
         self.map_agreement.reset()
         self.last_scan = scan
-        self.confident.reset()
-        self._far_lost = (0, 0)
-        self._held = _NOT_HELD
-        self._estimate_from = (-1, -1)
-        self._estimate_pose = None
+        self._forget_estimates()
         self.events = Events()
         self._evaluations = 0
         self._initialise_from(usable(self.sensor, scan))
@@ -321,15 +317,19 @@ class CEAMCL:
         ``recovery_drift_rad`` of heading."""
         return np.asarray(self._close(a, b, reach).any(axis=1), dtype=np.bool_)
 
+    def _forget_estimates(self) -> None:
+        """A new start: no anchor, no count of updates beyond it, nothing held, no estimate
+        for a leader to continue."""
+        self.confident.reset()
+        self._far_lost = (0, 0)
+        self._held = _NOT_HELD
+        self._estimate_from = _NO_ESTIMATE
+
     def initialise_pose(self, pose: ArrayLike, covariance: ArrayLike) -> None:
         """Pose tracking: one species of ``tracking_samples`` around a known pose."""
         sid = self._next_id
         self._read = None
-        self.confident.reset()
-        self._far_lost = (0, 0)
-        self._held = _NOT_HELD
-        self._estimate_from = (-1, -1)
-        self._estimate_pose = None
+        self._forget_estimates()
         self.particle_set = gaussian(pose, covariance, self.config.tracking_samples, self.rng)
         self.particle_set.labels[:] = sid
         self._next_id = sid + 1
@@ -349,11 +349,7 @@ class CEAMCL:
         if centres.shape[0] == 0:
             raise ValueError("poses: expected at least one pose")
         self._read = None
-        self.confident.reset()
-        self._far_lost = (0, 0)
-        self._held = _NOT_HELD
-        self._estimate_from = (-1, -1)
-        self._estimate_pose = None
+        self._forget_estimates()
         parts = []
         for pose in centres:
             part = gaussian(pose, covariance, self.config.tracking_samples, self.rng)
@@ -407,10 +403,10 @@ class CEAMCL:
         # 3. Prediction.
         propagate(ps, self.motion, increment, self.rng)
         self.confident.carry(increment, self.config.recovery_anchor_m)
-        if self._estimate_pose is not None:
-            self._estimate_pose = apply_increment(
-                self._estimate_pose, increment.rot1, increment.trans, increment.rot2
-            )[0]
+        at, source, last = self._estimate_from
+        if last is not None:
+            last = apply_increment(last, increment.rot1, increment.trans, increment.rot2)[0]
+            self._estimate_from = (at, source, last)
         if prepared is None:
             # No information: sizes freeze (dN = 0) and the particles, just resampled, keep
             # equal weights (no evidence is counted twice at the next resampling).
@@ -1133,13 +1129,15 @@ class CEAMCL:
                 best = self.fittest()
         self._held = (self.t, held, share, unvouched)  # a finite unvouched was held
         own = best is not None and not coasts and held is None
-        self._estimate_from = (self.t, best.species_id if own and best is not None else -1)
         # departure 25: a species the filter believed (the species' own reading of the state,
         # made this update for the recovery, is not LOST; no reading, as with the recovery
         # off or after a sprout: not believed) that a new leader may continue
         read = self._read
         believed = read is not None and read[1].state is not State.LOST
-        self._estimate_pose = best.mean.copy() if own and believed and best is not None else None
+        if own and best is not None:
+            self._estimate_from = (self.t, best.species_id, best.mean.copy() if believed else None)
+        else:
+            self._estimate_from = (self.t, -1, None)
 
     def _continues_estimate(self, best: SpeciesStats) -> bool:
         """Whether the leader ``best`` was the last update's estimate: the same species, or
@@ -1150,13 +1148,12 @@ class CEAMCL:
         LOST: a species sliding where the map holds little continues nothing. Only a leader
         that would move the estimate further (a recovery's other place) is judged against the
         anchor (departure 18)."""
-        at, source = self._estimate_from
+        at, source, last = self._estimate_from
         if at != self.t - 1 or source < 0:
             return False
         if source == best.species_id:
             return True
         reach = self.config.estimate_continues_m
-        last = self._estimate_pose
         if reach is None or last is None:
             return False
         return bool(self._near(best.mean[None, :], last[None, :], reach)[0])
