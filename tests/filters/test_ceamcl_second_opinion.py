@@ -867,3 +867,24 @@ def test_the_anchors_place_competes_when_it_fits_as_well_as_a_far_leader(seed: i
     _leader_moved_to(f, far)
     assert f.events.sprouts == 0
     assert len(f.hypotheses()) == 1
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_recovery_searches_the_map_at_its_own_density(seed: int) -> None:
+    """``recovery_test_poses_per_m2`` (docs/ceamcl.md, "a cheaper recovery"): a recovery's
+    second opinion scores that many test poses a square metre of free space instead of the
+    global initialisation's, and at a third of it still proposes every other room's
+    look-alike (where a kidnapped robot would be) beside the tracked species it keeps."""
+    initial = CEAMCLConfig().test_poses_per_m2
+    assert initial is not None
+    spent = {}
+    for density in (None, initial / 3):
+        config = replace(CEAMCLConfig(), recovery_test_poses_per_m2=density)
+        f, truth, tracked = tracked_then_recovered(seed, config)
+        spent[density] = f._evaluations  # the recovering step's likelihood evaluations
+        hyps = f.hypotheses()
+        assert hyps[0].label == tracked
+        for image in paper_course().images(truth)[1:]:
+            assert min(position_error(h.pose, image) for h in hyps) < 0.5
+    same, third = spent.values()
+    assert third < 0.5 * same

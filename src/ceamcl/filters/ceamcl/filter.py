@@ -46,7 +46,12 @@ from ceamcl import angles
 from ceamcl.filters.base import Algorithm, Hypothesis, ParticleSnapshot, PoseEstimate
 from ceamcl.filters.ceamcl.anchor import ConfidentPose, DriftEnvelope
 from ceamcl.filters.ceamcl.config import CEAMCLConfig
-from ceamcl.filters.ceamcl.initialisation import InitialSpecies, initial_species, polish
+from ceamcl.filters.ceamcl.initialisation import (
+    InitialisationConfig,
+    InitialSpecies,
+    initial_species,
+    polish,
+)
 from ceamcl.filters.ceamcl.phases import (
     Competition,
     allocate_resources,
@@ -195,6 +200,7 @@ class CEAMCL:
         *,
         kept: tuple[ParticleSet, dict[int, float], dict[int, float]] | None = None,
         prior: float = 1.0,
+        settings: InitialisationConfig | None = None,
     ) -> None:
         """Section 3.1 (:func:`~ceamcl.filters.ceamcl.initialisation.initial_species`) with
         a scan's usable beams (none: the species spread uniformly over free space). ``kept``:
@@ -203,15 +209,15 @@ class CEAMCL:
         (which they keep); the new species then start
         at ``prior`` times their own evidence, or at their own evidence when near a kept
         species, a handicap kept apart in ``log_prior`` unless ``recovery_prior_fades``
-        (:meth:`_recover`, :meth:`_recovery_handicaps`)."""
+        (:meth:`_recover`, :meth:`_recovery_handicaps`). ``settings``: section 3.1's (``None``:
+        the global initialisation's; a recovery passes ``recovery_initialisation``)."""
         self._fit_fast = self._fit_slow = None
         self._steps_since_init = 0
         self._lost_streak = 0
         self._read = None
         self._peak_fitness = {}
-        init, evaluations = initial_species(
-            self.grid, self.sensor, prepared, self.config.initialisation, self.rng
-        )
+        settings = self.config.initialisation if settings is None else settings
+        init, evaluations = initial_species(self.grid, self.sensor, prepared, settings, self.rng)
         self.initial = init
         # Not in the paper: a few greedy moves bring each chosen test pose nearer its peak
         # (docs/ceamcl.md, "test poses"); ``self.initial`` keeps section 3.1's own choice.
@@ -220,7 +226,7 @@ class CEAMCL:
             init.loglik,
             self.sensor,
             prepared,
-            self.config.initialisation,
+            settings,
             self.rng,
         )
         self._evaluations += evaluations + spent
@@ -860,7 +866,12 @@ class CEAMCL:
                 {sid: v + gains[lead] for sid, v in past.items()},
                 {sid: h for sid, h in self.log_prior.items() if sid in past},
             )
-        self._initialise_from(prepared, kept=kept, prior=prior)
+        self._initialise_from(
+            prepared,
+            kept=kept,
+            prior=prior,
+            settings=self.config.recovery_initialisation,
+        )
         self._evaluations += spent
         self.events.restarts += 1
         return self._record(reinitialised=True)
