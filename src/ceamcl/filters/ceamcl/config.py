@@ -63,7 +63,7 @@ class CEAMCLConfig:
             (docs/ceamcl.md, departure 20).
         recovery_test_poses_per_m2: the density of a recovery's search (its second opinion,
             ``recovery_prior``); ``None`` (the default): the global initialisation's. Lower
-            densities cut the evaluations of the real-log protocol by up to 45 % at the same
+            densities cut the evaluations of the real-log protocol by up to 46 % at the same
             success, but let far places take the estimate in a room the map holds poorly
             (docs/ceamcl.md, "a cheaper recovery: measured, not adopted").
         init_polish_rounds: greedy rounds that move each initial sample to a better pose
