@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import gc
+import os
 import signal
 import subprocess
 import sys
@@ -214,3 +215,60 @@ def test_a_dropped_interrupt_prints_one_line_and_exits_130() -> None:
     assert proc.returncode == 130, proc.stderr
     assert "slept to the end" not in proc.stdout  # the retry woke the sleeping main thread
     assert [line for line in proc.stderr.splitlines() if line.strip()] == ["ceamcl: interrupted"]
+
+
+def _children(pid: int) -> list[int]:
+    """The processes ``pid`` started (Linux: /proc)."""
+    path = Path(f"/proc/{pid}/task/{pid}/children")
+    return [int(c) for c in path.read_text().split()] if path.exists() else []
+
+
+def _running(pid: int) -> bool:
+    """Whether ``pid`` is a live process (an exited one nobody has reaped yet is not)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except (FileNotFoundError, ProcessLookupError):
+        return False
+    return stat.rsplit(")", 1)[1].split()[0] != "Z"
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").exists(), reason="needs Linux's /proc")
+def test_sigterm_ends_an_experiment_with_its_workers_and_its_folder(tmp_path: Path) -> None:
+    """SIGTERM to the command alone (``kill``, ``timeout``, a job scheduler) would end it on
+    the spot and leave its worker processes computing and its folder half-written; it now
+    unwinds as Ctrl-C does: workers ended, folder removed, one line, exit 143."""
+    out = tmp_path / "table1"
+    command = [sys.executable, "-m", "ceamcl", "experiment", "table1", "--trials", "10"]
+    command += ["--algorithms", "gmcl", "--workers", "2", "--out", str(out), "--quiet"]
+    started: list[int] = []
+    proc = subprocess.Popen(
+        command,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        deadline = time.monotonic() + 60.0
+        while time.monotonic() < deadline and proc.poll() is None:
+            started = _children(proc.pid)
+            if len(started) >= 3:  # the resource tracker and two workers
+                break
+            time.sleep(0.05)
+        assert len(started) >= 3 and proc.poll() is None, "the workers did not start"
+        time.sleep(1.0)  # the workers are inside their first trials
+        proc.send_signal(signal.SIGTERM)
+        # the workers hold stderr open too: a worker left running keeps this from returning
+        _, err = proc.communicate(timeout=30)
+        deadline = time.monotonic() + 10.0
+        while time.monotonic() < deadline and any(_running(p) for p in started):
+            time.sleep(0.05)
+        leftover = [p for p in started if _running(p)]
+    finally:
+        for pid in [proc.pid, *started]:  # whatever this test started ends with it
+            if _running(pid):
+                os.kill(pid, signal.SIGKILL)
+        proc.wait()
+    assert proc.returncode == 143, err
+    assert [line for line in err.splitlines() if line.strip()][-1] == "ceamcl: terminated"
+    assert not out.exists(), "the terminated command left its folder behind"
+    assert not leftover, "a worker outlived the command"

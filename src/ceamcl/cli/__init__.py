@@ -122,8 +122,9 @@ CONSOLE_COLUMNS = 100
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run one command. Bad input: one line on stderr, exit 2. Ctrl-C: one line, exit 130.
-    Either way an output folder the command created is removed again."""
+    """Run one command. Bad input: one line on stderr, exit 2. Ctrl-C: one line, exit 130;
+    SIGTERM: one line, exit 143. Either way an output folder the command created is removed
+    again."""
     parser = build_parser()
     words = list(sys.argv[1:] if argv is None else argv)
     # ROS's own arguments (``ceamcl node --ros-args -p name:=value``) pass through untouched
@@ -151,6 +152,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except CeamclError as exc:
         print(f"ceamcl: error: {exc}", file=sys.stderr)
         return 2
+    except interrupt.Terminated:
+        print("ceamcl: terminated", file=sys.stderr)
+        return 143
     except KeyboardInterrupt:
         print("ceamcl: interrupted", file=sys.stderr)
         return 130

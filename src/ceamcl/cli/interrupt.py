@@ -12,6 +12,10 @@ command that returns before that counts as interrupted (:func:`swallowed`). An i
 was not dropped is left alone: it unwinds the command (its clean-up included) as it always did.
 Commands that catch Ctrl-C themselves (the ROS node and player, which end that way) run
 without the guard.
+
+SIGTERM (``kill``, ``timeout``, a job scheduler) would end the process on the spot, leaving
+its worker processes running and a half-written output folder behind; under the guard it
+raises :class:`Terminated`, which unwinds the command as Ctrl-C does (exit 143).
 """
 
 from __future__ import annotations
@@ -31,6 +35,15 @@ RETRY_S = 0.05
 _lock = threading.RLock()
 _state: dict[str, bool] = {"active": False, "swallowed": False, "retry": False}
 _timers: list[threading.Timer] = []
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM arrived: the command unwinds as after Ctrl-C (its workers ended, a folder it
+    created removed) and the command line exits 143."""
+
+
+def _terminate(signum: int, frame: FrameType | None) -> None:
+    raise Terminated
 
 
 def _retry() -> None:
@@ -82,17 +95,30 @@ def consume() -> None:
 
 @contextmanager
 def guard(enabled: bool = True) -> Iterator[None]:
-    """Install the handler and the hook for the duration of a command (in the main thread,
-    and only where SIGINT is not ignored: a job a shell started in the background keeps
-    ignoring it)."""
+    """Install the handlers and the hook for the duration of a command, in the main thread:
+    SIGTERM's where it has its default action, Ctrl-C's only where SIGINT is not ignored (a
+    job a shell started in the background keeps ignoring it)."""
     _state.update(swallowed=False, retry=False)
-    if (
-        not enabled
-        or threading.current_thread() is not threading.main_thread()
-        or signal.getsignal(signal.SIGINT) is not signal.default_int_handler
-    ):
+    if not enabled or threading.current_thread() is not threading.main_thread():
         yield
         return
+    term = signal.getsignal(signal.SIGTERM) == signal.SIG_DFL
+    if term:
+        signal.signal(signal.SIGTERM, _terminate)
+    try:
+        if signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+            yield
+        else:
+            with _guard_ctrl_c():
+                yield
+    finally:
+        if term:
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+@contextmanager
+def _guard_ctrl_c() -> Iterator[None]:
+    """Ctrl-C's handler and the hook that catches a dropped interrupt (module docstring)."""
     previous_hook = sys.unraisablehook
     _state["active"] = True
     sys.unraisablehook = _hook_for(previous_hook)
@@ -111,4 +137,4 @@ def guard(enabled: bool = True) -> Iterator[None]:
             sys.unraisablehook = previous_hook
 
 
-__all__ = ["RETRY_S", "consume", "guard", "swallowed"]
+__all__ = ["RETRY_S", "Terminated", "consume", "guard", "swallowed"]

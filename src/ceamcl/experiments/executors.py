@@ -101,6 +101,17 @@ def _import_distributed() -> Any:
     return distributed
 
 
+def _end_workers(pool: ProcessPoolExecutor) -> None:
+    """The run stops (a trial failed, Ctrl-C, SIGTERM): end the worker processes now rather
+    than wait for the trials they are running (``shutdown`` would wait; a SIGTERM sent to the
+    command alone does not reach them)."""
+    processes = getattr(pool, "_processes", None) or {}
+    for process in list(processes.values()):
+        if process.is_alive():
+            process.terminate()
+    pool.shutdown(wait=True, cancel_futures=True)
+
+
 @contextmanager
 def open_executor(spec: str = "local", workers: int | None = None) -> Iterator[Executor]:
     """An executor for ``spec`` (see the module docstring), shut down on exit.
@@ -119,7 +130,11 @@ def open_executor(spec: str = "local", workers: int | None = None) -> Iterator[E
         with ProcessPoolExecutor(
             max_workers=n, mp_context=ctx, initializer=_single_threaded_worker
         ) as pool:
-            yield pool
+            try:
+                yield pool
+            except BaseException:
+                _end_workers(pool)
+                raise
         return
     if spec == "dask" or spec.startswith("dask://"):
         distributed = _import_distributed()
