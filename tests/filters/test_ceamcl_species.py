@@ -3,8 +3,6 @@ same quantities computed one species at a time with the package's single-species
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 from numpy.typing import NDArray
@@ -132,31 +130,9 @@ def _hard_case(rng: np.random.Generator) -> tuple[NDArray[np.int64], ...]:
     return species, poses, loglik, fit
 
 
-def numpy_transcendentals_are_the_c_librarys() -> bool:
-    """Whether NumPy's vectorised exp, log, sin, cos and arctan2 give the C library's bits here
-    (the compiled kernels call the C library). NumPy has its own AVX-512 versions of them, which
-    differ in the last bit on CPUs that have AVX-512."""
-    rng = np.random.default_rng(0)
-    x, y = rng.normal(-3.0, 3.0, 4096), rng.normal(0.0, 3.0, 4096)
-    pos = np.abs(x) + 1e-3
-    pairs = [
-        (np.exp(x), [math.exp(v) for v in x]),
-        (np.log(pos), [math.log(v) for v in pos]),
-        (np.sin(x), [math.sin(v) for v in x]),
-        (np.cos(x), [math.cos(v) for v in x]),
-        (np.arctan2(y, x), [math.atan2(b, a) for a, b in zip(x, y, strict=True)]),
-    ]
-    return all(np.asarray(a).tobytes() == np.asarray(b).tobytes() for a, b in pairs)
-
-
 def test_all_species_stats_equals_its_numpy_reference_bit_for_bit() -> None:
-    """The compiled pass does the reference's operations in its order: the same bits wherever
-    NumPy's transcendental functions are the C library's; on a CPU where NumPy uses its own
-    AVX-512 versions (last bits apart), the same within 1e-12 relative, NaN for NaN."""
-    exact = numpy_transcendentals_are_the_c_librarys()
     rng = np.random.default_rng(11)
     fields = ("weights", "mean", "covariance", "cov_xy", "domain_variances", "domain_axes")
-    scalars = ("heading_sd", "fitness", "best_fitness", "area_m2")
     for _ in range(400):
         species, poses, loglik, fit = _hard_case(rng)
         got = all_species_stats(species, poses, loglik, fit)
@@ -165,12 +141,12 @@ def test_all_species_stats_equals_its_numpy_reference_bit_for_bit() -> None:
         for sid, g in got.items():
             r = want[sid]
             np.testing.assert_array_equal(g.members, r.members)
-            for name in fields + scalars:
+            for name in fields:
+                a, b = getattr(g, name), getattr(r, name)
+                assert a.tobytes() == b.tobytes(), name  # same bits, signed zeros and NaN too
+            for name in ("heading_sd", "fitness", "best_fitness", "area_m2"):
                 a, b = np.float64(getattr(g, name)), np.float64(getattr(r, name))
-                if exact:
-                    assert a.tobytes() == b.tobytes(), name  # same bits, signed zeros, NaN
-                else:
-                    np.testing.assert_allclose(a, b, rtol=1e-12, atol=0.0, err_msg=name)
+                assert a.tobytes() == b.tobytes(), name
 
 
 def test_compact_species_are_those_spanning_less_than_one_cell() -> None:

@@ -4,6 +4,7 @@ inside labels (CEAMCL's species); and the log-weight arithmetic every filter sha
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numba
@@ -119,16 +120,37 @@ def label_segments(
     return order, ids, starts, counts
 
 
+def c_library(fn: Callable[..., float], *args: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``fn``, a function of :mod:`math`, number by number: the C library's bits, which the
+    compiled kernels get. NumPy's vectorised ``exp``, ``log``, ``sin``, ``cos`` and ``arctan2``
+    differ from them in the last bit on CPUs with AVX-512, so the NumPy references that a kernel
+    must equal bit for bit call this instead (slow: references and tests only). A domain error
+    gives NaN and an overflow infinity, as NumPy does."""
+
+    def safe(*values: float) -> float:
+        try:
+            return fn(*values)
+        except ValueError:
+            return math.nan
+        except OverflowError:
+            return math.inf
+
+    columns = [np.asarray(a, dtype=np.float64).ravel().tolist() for a in args]
+    shape = np.shape(args[0])
+    return np.fromiter(map(safe, *columns), dtype=np.float64, count=len(columns[0])).reshape(shape)
+
+
 def segment_weights(
     loglik: NDArray[np.float64], starts: NDArray[np.intp], seg: NDArray[np.intp]
 ) -> NDArray[np.float64]:
     """In-label importance weights of log-likelihoods sorted by label (segment ``seg[i]``
     of particle ``i`` begins at ``starts[seg[i]]``): each segment's weights sum to 1, never
-    NaN; a segment with no finite log-likelihood gets uniform weights."""
+    NaN; a segment with no finite log-likelihood gets uniform weights. For the NumPy
+    references (its ``exp`` is the C library's, :func:`c_library`)."""
     ll = np.where(np.isnan(loglik), -np.inf, loglik)
     top = np.maximum.reduceat(ll, starts)
     finite_top = np.isfinite(top)
-    w = np.exp(ll - np.where(finite_top, top, 0.0)[seg])
+    w = c_library(math.exp, ll - np.where(finite_top, top, 0.0)[seg])
     w = np.where(finite_top[seg], w, 1.0)
     return np.asarray(w / np.add.reduceat(w, starts)[seg], dtype=np.float64)
 

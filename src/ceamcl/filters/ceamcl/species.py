@@ -7,6 +7,7 @@ here is computed from arrays ``poses (N, 3)``, ``species (N,)``, ``loglik (N,)``
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numba
@@ -16,6 +17,7 @@ from numpy.typing import NDArray
 from ceamcl.angles import wrap, wrap_one
 from ceamcl.filters.clustering import pose_cluster_labels
 from ceamcl.filters.resampling import (
+    c_library,
     label_segments,
     segment_max,
     segment_sum,
@@ -235,10 +237,11 @@ def all_species_stats_reference(
 
     w = segment_weights(loglik[order], starts, seg)
     # Weighted mean pose with circular heading (pose_mean).
-    sw, cw = total(w * np.sin(th)), total(w * np.cos(th))
-    mean = np.column_stack(
-        [total(w * x), total(w * y), np.where((sw == 0.0) & (cw == 0.0), 0.0, np.arctan2(sw, cw))]
-    )
+    # the C library's sin, cos, atan2 and log, as the compiled pass (c_library)
+    sin, cos = c_library(math.sin, th), c_library(math.cos, th)
+    sw, cw = total(w * sin), total(w * cos)
+    heading = np.where((sw == 0.0) & (cw == 0.0), 0.0, c_library(math.atan2, sw, cw))
+    mean = np.column_stack([total(w * x), total(w * y), heading])
     # Weighted covariance, heading deviations wrapped (pose_covariance).
     d = np.column_stack([x - mean[seg, 0], y - mean[seg, 1], wrap(th - mean[seg, 2])])
     cov = np.empty((ids.size, 3, 3))
@@ -256,8 +259,8 @@ def all_species_stats_reference(
     cov_xy[:, 0, 1] = cov_xy[:, 1, 0] = total(ex * ey) / dof
     cov_xy[counts < 2] = 0.0
     # Unweighted circular spread of the headings (circular_variance).
-    resultant = np.clip(np.hypot(total(np.sin(th)), total(np.cos(th))) / n, 1e-300, 1.0)
-    heading_sd = np.sqrt(np.minimum(-2.0 * np.log(resultant), np.pi**2))
+    resultant = np.clip(np.hypot(total(sin), total(cos)) / n, 1e-300, 1.0)
+    heading_sd = np.sqrt(np.minimum(-2.0 * c_library(math.log, resultant), np.pi**2))
     fit = total(fitness[order]) / n
     best = np.maximum.reduceat(fitness[order], starts)
     return _collect(ids, order, starts, counts, w, mean, cov, cov_xy, heading_sd, fit, best)
