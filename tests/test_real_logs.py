@@ -156,3 +156,38 @@ def test_evaluate_log_cli_small(tmp_path: Path) -> None:
         assert float(row["likelihood_evaluations"]) == 5000 * (1 + int(row["updates"]))
     assert "| mcl | 2 |" in (out / "evaluate.md").read_text()
     assert (out / "errors.png").is_file() and (out / "success.png").is_file()
+
+
+def test_the_kidnap_test_reads_the_fittest_individual() -> None:
+    """docs/ceamcl.md, departure 26. freiburg-079-corrected, seed 1, the protocol's first
+    window: read from the fittest species' *mean* fitness, the kidnap test fires at update 114
+    while the estimate is within 0.1 m of the truth (the motion spread the samples: mean 0.10,
+    best individual 0.84), and each such recovery scores some 500,000 test poses. Read as the
+    state reads a species (its fittest individual), no recovery fires in the window and the
+    filter ends on the truth."""
+    from ceamcl.experiments.metrics import likelihood_evaluations
+    from ceamcl.filters.registry import with_config
+    from ceamcl.replay import choose_pace, make_paced_filter
+
+    prepared = prepare_log(log_path("freiburg-079"), seed=1)
+    grid, _ = obtain_map(prepared.map_log, None, own=True)
+    pace = choose_pace(prepared, None, None, every_scan=False)  # None: a corrected log's every scan
+    (start, stop), *_ = start_windows(prepared.log, 10, window_m=50.0)[0]
+    window = prepared.log.window(start, stop)
+    runs = {}
+    for reads in ("fittest", "mean"):
+        cfg = with_config("ceamcl", recovery_reads=reads)
+        f = make_paced_filter("ceamcl", grid, _filter_rng(1, start, "ceamcl"), pace, config=cfg)
+        runs[reads] = run_filter(f, window, update_when=None if pace is None else pace.policy())
+    fired = {
+        reads: [k for k, d in enumerate(r.diagnostics) if k > 0 and d.reinitialised]
+        for reads, r in runs.items()
+    }
+    err = {reads: r.position_errors for reads, r in runs.items()}
+    assert err["fittest"] is not None and err["mean"] is not None
+    assert fired["fittest"] == []
+    assert err["fittest"][-1] < 0.3
+    # the mean's false alarms: recoveries on a filter that stood on the truth
+    assert fired["mean"] and all(err["mean"][k - 1] < 0.3 for k in fired["mean"])
+    spent = {reads: likelihood_evaluations(r.diagnostics).sum() for reads, r in runs.items()}
+    assert spent["mean"] > spent["fittest"] + 400_000 * len(fired["mean"])

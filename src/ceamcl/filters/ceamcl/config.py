@@ -16,6 +16,8 @@ from ceamcl.sensors.beam_skip import BeamSkipConfig
 
 #: What the ``w`` of eqs. 9 and 16 is (``CEAMCLConfig.competition_fitness``).
 COMPETITION_FITNESS: tuple[str, ...] = ("evidence", "scan")
+#: What the kidnap test's running averages follow (``CEAMCLConfig.recovery_reads``).
+RECOVERY_READS: tuple[str, ...] = ("fittest", "mean")
 
 
 @dataclass(frozen=True)
@@ -109,6 +111,10 @@ class CEAMCLConfig:
         recovery_ratio, recovery_alpha_fast, recovery_alpha_slow: collapse means the fast
             running average of the fittest species' fitness below ``recovery_ratio`` times the
             slow one.
+        recovery_reads: which fitness of a species those averages follow: ``"fittest"`` (the
+            default) its fittest individual's, or the peak its evidence climb found, as the
+            localisation state reads it; ``"mean"`` the mean over its individuals, as before
+            docs/ceamcl.md departure 26 (it falls whenever the motion spreads the samples).
         recovery_warmup_steps: steps after any initialisation before collapse is tested.
         recovery_prior: with a number, a recovery keeps the species it had beside the new
             ones (docs/ceamcl.md, departure 9): each new species starts at ``recovery_prior``
@@ -267,6 +273,7 @@ class CEAMCLConfig:
     recovery_ratio: float = 0.5
     recovery_alpha_fast: float = 0.3
     recovery_alpha_slow: float = 0.02
+    recovery_reads: str = "fittest"
     recovery_warmup_steps: int = 20
     recovery_prior: float | None = 1e-6
     recovery_drift_m: float | None = 4.0
@@ -352,6 +359,7 @@ class CEAMCLConfig:
             "look_around_margin": self.look_around_margin >= 0,
             "look_around_share": 0 < self.look_around_share <= 1,
             "recovery_ratio": 0 < self.recovery_ratio < 1,
+            "recovery_reads": self.recovery_reads in RECOVERY_READS,
             "recovery_alpha_fast": 0 < self.recovery_alpha_fast <= 1,
             "recovery_alpha_slow": 0 < self.recovery_alpha_slow < self.recovery_alpha_fast,
             "recovery_warmup_steps": self.recovery_warmup_steps >= 0,

@@ -797,9 +797,22 @@ class CEAMCL:
         """Kidnap detection (docs/ceamcl.md): fast and slow running averages of the fittest
         species' fitness, as augmented MCL keeps of the mean weight; the robot is lost when
         the fast one falls below ``recovery_ratio`` times the slow one. Fitness lies in (0, 1]
-        and is comparable between steps, so the test does not depend on the scan's size."""
+        and is comparable between steps, so the test does not depend on the scan's size. A
+        species' fitness is read as the state reads it (``recovery_reads="fittest"``: its
+        fittest individual, or its climb's peak; departure 26), or as its mean
+        (``"mean"``)."""
         cfg = self.config
-        best = max((s.fitness for s in self.stats.values()), default=0.0)
+        if cfg.recovery_reads == "mean":
+            best = max((s.fitness for s in self.stats.values()), default=0.0)
+        else:
+            peaks = self._peak_fitness
+            best = max(
+                (
+                    float(np.nan_to_num(_reported_fitness(s, peaks.get(sid))))
+                    for sid, s in self.stats.items()
+                ),
+                default=0.0,
+            )
         self._steps_since_init += 1
         if self._fit_slow is None or self._fit_fast is None:
             self._fit_slow = self._fit_fast = best
