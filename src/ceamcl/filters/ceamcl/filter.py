@@ -489,12 +489,7 @@ class CEAMCL:
         if np.count_nonzero(share >= cfg.viable_weight_min) < 2:
             self._equal_record = {}
             return {}
-        fit = {
-            s.species_id: float(
-                np.nan_to_num(_reported_fitness(s, self._peak_fitness.get(s.species_id)))
-            )
-            for s in stats
-        }
+        fit = {s.species_id: self._fit_read(s) for s in stats}
         bar = max(fit[stats[0].species_id] - margin, cfg.confirm_fit_below or 0.0)
         a = cfg.viable_memory
         equal = {sid: f >= bar for sid, f in fit.items()}
@@ -802,17 +797,8 @@ class CEAMCL:
         fittest individual, or its climb's peak; departure 26), or as its mean
         (``"mean"``)."""
         cfg = self.config
-        if cfg.recovery_reads == "mean":
-            best = max((s.fitness for s in self.stats.values()), default=0.0)
-        else:
-            peaks = self._peak_fitness
-            best = max(
-                (
-                    float(np.nan_to_num(_reported_fitness(s, peaks.get(sid))))
-                    for sid, s in self.stats.items()
-                ),
-                default=0.0,
-            )
+        read = (lambda s: s.fitness) if cfg.recovery_reads == "mean" else self._fit_read
+        best = max((read(s) for s in self.stats.values()), default=0.0)
         self._steps_since_init += 1
         if self._fit_slow is None or self._fit_fast is None:
             self._fit_slow = self._fit_fast = best
@@ -824,6 +810,11 @@ class CEAMCL:
             and self._steps_since_init > cfg.recovery_warmup_steps
             and self._fit_fast < cfg.recovery_ratio * self._fit_slow
         )
+
+    def _fit_read(self, s: SpeciesStats) -> float:
+        """A species' fitness as the state reads it (:func:`_reported_fitness`, with this
+        step's climb), NaN read as 0: what the viable floors and the kidnap test compare."""
+        return float(np.nan_to_num(_reported_fitness(s, self._peak_fitness.get(s.species_id))))
 
     def _lost_too_long(self) -> bool:
         """Has the state said LOST at ``recovery_lost_updates`` consecutive updates (the
