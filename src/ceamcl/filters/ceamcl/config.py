@@ -8,6 +8,7 @@ from functools import cached_property
 
 import numpy as np
 
+from ceamcl.filters.ceamcl.headings import HeadingPrior
 from ceamcl.filters.ceamcl.initialisation import InitialisationConfig
 from ceamcl.filters.ceamcl.phases import CompetitionConfig, GrowthConfig, SplitMergeConfig
 from ceamcl.filters.evolution import EvolutionConfig
@@ -70,6 +71,9 @@ class CEAMCLConfig:
             (docs/ceamcl.md, "a cheaper recovery: measured, not adopted").
         init_polish_rounds: greedy rounds that move each initial sample to a better pose
             nearby (the mutation's Sigma doubled, halved each round) before the first step.
+        test_pose_headings: the first round's headings drawn from the scan's geometry, its
+            surface normals correlated with the map's (:class:`~ceamcl.filters.ceamcl.headings.
+            HeadingPrior`, docs/ceamcl.md, departure 27); ``None``: uniform, as in the paper.
 
     Read differently from the paper (docs/ceamcl.md, "evidence"):
         competition_fitness: the ``w`` of eqs. 9 and 16. "evidence" (default): each species'
@@ -232,6 +236,7 @@ class CEAMCLConfig:
     init_refine_sigma_xy_m: float = 0.1
     init_refine_sigma_rad: float = 0.1
     init_polish_rounds: int = 3
+    test_pose_headings: HeadingPrior | None = None
     cell_m: float = 0.1
     mu: float = 0.85
     eta: float = 2.0
@@ -406,6 +411,7 @@ class CEAMCLConfig:
             cell_smoothing=self.cell_smoothing,
             min_species_size=self.min_species_size,
             max_samples=self.max_samples,
+            headings=self.test_pose_headings,
         )
 
     @cached_property

@@ -46,9 +46,11 @@ from ceamcl import angles
 from ceamcl.filters.base import Algorithm, Hypothesis, ParticleSnapshot, PoseEstimate
 from ceamcl.filters.ceamcl.anchor import ConfidentPose, DriftEnvelope
 from ceamcl.filters.ceamcl.config import CEAMCLConfig
+from ceamcl.filters.ceamcl.headings import map_normal_histogram
 from ceamcl.filters.ceamcl.initialisation import (
     InitialisationConfig,
     InitialSpecies,
+    heading_proposal,
     initial_species,
     polish,
 )
@@ -163,6 +165,8 @@ class CEAMCL:
         self._equal_record: dict[int, float] = {}
         #: the last scan received, for the state's wall-crossing test (docs/state.md)
         self.last_scan: LaserScan | None = None
+        #: the map's surface normals for the test poses' headings (computed at first use)
+        self._map_normals: NDArray[np.float64] | None = None
         #: the state's memory of how well the map explains the scans (docs/state.md); the
         #: recovery reads the state without it (:meth:`_lost_too_long`)
         self.map_agreement = MapAgreement(grid)
@@ -217,7 +221,14 @@ class CEAMCL:
         self._read = None
         self._peak_fitness = {}
         settings = self.config.initialisation if settings is None else settings
-        init, evaluations = initial_species(self.grid, self.sensor, prepared, settings, self.rng)
+        headings = None
+        if settings.headings is not None and prepared is not None:
+            if self._map_normals is None:
+                self._map_normals = map_normal_histogram(self.grid, settings.headings)
+            headings = heading_proposal(self.grid, self.last_scan, settings, self._map_normals)
+        init, evaluations = initial_species(
+            self.grid, self.sensor, prepared, settings, self.rng, headings
+        )
         self.initial = init
         # Not in the paper: a few greedy moves bring each chosen test pose nearer its peak
         # (docs/ceamcl.md, "test poses"); ``self.initial`` keeps section 3.1's own choice.

@@ -31,10 +31,17 @@ from scipy import ndimage
 
 from ceamcl import budget
 from ceamcl.errors import InputWarning
+from ceamcl.filters.ceamcl.headings import (
+    HeadingPrior,
+    heading_density,
+    map_normal_histogram,
+    sample_headings,
+    scan_normal_histogram,
+)
 from ceamcl.filters.resampling import sanitise_log_likelihood
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.sensors.base import SensorModel, fitness
-from ceamcl.sensors.scan import PreparedScan
+from ceamcl.sensors.scan import LaserScan, PreparedScan
 
 _FOUR = ndimage.generate_binary_structure(2, 1)
 
@@ -53,7 +60,9 @@ class InitialisationConfig:
     species and the cap on the total sample size; a second round of test poses,
     ``refine_per_pose`` drawn around each of the best ``refine_share`` of the first with
     ``refine_sigma`` (x-y metres, heading radians); ``polish_rounds`` greedy moves of the
-    chosen samples with ``polish_sigma`` halved each round."""
+    chosen samples with ``polish_sigma`` halved each round; ``headings``: the first round's
+    headings drawn from the scan's geometry (:mod:`~ceamcl.filters.ceamcl.headings`; ``None``:
+    uniform, the paper's)."""
 
     n_test: int
     test_batch: int
@@ -71,6 +80,7 @@ class InitialisationConfig:
     refine_sigma: tuple[float, float] = (0.1, 0.1)
     polish_rounds: int = 0
     polish_sigma: tuple[float, float] = (0.1, 0.06)
+    headings: HeadingPrior | None = None
 
     def test_pose_count(self, free_area_m2: float) -> int:
         """How many test poses the first round gives a map with ``free_area_m2`` of free
@@ -336,11 +346,36 @@ def generate_initial_species(
 
 
 def sample_test_poses(
-    grid: OccupancyGrid, config: InitialisationConfig, rng: np.random.Generator
+    grid: OccupancyGrid,
+    config: InitialisationConfig,
+    rng: np.random.Generator,
+    headings: NDArray[np.float64] | None = None,
 ) -> NDArray[np.float64]:
     """Step 1 of section 3.1: poses uniform over free space, ``test_poses_per_m2`` per
-    square metre of it, at most ``n_test``."""
-    return grid.sample_free_poses(config.test_pose_count(grid.free_area_m2), rng)
+    square metre of it, at most ``n_test``; with ``headings`` (a density over heading bins,
+    :func:`~ceamcl.filters.ceamcl.headings.heading_density`) their headings drawn from it
+    instead of uniformly."""
+    poses = grid.sample_free_poses(config.test_pose_count(grid.free_area_m2), rng)
+    if headings is not None:
+        poses[:, 2] = sample_headings(headings, poses.shape[0], rng)
+    return poses
+
+
+def heading_proposal(
+    grid: OccupancyGrid,
+    scan: LaserScan | None,
+    config: InitialisationConfig,
+    map_normals: NDArray[np.float64] | None = None,
+) -> NDArray[np.float64] | None:
+    """The density the first round draws its headings from (``None``: uniform headings,
+    where ``config.headings`` is unset or there is no scan). ``map_normals``: the map's
+    normal histogram when the caller keeps it (computed here otherwise)."""
+    prior = config.headings
+    if prior is None or scan is None:
+        return None
+    if map_normals is None or map_normals.size != prior.bins:
+        map_normals = map_normal_histogram(grid, prior)
+    return heading_density(map_normals, scan_normal_histogram(scan, prior), prior)
 
 
 def refine_test_poses(
@@ -468,11 +503,12 @@ def initial_species(
     prepared: PreparedScan | None,
     config: InitialisationConfig,
     rng: np.random.Generator,
+    headings: NDArray[np.float64] | None = None,
 ) -> tuple[InitialSpecies, int]:
     """Section 3.1 whole: test poses (with the second round of :func:`refine_test_poses`
     where the scan has beams to score them), their scores, the species; and the evaluations
-    spent."""
-    test = sample_test_poses(grid, config, rng)
+    spent. ``headings``: the density of :func:`heading_proposal` (``None``: uniform)."""
+    test = sample_test_poses(grid, config, rng, headings if prepared is not None else None)
     ll, fit, evaluations = score_test_poses(test, sensor, prepared, config)
     if evaluations:
         test, ll, fit, spent = with_second_round(grid, test, ll, fit, sensor, prepared, config, rng)

@@ -1,0 +1,157 @@
+"""Headings for the test poses from the scan's geometry (not in the paper; docs/ceamcl.md,
+departure 27).
+
+Section 3.1 draws test poses with uniform headings, so most of them point the scan the wrong
+way: a pose whose heading is a few degrees off moves the end points of beams at 4 m by tens of
+centimetres. The walls a scan sees and the walls the map holds share their directions: rotate
+the scan's surface normals by the robot's heading and they fall on the map's. Correlating the
+two histograms of normal directions (the map's once per map, the scan's once per search) gives
+a density over the heading with peaks at the true heading and at the building's symmetries
+(every quarter turn in a building of right angles). Test poses draw their headings from it,
+mixed with a uniform share so that no heading goes unsearched where the correlation is wrong
+(clutter, a scan of one wall, a building without dominant directions, where it is flat).
+
+Nothing here evaluates the likelihood: the histograms cost one pass over the map's boundary
+cells (cached per map) and one over the scan's beams.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import ndimage
+
+from ceamcl.maps.grid import OccupancyGrid
+from ceamcl.sensors.scan import LaserScan
+
+TWO_PI = 2.0 * np.pi
+
+
+@dataclass(frozen=True)
+class HeadingPrior:
+    """How test poses draw their headings: ``bins`` over the circle, histograms smoothed by
+    ``smooth_rad``, a scan's normals estimated over chords of ``chord_m`` (end points at
+    most ``gap_m`` apart count as one surface), and ``uniform_share`` of the mass spread
+    uniformly over the circle. ``uniform_share=1`` gives the paper's uniform headings."""
+
+    bins: int = 360
+    smooth_rad: float = float(np.radians(3.0))
+    chord_m: float = 0.2
+    gap_m: float = 0.3
+    uniform_share: float = 0.25
+
+    def __post_init__(self) -> None:
+        if not (self.bins >= 8 and self.smooth_rad > 0 and self.chord_m > 0 and self.gap_m > 0):
+            raise ValueError(f"HeadingPrior: expected positive settings, got {self}")
+        if not 0.0 <= self.uniform_share <= 1.0:
+            raise ValueError(
+                f"HeadingPrior.uniform_share: expected a share in [0, 1], got {self.uniform_share}"
+            )
+
+
+def _circular_smooth(hist: NDArray[np.float64], sigma_bins: float) -> NDArray[np.float64]:
+    return np.asarray(ndimage.gaussian_filter1d(hist, sigma_bins, mode="wrap"), dtype=np.float64)
+
+
+def _histogram(
+    angles: NDArray[np.float64], weights: NDArray[np.float64], prior: HeadingPrior
+) -> NDArray[np.float64]:
+    b = np.floor(np.mod(angles, TWO_PI) / TWO_PI * prior.bins).astype(np.intp) % prior.bins
+    hist = np.bincount(b, weights=weights, minlength=prior.bins).astype(np.float64)
+    return _circular_smooth(hist, prior.smooth_rad / TWO_PI * prior.bins)
+
+
+def map_normal_histogram(grid: OccupancyGrid, prior: HeadingPrior) -> NDArray[np.float64]:
+    """The directions (world frame) of the map's surface normals, pointing from each
+    occupied cell that borders free space into the free side, one count per cell: what a
+    robot inside can see. From the gradient of the occupancy smoothed over a cell; zeros where
+    the map has no such cell."""
+    occ = grid.occupied_mask
+    boundary = occ & ndimage.binary_dilation(grid.free_mask, structure=np.ones((3, 3), bool))
+    if not boundary.any():
+        return np.zeros(prior.bins)
+    smooth = ndimage.gaussian_filter(occ.astype(np.float64), 1.0)
+    gy = ndimage.sobel(smooth, axis=0)[boundary]  # rows are y (grid.cell_to_world)
+    gx = ndimage.sobel(smooth, axis=1)[boundary]
+    strong = np.hypot(gx, gy) > 1e-9
+    # the normal points down the occupancy's slope, into free space
+    angles = np.arctan2(-gy[strong], -gx[strong]) + grid.origin[2]
+    return _histogram(angles, np.ones(angles.size), prior)
+
+
+def scan_normal_histogram(scan: LaserScan, prior: HeadingPrior) -> NDArray[np.float64]:
+    """The directions (robot frame) of the surfaces a scan ends on, pointing back at the
+    laser, each end point weighted by the length of surface it stands for. A normal is taken
+    across a chord of about ``chord_m`` along consecutive end points no more than ``gap_m``
+    apart (so it does not bridge two objects); max-range, invalid and isolated readings give
+    none. Zeros where the scan gives no normal."""
+    r = scan.ranges
+    ok = np.isfinite(r) & (r > scan.range_min) & (r < scan.range_max)
+    if int(ok.sum()) < 3:
+        return np.zeros(prior.bins)
+    lx, ly, lyaw = scan.pose
+    a = scan.angles[ok] + lyaw
+    rr = r[ok]
+    px = lx + rr * np.cos(a)
+    py = ly + rr * np.sin(a)
+    step = np.hypot(np.diff(px), np.diff(py))
+    joined = step <= prior.gap_m
+    # runs of end points joined by short steps are surfaces; arc length along each run
+    run = np.concatenate([[0], np.cumsum(~joined)])
+    arc = np.concatenate([[0.0], np.cumsum(np.where(joined, step, 0.0))])
+    n = px.size
+    # for each end point the first one at least chord_m further along its run
+    j = np.searchsorted(arc, arc + prior.chord_m, side="left")
+    j = np.minimum(j, n - 1)
+    use = (run[j] == run) & (arc[j] - arc >= prior.chord_m * 0.999)
+    if not use.any():
+        return np.zeros(prior.bins)
+    i = np.flatnonzero(use)
+    j = j[use]
+    dx = px[j] - px[i]
+    dy = py[j] - py[i]
+    nx, ny = -dy, dx
+    # point the normal back at the laser
+    mx = 0.5 * (px[i] + px[j]) - lx
+    my = 0.5 * (py[i] + py[j]) - ly
+    flip = nx * mx + ny * my > 0
+    nx = np.where(flip, -nx, nx)
+    ny = np.where(flip, -ny, ny)
+    # each end point stands for the surface between it and its successor
+    weight = np.concatenate([np.where(joined, step, 0.0), [0.0]])[i]
+    return _histogram(np.arctan2(ny, nx), weight, prior)
+
+
+def heading_density(
+    map_hist: NDArray[np.float64], scan_hist: NDArray[np.float64], prior: HeadingPrior
+) -> NDArray[np.float64]:
+    """Probability of each heading bin (bin ``s`` is headings ``[s, s + 1) * 2 pi / bins``):
+    the circular correlation of the map's normal histogram with the scan's, above its median
+    (the level any heading reaches), normalised, mixed with ``uniform_share`` of uniform.
+    Uniform where either histogram is empty or the correlation is flat."""
+    b = prior.bins
+    uniform = np.full(b, 1.0 / b)
+    if not (map_hist.sum() > 0 and scan_hist.sum() > 0) or prior.uniform_share >= 1.0:
+        return uniform
+    # C[s] = sum_k map[k] scan[k - s]: the scan's normals turned by heading s
+    corr = np.fft.irfft(np.fft.rfft(map_hist) * np.conj(np.fft.rfft(scan_hist)), n=b)
+    corr = np.maximum(corr - np.median(corr), 0.0)
+    total = corr.sum()
+    if not (np.isfinite(total) and total > 0):
+        return uniform
+    u = prior.uniform_share
+    return u * uniform + (1.0 - u) * corr / total
+
+
+def sample_headings(
+    density: NDArray[np.float64], n: int, rng: np.random.Generator
+) -> NDArray[np.float64]:
+    """``n`` headings in ``[-pi, pi)`` drawn from a bin density (uniform within a bin)."""
+    b = density.size
+    cdf = np.cumsum(density)
+    cdf /= cdf[-1]
+    k = np.minimum(np.searchsorted(cdf, rng.random(n), side="right"), b - 1)
+    theta = (k + rng.random(n)) * (TWO_PI / b)
+    return np.mod(theta + np.pi, TWO_PI) - np.pi

@@ -1,0 +1,142 @@
+"""Test poses' headings from the scan's geometry (filters/ceamcl/headings.py, docs/ceamcl.md
+departure 27): the map's and the scan's surface normals, their correlation, and the first
+round of test poses drawn from it."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ceamcl.filters.ceamcl.config import CEAMCLConfig
+from ceamcl.filters.ceamcl.headings import (
+    HeadingPrior,
+    heading_density,
+    map_normal_histogram,
+    sample_headings,
+    scan_normal_histogram,
+)
+from ceamcl.filters.ceamcl.initialisation import heading_proposal, sample_test_poses
+from ceamcl.maps.grid import OccupancyGrid
+from ceamcl.sensors.scan import LaserScan
+from ceamcl.simulation import get_scenario
+from tests.box_room import BOX, box_ranges
+
+PRIOR = HeadingPrior()
+
+
+def _bin_of(angle: float) -> int:
+    return int(np.floor(np.mod(angle, 2 * np.pi) / (2 * np.pi) * PRIOR.bins)) % PRIOR.bins
+
+
+def _mass_near(hist: np.ndarray, angle: float, deg: float = 6.0) -> float:
+    w = round(deg / 360 * PRIOR.bins)
+    b = _bin_of(angle)
+    return float(sum(hist[(b + o) % PRIOR.bins] for o in range(-w, w + 1)))
+
+
+def _box_grid(res: float = 0.05) -> OccupancyGrid:
+    x0, x1, y0, y1 = BOX
+    nx, ny = round((x1 - x0) / res) + 2, round((y1 - y0) / res) + 2
+    data = np.zeros((ny, nx), dtype=np.int8)
+    data[0, :] = data[-1, :] = 100
+    data[:, 0] = data[:, -1] = 100
+    return OccupancyGrid(data, res, (x0 - res, y0 - res, 0.0))
+
+
+def test_the_maps_normals_point_from_each_wall_into_the_room() -> None:
+    hist = map_normal_histogram(_box_grid(), PRIOR)
+    total = hist.sum()
+    # the four walls face +x (the wall at x_min), -x, +y and -y; their lengths 3, 3, 4, 4 m
+    near = {a: _mass_near(hist, a) / total for a in (0.0, np.pi, np.pi / 2, -np.pi / 2)}
+    assert sum(near.values()) > 0.85, near  # the rest: the four corners
+    assert near[np.pi / 2] > near[0.0] and near[-np.pi / 2] > near[np.pi]
+    assert _mass_near(hist, np.pi / 4) / total < 0.05
+
+
+def test_the_scans_normals_point_back_at_the_laser() -> None:
+    ranges = box_ranges(1.0, 0.0, beams=361)
+    scan = LaserScan(np.asarray(ranges), -np.pi / 2, np.pi / 360, 0.02, 30.0)
+    hist = scan_normal_histogram(scan, PRIOR)
+    total = hist.sum()
+    # facing +x: the wall ahead faces back (pi), the walls left and right face -y and +y;
+    # the wall behind is out of a 180-degree scan's view
+    ahead, left, right = (_mass_near(hist, a) / total for a in (np.pi, -np.pi / 2, np.pi / 2))
+    assert ahead + left + right > 0.9
+    assert min(ahead, left, right) > 0.15
+    assert _mass_near(hist, 0.0) / total < 0.02
+
+
+def test_the_density_peaks_at_the_true_heading_and_its_quarter_turns_in_a_box() -> None:
+    grid = _box_grid()
+    maph = map_normal_histogram(grid, PRIOR)
+    ranges = box_ranges(1.0, 0.3, beams=361)
+    scan = LaserScan(np.asarray(ranges), -np.pi / 2, np.pi / 360, 0.02, 30.0)
+    d = heading_density(maph, scan_normal_histogram(scan, PRIOR), PRIOR)
+    assert d.sum() == pytest.approx(1.0)
+    assert d.min() >= PRIOR.uniform_share / PRIOR.bins - 1e-12
+    ratio = d * PRIOR.bins
+    # the true heading 0 is among the peaks (a box cannot tell its quarter turns apart)
+    assert ratio[_bin_of(0.0)] > 5 * ratio[_bin_of(np.pi / 4)]
+    assert ratio[_bin_of(0.0)] > 3.0
+
+
+def test_the_density_favours_the_true_heading_in_a_simulated_office() -> None:
+    sc = get_scenario("office")
+    grid = sc.grid()
+    log = sc.simulate(np.random.default_rng(11), grid)
+    maph = map_normal_histogram(grid, PRIOR)
+    ratios = []
+    for k in range(0, len(log), max(1, len(log) // 40)):
+        d = heading_density(maph, scan_normal_histogram(log.scan(k), PRIOR), PRIOR)
+        ratios.append(d[_bin_of(float(log.true_poses[k][2]))] * PRIOR.bins)
+    ratios_a = np.asarray(ratios)
+    # uniform headings give 1 everywhere
+    assert np.median(ratios_a) > 2.0, ratios_a
+    assert np.mean(ratios_a > 1.0) >= 0.8, ratios_a
+
+
+def test_a_scan_without_surfaces_leaves_the_headings_uniform() -> None:
+    maph = map_normal_histogram(_box_grid(), PRIOR)
+    blank = LaserScan(np.full(181, 30.0), -np.pi / 2, np.pi / 180, 0.02, 30.0)
+    d = heading_density(maph, scan_normal_histogram(blank, PRIOR), PRIOR)
+    assert np.allclose(d, 1.0 / PRIOR.bins)
+    nan_scan = LaserScan(np.full(181, np.nan), -np.pi / 2, np.pi / 180, 0.02, 30.0)
+    assert np.allclose(heading_density(maph, scan_normal_histogram(nan_scan, PRIOR), PRIOR), d)
+    # uniform_share=1: the paper's uniform headings whatever the scan
+    ranges = np.asarray(box_ranges(1.0, 0.0, beams=361))
+    scan = LaserScan(ranges, -np.pi / 2, np.pi / 360, 0.02, 30.0)
+    flat = HeadingPrior(uniform_share=1.0)
+    assert np.allclose(heading_density(maph, scan_normal_histogram(scan, flat), flat), d)
+
+
+def test_headings_are_drawn_from_the_density_and_reproduce_from_a_seed() -> None:
+    d = np.zeros(PRIOR.bins)
+    d[_bin_of(1.0)] = 1.0
+    a = sample_headings(d, 1000, np.random.default_rng(3))
+    assert np.array_equal(a, sample_headings(d, 1000, np.random.default_rng(3)))
+    assert np.all((a >= -np.pi) & (a < np.pi))
+    assert np.all(np.abs(a - 1.0) < 2 * np.pi / PRIOR.bins)
+
+
+def test_the_first_round_puts_more_test_poses_near_the_true_heading() -> None:
+    sc = get_scenario("office")
+    grid = sc.grid()
+    log = sc.simulate(np.random.default_rng(12), grid)
+    truth = float(log.true_poses[0][2])
+    uniform = CEAMCLConfig().initialisation
+    assert uniform.headings is None  # the paper's uniform headings stay the default here
+    guided = CEAMCLConfig(test_pose_headings=PRIOR).initialisation
+    density = heading_proposal(grid, log.scan(0), guided)
+    assert density is not None
+    assert heading_proposal(grid, log.scan(0), uniform) is None
+    assert heading_proposal(grid, None, guided) is None
+
+    def near_truth(poses: np.ndarray) -> float:
+        err = np.abs(np.angle(np.exp(1j * (poses[:, 2] - truth))))
+        return float(np.mean(err < np.radians(5)))
+
+    plain = sample_test_poses(grid, uniform, np.random.default_rng(1))
+    drawn = sample_test_poses(grid, guided, np.random.default_rng(1), density)
+    assert plain.shape == drawn.shape
+    assert np.array_equal(plain[:, :2], drawn[:, :2])  # the positions are section 3.1's
+    assert near_truth(drawn) > 2.0 * near_truth(plain)
