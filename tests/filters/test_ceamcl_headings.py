@@ -7,15 +7,18 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from ceamcl.experiments.routes import paper_course
+from ceamcl.filters import make_filter
 from ceamcl.filters.ceamcl.config import CEAMCLConfig
-from ceamcl.filters.ceamcl.headings import (
+from ceamcl.filters.ceamcl.initialisation import heading_proposal, sample_test_poses
+from ceamcl.filters.headings import (
     HeadingPrior,
     heading_density,
     map_normal_histogram,
     sample_headings,
     scan_normal_histogram,
 )
-from ceamcl.filters.ceamcl.initialisation import heading_proposal, sample_test_poses
+from ceamcl.filters.registry import with_config
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.sensors.scan import LaserScan
 from ceamcl.simulation import get_scenario
@@ -140,3 +143,34 @@ def test_the_first_round_puts_more_test_poses_near_the_true_heading() -> None:
     assert plain.shape == drawn.shape
     assert np.array_equal(plain[:, :2], drawn[:, :2])  # the positions are section 3.1's
     assert near_truth(drawn) > 2.0 * near_truth(plain)
+
+
+def test_a_baselines_guided_start_keeps_every_image_of_the_hall_with_fewer_test_poses() -> None:
+    """``init_headings`` in MCL's importance start: the headings drawn from the scan's
+    geometry, each weight divided by its density; the particles still gather at each of
+    the hall's four images, and more of them point the right way than from uniform
+    headings with the same budget."""
+    course = paper_course()
+    grid = course.grid()
+    log = course.scenario(0).simulate(np.random.default_rng(3), grid)
+    images = course.images(log.true_poses[0])
+
+    def start(headings: HeadingPrior | None) -> np.ndarray:
+        cfg = with_config("mcl", init_test_poses=100_000, init_headings=headings)
+        f = make_filter("mcl", grid, np.random.default_rng(4), config=cfg, n_particles=1000)
+        first = f.initialise_global(log.scan(0))
+        assert first.likelihood_evaluations == 100_000
+        return f.particles().poses
+
+    def at_images(poses: np.ndarray) -> list[int]:
+        counts = []
+        for image in images:
+            near = np.hypot(poses[:, 0] - image[0], poses[:, 1] - image[1]) < 0.5
+            turn = np.abs(np.angle(np.exp(1j * (poses[:, 2] - image[2])))) < 0.2
+            counts.append(int(np.sum(near & turn)))
+        return counts
+
+    guided, plain = at_images(start(PRIOR)), at_images(start(None))
+    # when written: guided 126, 136, 184, 27; uniform 12, 172, 139, 14 (of 1000)
+    assert min(guided) >= 20, guided
+    assert min(guided) > min(plain) and sum(guided) > sum(plain), (guided, plain)

@@ -56,6 +56,7 @@ from ceamcl.filters.base import (
     StepRecord,
 )
 from ceamcl.filters.clustering import cluster_hypotheses, pose_cluster_labels
+from ceamcl.filters.headings import HeadingPrior
 from ceamcl.filters.particles import (
     INIT_BATCH,
     ParticleSet,
@@ -143,6 +144,8 @@ class KLDAMCLConfig:
         ``max_particles`` uniform poses; N > 0: N test poses weighted by the first scan,
         ``max_particles`` resampled from them, as CEAMCL starts).
     init_batch: test poses weighed per likelihood call (bounds memory).
+    init_headings: with ``init_test_poses``, the test poses' headings drawn from the scan's
+        geometry (importance-weighted; :mod:`~ceamcl.filters.headings`); ``None``: uniform.
     """
 
     min_particles: int = 500
@@ -159,6 +162,7 @@ class KLDAMCLConfig:
     scoring: str = "ros"
     init_test_poses: int = 0
     init_batch: int = INIT_BATCH
+    init_headings: HeadingPrior | None = None
 
     def __post_init__(self) -> None:
         if self.scoring not in SCORINGS:
@@ -422,6 +426,8 @@ class KLDAMCL(ParticleClusterState):
             cfg.max_particles,
             self.rng,
             batch=cfg.init_batch,
+            headings=cfg.init_headings,
+            scan=scan,
         )
         self._reset(ps)
         if evaluations == 0:  # no usable beam: uniform, and the next scan updates at once

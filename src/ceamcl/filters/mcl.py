@@ -31,6 +31,7 @@ from ceamcl.filters.base import (
     StepRecord,
 )
 from ceamcl.filters.clustering import cluster_hypotheses, cluster_labels
+from ceamcl.filters.headings import HeadingPrior
 from ceamcl.filters.particles import (
     INIT_BATCH,
     ParticleSet,
@@ -63,6 +64,9 @@ class MCLConfig:
         poses with it and resamples ``n_particles`` from them, as CEAMCL starts
         (:func:`~ceamcl.filters.particles.importance_start`).
     init_batch: test poses weighed per likelihood call (bounds memory).
+    init_headings: with ``init_test_poses``, the test poses' headings drawn from the scan's
+        geometry and their weights divided by that density, as CEAMCL's test poses may draw
+        them (:mod:`~ceamcl.filters.headings`); ``None``: uniform headings.
     """
 
     n_particles: int = 5000
@@ -70,6 +74,7 @@ class MCLConfig:
     cluster_cell_m: float = 0.5
     init_test_poses: int = 0
     init_batch: int = INIT_BATCH
+    init_headings: HeadingPrior | None = None
 
     def __post_init__(self) -> None:
         if self.n_particles < 1:
@@ -131,6 +136,8 @@ class MCL(ParticleClusterState):
                 cfg.n_particles,
                 self.rng,
                 batch=cfg.init_batch,
+                headings=cfg.init_headings,
+                scan=scan,
             )
             return StepRecord(resampled=evaluations > 0, likelihood_evaluations=evaluations)
         self.particle_set = uniform(self.grid, cfg.n_particles, self.rng)

@@ -29,6 +29,14 @@ from ceamcl import budget
 from ceamcl.angles import wrap
 from ceamcl.errors import ConfigError, LogFormatError
 from ceamcl.filters.evolution import EvolutionConfig, evolve_groups
+from ceamcl.filters.headings import (
+    HeadingPrior,
+    heading_bins,
+    heading_density,
+    map_normal_histogram,
+    sample_headings,
+    scan_normal_histogram,
+)
 from ceamcl.filters.resampling import (
     normalise_log_weights,
     resampler,
@@ -171,6 +179,8 @@ def importance_start(
     rng: np.random.Generator,
     *,
     batch: int = INIT_BATCH,
+    headings: HeadingPrior | None = None,
+    scan: LaserScan | None = None,
 ) -> tuple[ParticleSet, int]:
     """Global initialisation with a budget of ``n_test`` likelihood evaluations, the start
     CEAMCL's section 3.1 makes for every baseline (``init_test_poses``): ``n_test`` poses
@@ -181,6 +191,11 @@ def importance_start(
     Without a usable scan (``prepared`` None), or when every test pose is impossible, the
     particles are ``n`` poses uniform over free space (the scan said nothing to resample by).
     The test poses are checked against the memory budget before they are drawn.
+
+    ``headings`` (with the step's ``scan``): the test poses' headings drawn from the scan's
+    geometry as CEAMCL's may be (:mod:`ceamcl.filters.headings`), each weight divided
+    by the density its heading was drawn with, so that the particles still sample the
+    posterior of a uniform start.
     """
     if n_test < 1 or n < 1 or batch < 1:
         raise ConfigError(f"init_test_poses: expected positive counts, got {n_test}, {n}, {batch}")
@@ -188,13 +203,23 @@ def importance_start(
         return uniform(grid, n, rng), 0
     budget.require("init_test_poses", n_test, TEST_POSE_BYTES, "test poses")
     poses = grid.sample_free_poses(n_test, rng)
+    density = None
+    if headings is not None and scan is not None:
+        density = heading_density(
+            map_normal_histogram(grid, headings), scan_normal_histogram(scan, headings), headings
+        )
+        poses[:, 2] = sample_headings(density, n_test, rng)
     ll = np.concatenate(
         [
             sanitise_log_likelihood(sensor.log_likelihood(poses[i : i + batch], prepared))
             for i in range(0, n_test, batch)
         ]
     )
-    _, w, ok = normalise_log_weights(ll)
+    if density is None:
+        _, w, ok = normalise_log_weights(ll)
+    else:  # importance weights: likelihood over the proposal's density (uniform: 1)
+        rel = density[heading_bins(poses[:, 2], density.size)] * density.size
+        _, w, ok = normalise_log_weights(ll - np.log(rel))
     if not ok:
         return uniform(grid, n, rng), n_test
     ancestors = resampler("systematic")(w, n, rng)

@@ -8,10 +8,10 @@ from functools import cached_property
 
 import numpy as np
 
-from ceamcl.filters.ceamcl.headings import HeadingPrior
 from ceamcl.filters.ceamcl.initialisation import InitialisationConfig
 from ceamcl.filters.ceamcl.phases import CompetitionConfig, GrowthConfig, SplitMergeConfig
 from ceamcl.filters.evolution import EvolutionConfig
+from ceamcl.filters.headings import HeadingPrior
 from ceamcl.filters.state import DEFAULT_THRESHOLDS
 from ceamcl.sensors.beam_skip import BeamSkipConfig
 
@@ -72,7 +72,7 @@ class CEAMCLConfig:
         init_polish_rounds: greedy rounds that move each initial sample to a better pose
             nearby (the mutation's Sigma doubled, halved each round) before the first step.
         test_pose_headings: the first round's headings drawn from the scan's geometry, its
-            surface normals correlated with the map's (:class:`~ceamcl.filters.ceamcl.headings.
+            surface normals correlated with the map's (:class:`~ceamcl.filters.headings.
             HeadingPrior`, docs/ceamcl.md, departure 27); ``None``: uniform, as in the paper.
 
     Read differently from the paper (docs/ceamcl.md, "evidence"):

@@ -46,7 +46,6 @@ from ceamcl import angles
 from ceamcl.filters.base import Algorithm, Hypothesis, ParticleSnapshot, PoseEstimate
 from ceamcl.filters.ceamcl.anchor import ConfidentPose, DriftEnvelope
 from ceamcl.filters.ceamcl.config import CEAMCLConfig
-from ceamcl.filters.ceamcl.headings import map_normal_histogram
 from ceamcl.filters.ceamcl.initialisation import (
     InitialisationConfig,
     InitialSpecies,
@@ -65,6 +64,7 @@ from ceamcl.filters.ceamcl.phases import (
 )
 from ceamcl.filters.ceamcl.records import CEAMCLRecord, Events, SpeciesRecord
 from ceamcl.filters.ceamcl.species import SpeciesStats
+from ceamcl.filters.headings import map_normal_histogram
 from ceamcl.filters.particles import (
     ParticleSet,
     check_increment,
@@ -314,8 +314,7 @@ class CEAMCL:
         inherited = np.where(self._close(a, b, reach), np.array(held)[None, :], -np.inf)
         best = inherited.max(axis=1)
         return {
-            sid: float(h) if np.isfinite(h) else log_prior
-            for sid, h in zip(new, best, strict=True)
+            sid: float(h) if np.isfinite(h) else log_prior for sid, h in zip(new, best, strict=True)
         }
 
     def _close(

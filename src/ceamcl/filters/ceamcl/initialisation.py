@@ -31,7 +31,7 @@ from scipy import ndimage
 
 from ceamcl import budget
 from ceamcl.errors import InputWarning
-from ceamcl.filters.ceamcl.headings import (
+from ceamcl.filters.headings import (
     HeadingPrior,
     heading_density,
     map_normal_histogram,
@@ -61,7 +61,7 @@ class InitialisationConfig:
     ``refine_per_pose`` drawn around each of the best ``refine_share`` of the first with
     ``refine_sigma`` (x-y metres, heading radians); ``polish_rounds`` greedy moves of the
     chosen samples with ``polish_sigma`` halved each round; ``headings``: the first round's
-    headings drawn from the scan's geometry (:mod:`~ceamcl.filters.ceamcl.headings`; ``None``:
+    headings drawn from the scan's geometry (:mod:`~ceamcl.filters.headings`; ``None``:
     uniform, the paper's)."""
 
     n_test: int
@@ -353,7 +353,7 @@ def sample_test_poses(
 ) -> NDArray[np.float64]:
     """Step 1 of section 3.1: poses uniform over free space, ``test_poses_per_m2`` per
     square metre of it, at most ``n_test``; with ``headings`` (a density over heading bins,
-    :func:`~ceamcl.filters.ceamcl.headings.heading_density`) their headings drawn from it
+    :func:`~ceamcl.filters.headings.heading_density`) their headings drawn from it
     instead of uniformly."""
     poses = grid.sample_free_poses(config.test_pose_count(grid.free_area_m2), rng)
     if headings is not None:

@@ -55,10 +55,15 @@ def _circular_smooth(hist: NDArray[np.float64], sigma_bins: float) -> NDArray[np
     return np.asarray(ndimage.gaussian_filter1d(hist, sigma_bins, mode="wrap"), dtype=np.float64)
 
 
+def heading_bins(angles: NDArray[np.float64], bins: int) -> NDArray[np.intp]:
+    """The bin of each heading (bin ``s`` holds ``[s, s + 1) * 2 pi / bins``)."""
+    return np.floor(np.mod(angles, TWO_PI) / TWO_PI * bins).astype(np.intp) % bins
+
+
 def _histogram(
     angles: NDArray[np.float64], weights: NDArray[np.float64], prior: HeadingPrior
 ) -> NDArray[np.float64]:
-    b = np.floor(np.mod(angles, TWO_PI) / TWO_PI * prior.bins).astype(np.intp) % prior.bins
+    b = heading_bins(angles, prior.bins)
     hist = np.bincount(b, weights=weights, minlength=prior.bins).astype(np.float64)
     return _circular_smooth(hist, prior.smooth_rad / TWO_PI * prior.bins)
 
