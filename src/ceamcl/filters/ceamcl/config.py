@@ -74,6 +74,9 @@ class CEAMCLConfig:
         test_pose_headings: the first round's headings drawn from the scan's geometry, its
             surface normals correlated with the map's (:class:`~ceamcl.filters.headings.
             HeadingPrior`, docs/ceamcl.md, departure 27); ``None``: uniform, as in the paper.
+        recovery_test_pose_headings: a recovery's search draws its headings so too (``False``:
+            uniformly; a recovery fires where the scan fits the map poorly, where the scan's
+            normals are the least reliable guide, departure 27).
 
     Read differently from the paper (docs/ceamcl.md, "evidence"):
         competition_fitness: the ``w`` of eqs. 9 and 16. "evidence" (default): each species'
@@ -237,6 +240,7 @@ class CEAMCLConfig:
     init_refine_sigma_rad: float = 0.1
     init_polish_rounds: int = 3
     test_pose_headings: HeadingPrior | None = None
+    recovery_test_pose_headings: bool = False
     cell_m: float = 0.1
     mu: float = 0.85
     eta: float = 2.0
@@ -417,10 +421,17 @@ class CEAMCLConfig:
     @cached_property
     def recovery_initialisation(self) -> InitialisationConfig:
         """Section 3.1's settings for a recovery's second opinion (``recovery_prior``), at
-        ``recovery_test_poses_per_m2`` where that is set."""
-        if self.recovery_test_poses_per_m2 is None:
+        ``recovery_test_poses_per_m2`` where that is set, its headings uniform unless
+        ``recovery_test_pose_headings``."""
+        density = self.recovery_test_poses_per_m2
+        headings = self.test_pose_headings if self.recovery_test_pose_headings else None
+        if density is None and headings is self.initialisation.headings:
             return self.initialisation
-        return replace(self.initialisation, test_poses_per_m2=self.recovery_test_poses_per_m2)
+        return replace(
+            self.initialisation,
+            test_poses_per_m2=self.initialisation.test_poses_per_m2 if density is None else density,
+            headings=headings,
+        )
 
     @cached_property
     def growth(self) -> GrowthConfig:
