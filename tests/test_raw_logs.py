@@ -24,7 +24,14 @@ OTHER = DATA / "carmen" / "intel-corrected.log.gz"
 #: the global initialisation the doubtful-room scenarios below were traced with: one round of
 #: 1,500 test poses per m^2, the default until docs/ceamcl.md's departure 24. A recovery's
 #: proposals depend on it; with the default's second round the same seeds meet other places.
-ONE_ROUND: dict[str, Any] = {"test_poses_per_m2": 1500.0, "init_refine_share": 0.0}
+#: the initialisation the doubtful-room scenarios were traced with (the default until
+#: departure 24): 1,500 uniform test poses per m^2 in one round, recoveries at the same density
+ONE_ROUND: dict[str, Any] = {
+    "test_poses_per_m2": 1500.0,
+    "init_refine_share": 0.0,
+    "test_pose_headings": None,
+    "recovery_test_poses_per_m2": None,
+}
 
 
 def need(*paths: Path) -> None:

@@ -105,7 +105,10 @@ def test_the_sample_size_falls_while_tracking_and_rises_after_a_kidnap() -> None
         tracking = n[kidnap // 2 : kidnap].mean()  # converged, before the kidnap
         after = n[kidnap : kidnap + 50].max()
         print(f"seed {seed}: initial {n[0]}, tracking {tracking:.0f}, after the kidnap {after}")
-        assert tracking < 0.25 * n[0]  # certain: a fraction of the ambiguous start's samples
+        # certain: the issue's at most 150 while tracking, and at most a third of the
+        # ambiguous start's samples (470-593 since departure 27's sparser first search,
+        # 888-1,113 before it; the factor the issue asks of the rise after a kidnap)
+        assert tracking <= 150 and 3 * tracking <= n[0]
         assert after > 2 * tracking  # lost again: more
         assert n[-50:].mean() < 0.5 * after  # and down once relocalised
         rises.append(after / tracking)

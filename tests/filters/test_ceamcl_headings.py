@@ -126,9 +126,12 @@ def test_the_first_round_puts_more_test_poses_near_the_true_heading() -> None:
     grid = sc.grid()
     log = sc.simulate(np.random.default_rng(12), grid)
     truth = float(log.true_poses[0][2])
-    uniform = CEAMCLConfig().initialisation
-    assert uniform.headings is None  # the paper's uniform headings stay the default here
-    guided = CEAMCLConfig(test_pose_headings=PRIOR).initialisation
+    uniform = CEAMCLConfig(test_pose_headings=None).initialisation  # the paper's
+    guided = CEAMCLConfig().initialisation  # the default since departure 27
+    assert guided.headings == PRIOR
+    # a recovery's search keeps uniform headings unless asked (departure 27)
+    assert CEAMCLConfig().recovery_initialisation.headings is None
+    assert CEAMCLConfig(recovery_test_pose_headings=True).recovery_initialisation.headings == PRIOR
     density = heading_proposal(grid, log.scan(0), guided)
     assert density is not None
     assert heading_proposal(grid, log.scan(0), uniform) is None

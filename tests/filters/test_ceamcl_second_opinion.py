@@ -875,10 +875,10 @@ def test_a_recovery_searches_the_map_at_its_own_density(seed: int) -> None:
     second opinion scores that many test poses a square metre of free space instead of the
     global initialisation's, and at a third of it still proposes every other room's
     look-alike (where a kidnapped robot would be) beside the tracked species it keeps."""
-    initial = CEAMCLConfig().test_poses_per_m2
+    initial = CEAMCLConfig().recovery_test_poses_per_m2
     assert initial is not None
     spent = {}
-    for density in (None, initial / 3):
+    for density in (initial, initial / 3):
         config = replace(CEAMCLConfig(), recovery_test_poses_per_m2=density)
         f, truth, tracked = tracked_then_recovered(seed, config)
         spent[density] = f._evaluations  # the recovering step's likelihood evaluations

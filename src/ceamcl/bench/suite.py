@@ -31,6 +31,7 @@ from ceamcl.filters import registry
 from ceamcl.filters.ceamcl import CEAMCL, CEAMCLConfig
 from ceamcl.filters.ceamcl.initialisation import (
     generate_initial_species,
+    heading_proposal,
     sample_test_poses,
     score_test_poses,
     with_second_round,
@@ -327,7 +328,8 @@ def measure_init(grid: OccupancyGrid, log: SimulatedLog, s: BenchSettings) -> di
     init = cfg.initialisation
     with _Clock() as c:
         prepared = sensor.prepare(scan)
-        test = sample_test_poses(grid, init, rng)
+        # the headings from the scan's geometry, as the filter draws them (departure 27)
+        test = sample_test_poses(grid, init, rng, heading_proposal(grid, scan, init))
     phases["sample test poses"] = c.wall
     with _Clock() as c:
         ll, fit, _ = score_test_poses(test, sensor, prepared, init)

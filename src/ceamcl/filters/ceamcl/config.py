@@ -61,22 +61,25 @@ class CEAMCLConfig:
             init_refine_sigma_rad: a second round of test poses, ``init_refine_per_pose``
             Gaussian draws around each of the best ``init_refine_share`` of the first, so that
             the cells see each place near its peak; ``init_refine_share=0``: one round, as in
-            the paper. The default, 450 test poses per m^2 and a 1 % second round, costs a
-            third to a half of one round of 1,500 per m^2 for the same success
-            (docs/ceamcl.md, departure 20).
+            the paper. A 1 % second round over 450 uniform test poses per m^2 cost a third to
+            a half of one round of 1,500 per m^2 for the same success (docs/ceamcl.md,
+            departure 20); with headings drawn from the scan (``test_pose_headings``) 150 per
+            m^2 does as well (the default, departure 27).
         recovery_test_poses_per_m2: the density of a recovery's search (its second opinion,
-            ``recovery_prior``); ``None`` (the default): the global initialisation's. Lower
-            densities cut the evaluations of the real-log protocol by up to 46 % at the same
-            success, but let far places take the estimate in a room the map holds poorly
-            (docs/ceamcl.md, "a cheaper recovery: measured, not adopted").
+            ``recovery_prior``); ``None``: the global initialisation's. The default, 450 with
+            uniform headings: sparser or heading-guided searches cut the evaluations of the
+            real-log protocol at the same success, but let far places take the estimate in a
+            room the map holds poorly (docs/ceamcl.md, "a cheaper recovery: measured, not
+            adopted", and departure 27).
         init_polish_rounds: greedy rounds that move each initial sample to a better pose
             nearby (the mutation's Sigma doubled, halved each round) before the first step.
         test_pose_headings: the first round's headings drawn from the scan's geometry, its
             surface normals correlated with the map's (:class:`~ceamcl.filters.headings.
             HeadingPrior`, docs/ceamcl.md, departure 27); ``None``: uniform, as in the paper.
-        recovery_test_pose_headings: a recovery's search draws its headings so too (``False``:
-            uniformly; a recovery fires where the scan fits the map poorly, where the scan's
-            normals are the least reliable guide, departure 27).
+        recovery_test_pose_headings: a recovery's search draws its headings so too (``False``,
+            the default: uniformly; a guided search finds a far look-alike at its peak as
+            readily as the true place, and in a room the map holds poorly the look-alike then
+            takes the estimate more often, departure 27).
 
     Read differently from the paper (docs/ceamcl.md, "evidence"):
         competition_fitness: the ``w`` of eqs. 9 and 16. "evidence" (default): each species'
@@ -232,14 +235,14 @@ class CEAMCLConfig:
     """
 
     n_test: int = 1_000_000
-    test_poses_per_m2: float | None = 450.0
-    recovery_test_poses_per_m2: float | None = None
+    test_poses_per_m2: float | None = 150.0
+    recovery_test_poses_per_m2: float | None = 450.0
     init_refine_share: float = 0.01
     init_refine_per_pose: int = 10
     init_refine_sigma_xy_m: float = 0.1
     init_refine_sigma_rad: float = 0.1
     init_polish_rounds: int = 3
-    test_pose_headings: HeadingPrior | None = None
+    test_pose_headings: HeadingPrior | None = field(default_factory=HeadingPrior)
     recovery_test_pose_headings: bool = False
     cell_m: float = 0.1
     mu: float = 0.85
