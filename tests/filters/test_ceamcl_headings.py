@@ -177,3 +177,15 @@ def test_a_baselines_guided_start_keeps_every_image_of_the_hall_with_fewer_test_
     # when written: guided 126, 136, 184, 27; uniform 12, 172, 139, 14 (of 1000)
     assert min(guided) >= 20, guided
     assert min(guided) > min(plain) and sum(guided) > sum(plain), (guided, plain)
+
+
+def test_the_maps_normals_are_computed_once_per_map_and_kept_read_only() -> None:
+    grid = _box_grid()
+    first = map_normal_histogram(grid, PRIOR)
+    assert map_normal_histogram(grid, PRIOR) is first
+    assert not first.flags.writeable
+    # another histogram setting is another entry; an equal but separate grid computes its own
+    other = map_normal_histogram(grid, HeadingPrior(bins=180))
+    assert other.size == 180
+    again = map_normal_histogram(_box_grid(), PRIOR)
+    assert again is not first and np.array_equal(again, first)

@@ -72,7 +72,19 @@ def map_normal_histogram(grid: OccupancyGrid, prior: HeadingPrior) -> NDArray[np
     """The directions (world frame) of the map's surface normals, pointing from each
     occupied cell that borders free space into the free side, one count per cell: what a
     robot inside can see. From the gradient of the occupancy smoothed over a cell; zeros where
-    the map has no such cell."""
+    the map has no such cell. Computed once per map and histogram setting (kept with the
+    grid, read-only)."""
+    key = ("map normals", prior.bins, prior.smooth_rad)
+    return grid.derived(key, lambda: _map_normal_histogram(grid, prior))
+
+
+def _map_normal_histogram(grid: OccupancyGrid, prior: HeadingPrior) -> NDArray[np.float64]:
+    hist = _map_normals(grid, prior)
+    hist.setflags(write=False)
+    return hist
+
+
+def _map_normals(grid: OccupancyGrid, prior: HeadingPrior) -> NDArray[np.float64]:
     occ = grid.occupied_mask
     boundary = occ & ndimage.binary_dilation(grid.free_mask, structure=np.ones((3, 3), bool))
     if not boundary.any():

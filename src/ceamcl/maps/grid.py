@@ -9,8 +9,10 @@ ignores it, we do not).
 
 from __future__ import annotations
 
+from collections.abc import Callable, Hashable
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -18,6 +20,8 @@ from numpy.typing import ArrayLike, NDArray
 from ceamcl.angles import wrap
 from ceamcl.errors import MapFormatError
 from ceamcl.maps.distance import distance_cells, distance_from_squared, squared_distance_cells
+
+T = TypeVar("T")
 
 FREE = 0
 OCCUPIED = 100
@@ -223,6 +227,15 @@ class OccupancyGrid:
         x, y = self.map_to_world(mx, my)
         theta = wrap(rng.uniform(-np.pi, np.pi, size=n))
         return np.column_stack([x, y, theta])
+
+    def derived(self, key: Hashable, make: Callable[[], T]) -> T:
+        """What ``make`` derives from the grid, computed once per ``key`` and kept with the
+        grid (the grid never changes, as its distance fields are kept): a summary several
+        filters of one map share, e.g. the heading density's map normals."""
+        cache: dict[Hashable, Any] = self.__dict__.setdefault("_derived", {})
+        if key not in cache:
+            cache[key] = make()
+        return cache[key]
 
     def with_data(self, data: ArrayLike, name: str | None = None) -> OccupancyGrid:
         """A copy with other cell values (same geometry)."""

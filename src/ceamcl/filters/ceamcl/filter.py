@@ -64,7 +64,6 @@ from ceamcl.filters.ceamcl.phases import (
 )
 from ceamcl.filters.ceamcl.records import CEAMCLRecord, Events, SpeciesRecord
 from ceamcl.filters.ceamcl.species import SpeciesStats
-from ceamcl.filters.headings import map_normal_histogram
 from ceamcl.filters.particles import (
     ParticleSet,
     check_increment,
@@ -165,8 +164,6 @@ class CEAMCL:
         self._equal_record: dict[int, float] = {}
         #: the last scan received, for the state's wall-crossing test (docs/state.md)
         self.last_scan: LaserScan | None = None
-        #: the map's surface normals for the test poses' headings (computed at first use)
-        self._map_normals: NDArray[np.float64] | None = None
         #: the state's memory of how well the map explains the scans (docs/state.md); the
         #: recovery reads the state without it (:meth:`_lost_too_long`)
         self.map_agreement = MapAgreement(grid)
@@ -222,10 +219,8 @@ class CEAMCL:
         self._peak_fitness = {}
         settings = self.config.initialisation if settings is None else settings
         headings = None
-        if settings.headings is not None and prepared is not None:
-            if self._map_normals is None:
-                self._map_normals = map_normal_histogram(self.grid, settings.headings)
-            headings = heading_proposal(self.grid, self.last_scan, settings, self._map_normals)
+        if prepared is not None:  # the map's normals are kept with the grid
+            headings = heading_proposal(self.grid, self.last_scan, settings)
         init, evaluations = initial_species(
             self.grid, self.sensor, prepared, settings, self.rng, headings
         )

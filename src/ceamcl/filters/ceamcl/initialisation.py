@@ -365,17 +365,14 @@ def heading_proposal(
     grid: OccupancyGrid,
     scan: LaserScan | None,
     config: InitialisationConfig,
-    map_normals: NDArray[np.float64] | None = None,
 ) -> NDArray[np.float64] | None:
     """The density the first round draws its headings from (``None``: uniform headings,
-    where ``config.headings`` is unset or there is no scan). ``map_normals``: the map's
-    normal histogram when the caller keeps it (computed here otherwise)."""
+    where ``config.headings`` is unset or there is no scan)."""
     prior = config.headings
     if prior is None or scan is None:
         return None
-    if map_normals is None or map_normals.size != prior.bins:
-        map_normals = map_normal_histogram(grid, prior)
-    return heading_density(map_normals, scan_normal_histogram(scan, prior), prior)
+    maph = map_normal_histogram(grid, prior)
+    return heading_density(maph, scan_normal_histogram(scan, prior), prior)
 
 
 def refine_test_poses(
