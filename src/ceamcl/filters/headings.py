@@ -162,6 +162,15 @@ def heading_density(
     return u * uniform + (1.0 - u) * corr / total
 
 
+def scan_heading_density(
+    grid: OccupancyGrid, scan: LaserScan, prior: HeadingPrior
+) -> NDArray[np.float64]:
+    """:func:`heading_density` of ``scan`` on ``grid`` (the map's normals kept with it)."""
+    return heading_density(
+        map_normal_histogram(grid, prior), scan_normal_histogram(scan, prior), prior
+    )
+
+
 def sample_headings(
     density: NDArray[np.float64], n: int, rng: np.random.Generator
 ) -> NDArray[np.float64]:

@@ -32,10 +32,8 @@ from ceamcl.filters.evolution import EvolutionConfig, evolve_groups
 from ceamcl.filters.headings import (
     HeadingPrior,
     heading_bins,
-    heading_density,
-    map_normal_histogram,
     sample_headings,
-    scan_normal_histogram,
+    scan_heading_density,
 )
 from ceamcl.filters.resampling import (
     normalise_log_weights,
@@ -205,9 +203,7 @@ def importance_start(
     poses = grid.sample_free_poses(n_test, rng)
     density = None
     if headings is not None and scan is not None:
-        density = heading_density(
-            map_normal_histogram(grid, headings), scan_normal_histogram(scan, headings), headings
-        )
+        density = scan_heading_density(grid, scan, headings)
         poses[:, 2] = sample_headings(density, n_test, rng)
     ll = np.concatenate(
         [

@@ -31,13 +31,7 @@ from scipy import ndimage
 
 from ceamcl import budget
 from ceamcl.errors import InputWarning
-from ceamcl.filters.headings import (
-    HeadingPrior,
-    heading_density,
-    map_normal_histogram,
-    sample_headings,
-    scan_normal_histogram,
-)
+from ceamcl.filters.headings import HeadingPrior, sample_headings, scan_heading_density
 from ceamcl.filters.resampling import sanitise_log_likelihood
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.sensors.base import SensorModel, fitness
@@ -371,8 +365,7 @@ def heading_proposal(
     prior = config.headings
     if prior is None or scan is None:
         return None
-    maph = map_normal_histogram(grid, prior)
-    return heading_density(maph, scan_normal_histogram(scan, prior), prior)
+    return scan_heading_density(grid, scan, prior)
 
 
 def refine_test_poses(
