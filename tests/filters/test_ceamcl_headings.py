@@ -189,3 +189,14 @@ def test_the_maps_normals_are_computed_once_per_map_and_kept_read_only() -> None
     assert other.size == 180
     again = map_normal_histogram(_box_grid(), PRIOR)
     assert again is not first and np.array_equal(again, first)
+
+
+def test_a_rotated_maps_normals_turn_with_its_origin() -> None:
+    """A map whose origin is turned by a yaw: its normals (world frame) turn by that yaw."""
+    plain = _box_grid()
+    turned = OccupancyGrid(plain.data, plain.resolution, (0.0, 0.0, np.pi / 6))
+    a, b = map_normal_histogram(plain, PRIOR), map_normal_histogram(turned, PRIOR)
+    shift = round(PRIOR.bins / 12)  # 30 degrees
+    corr = [float(np.dot(np.roll(a, k), b)) for k in range(PRIOR.bins)]
+    assert int(np.argmax(corr)) == shift
+    assert a.sum() == pytest.approx(b.sum())
