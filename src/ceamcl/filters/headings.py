@@ -23,10 +23,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
 
+from ceamcl.angles import TWO_PI
 from ceamcl.maps.grid import OccupancyGrid
-from ceamcl.sensors.scan import LaserScan
-
-TWO_PI = 2.0 * np.pi
+from ceamcl.sensors.scan import LaserScan, classify_ranges
 
 
 @dataclass(frozen=True)
@@ -51,10 +50,6 @@ class HeadingPrior:
             )
 
 
-def _circular_smooth(hist: NDArray[np.float64], sigma_bins: float) -> NDArray[np.float64]:
-    return np.asarray(ndimage.gaussian_filter1d(hist, sigma_bins, mode="wrap"), dtype=np.float64)
-
-
 def heading_bins(angles: NDArray[np.float64], bins: int) -> NDArray[np.intp]:
     """The bin of each heading (bin ``s`` holds ``[s, s + 1) * 2 pi / bins``)."""
     return np.floor(np.mod(angles, TWO_PI) / TWO_PI * bins).astype(np.intp) % bins
@@ -65,7 +60,8 @@ def _histogram(
 ) -> NDArray[np.float64]:
     b = heading_bins(angles, prior.bins)
     hist = np.bincount(b, weights=weights, minlength=prior.bins).astype(np.float64)
-    return _circular_smooth(hist, prior.smooth_rad / TWO_PI * prior.bins)
+    sigma_bins = prior.smooth_rad / TWO_PI * prior.bins
+    return np.asarray(ndimage.gaussian_filter1d(hist, sigma_bins, mode="wrap"), dtype=np.float64)
 
 
 def map_normal_histogram(grid: OccupancyGrid, prior: HeadingPrior) -> NDArray[np.float64]:
@@ -75,27 +71,21 @@ def map_normal_histogram(grid: OccupancyGrid, prior: HeadingPrior) -> NDArray[np
     the map has no such cell. Computed once per map and histogram setting (kept with the
     grid, read-only)."""
     key = ("map normals", prior.bins, prior.smooth_rad)
-    return grid.derived(key, lambda: _map_normal_histogram(grid, prior))
-
-
-def _map_normal_histogram(grid: OccupancyGrid, prior: HeadingPrior) -> NDArray[np.float64]:
-    hist = _map_normals(grid, prior)
-    hist.setflags(write=False)
-    return hist
+    return grid.derived(key, lambda: _map_normals(grid, prior))
 
 
 def _map_normals(grid: OccupancyGrid, prior: HeadingPrior) -> NDArray[np.float64]:
     occ = grid.occupied_mask
     boundary = occ & ndimage.binary_dilation(grid.free_mask, structure=np.ones((3, 3), bool))
-    if not boundary.any():
-        return np.zeros(prior.bins)
     smooth = ndimage.gaussian_filter(occ.astype(np.float64), 1.0)
     gy = ndimage.sobel(smooth, axis=0)[boundary]  # rows are y (grid.cell_to_world)
     gx = ndimage.sobel(smooth, axis=1)[boundary]
     strong = np.hypot(gx, gy) > 1e-9
     # the normal points down the occupancy's slope, into free space
     angles = np.arctan2(-gy[strong], -gx[strong]) + grid.origin[2]
-    return _histogram(angles, np.ones(angles.size), prior)
+    hist = _histogram(angles, np.ones(angles.size), prior)
+    hist.setflags(write=False)
+    return hist
 
 
 def scan_normal_histogram(scan: LaserScan, prior: HeadingPrior) -> NDArray[np.float64]:
@@ -105,7 +95,8 @@ def scan_normal_histogram(scan: LaserScan, prior: HeadingPrior) -> NDArray[np.fl
     apart (so it does not bridge two objects); max-range, invalid and isolated readings give
     none. Zeros where the scan gives no normal."""
     r = scan.ranges
-    ok = np.isfinite(r) & (r > scan.range_min) & (r < scan.range_max)
+    usable, is_max = classify_ranges(r, scan.range_min, scan.range_max)
+    ok = usable & ~is_max  # hits (REP 117)
     if int(ok.sum()) < 3:
         return np.zeros(prior.bins)
     lx, ly, lyaw = scan.pose

@@ -427,13 +427,10 @@ class CEAMCLConfig:
         ``recovery_test_poses_per_m2`` where that is set, its headings uniform unless
         ``recovery_test_pose_headings``."""
         density = self.recovery_test_poses_per_m2
-        headings = self.test_pose_headings if self.recovery_test_pose_headings else None
-        if density is None and headings is self.initialisation.headings:
-            return self.initialisation
         return replace(
             self.initialisation,
-            test_poses_per_m2=self.initialisation.test_poses_per_m2 if density is None else density,
-            headings=headings,
+            test_poses_per_m2=self.test_poses_per_m2 if density is None else density,
+            headings=self.test_pose_headings if self.recovery_test_pose_headings else None,
         )
 
     @cached_property

@@ -218,9 +218,7 @@ class CEAMCL:
         self._read = None
         self._peak_fitness = {}
         settings = self.config.initialisation if settings is None else settings
-        headings = None
-        if prepared is not None:  # the map's normals are kept with the grid
-            headings = heading_proposal(self.grid, self.last_scan, settings)
+        headings = heading_proposal(self.grid, self.last_scan, settings)
         init, evaluations = initial_species(
             self.grid, self.sensor, prepared, settings, self.rng, headings
         )
