@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -271,3 +272,39 @@ def test_map_agreement_share_at_reuses_a_read_and_counts_nothing() -> None:
     # nothing counted: the next update still continues the run of one
     streak, _ = agreement.observe(2, scan, off)
     assert streak == 2
+
+
+@pytest.mark.parametrize("read_between", [False, True])
+def test_ceamcl_counts_the_maps_disagreement_at_every_update_read_or_not(
+    read_between: bool,
+) -> None:
+    """The map's agreement counts consecutive updates (:class:`MapAgreement`); CEAMCL reads it
+    at the end of every update itself, so a caller that reads the state only now and then (a
+    node that publishes at some updates, a script that reads at the end) finds the same run of
+    updates, and the filter reports the same, as one that reads at every update. Tracked at the
+    truth, then given a scan the map explains poorly at ``explained_updates`` updates while
+    standing still: LOST by the map at the first read, read between or not."""
+    from ceamcl.filters.ceamcl import CEAMCL
+    from ceamcl.sensors.map_agreement import explained_share
+
+    sc = office_scenario()
+    log = sc.simulate(np.random.default_rng(2))
+    grid = sc.grid()
+    f = make_filter("ceamcl", grid, np.random.default_rng(3))
+    assert isinstance(f, CEAMCL)
+    still = OdometryIncrement(0.0, 0.0, 0.0)
+    truth = log.true_poses[10]
+    f.initialise_pose(truth, np.diag([0.01, 0.01, 0.002]))
+    for _ in range(3):
+        f.step(still, log.scan(10))
+    assert f.state().state is State.LOCALISED
+    # the same scan with its ranges 15 % short (a map that no longer matches the room): it
+    # still fits (the likelihood forgives decimetres), but the map explains little of it
+    short = replace(log.scan(10), ranges=log.scan(10).ranges * 0.85)
+    assert explained_share(grid, truth, short) < DEFAULT_THRESHOLDS.explained_below
+    for _ in range(DEFAULT_THRESHOLDS.explained_updates):
+        f.step(still, short)
+        if read_between:
+            f.state()
+    s = f.state()
+    assert s.state is State.LOST and "the map explains" in s.reason, s.reason

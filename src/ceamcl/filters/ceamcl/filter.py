@@ -956,6 +956,10 @@ class CEAMCL:
 
     def _record(self, reinitialised: bool) -> CEAMCLRecord:
         self._count_far_lost()
+        # The map's agreement counts the updates it does not vouch for only where the state is
+        # read; read here, at every update, so that what the filter reports next (the estimate
+        # while lost, departure 17) does not depend on whether a caller asked for the state.
+        self._species_state()
         comp = self.competition
         ranked, shares = self._ranked_shares()
         share = {s.species_id: float(w) for s, w in zip(ranked, shares, strict=True)}
