@@ -21,16 +21,17 @@ DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 RAW = DATA / "carmen-raw" / "fr079.clf.gz"
 CORRECTED = DATA / "carmen" / "freiburg-079-corrected.log.gz"
 OTHER = DATA / "carmen" / "intel-corrected.log.gz"
-#: the global initialisation the doubtful-room scenarios below were traced with: one round of
-#: 1,500 test poses per m^2, the default until docs/ceamcl.md's departure 24. A recovery's
-#: proposals depend on it; with the default's second round the same seeds meet other places.
-#: the initialisation the doubtful-room scenarios were traced with (the default until
-#: departure 24): 1,500 uniform test poses per m^2 in one round, recoveries at the same density
+#: the initialisation the doubtful-room scenarios below were traced with (the default until
+#: docs/ceamcl.md's departure 24): 1,500 uniform test poses per m^2 in one round, recoveries at
+#: the same density, a recovery's far places at the kidnap odds of then (1e-6, until departure
+#: 28). A recovery's proposals depend on it; with the default's the same seeds meet other
+#: places, and with 1e-9 the far place of the last test below never takes the estimate.
 ONE_ROUND: dict[str, Any] = {
     "test_poses_per_m2": 1500.0,
     "init_refine_share": 0.0,
     "test_pose_headings": None,
     "recovery_test_poses_per_m2": None,
+    "recovery_prior": 1e-6,
 }
 
 

@@ -129,9 +129,9 @@ def test_the_first_round_puts_more_test_poses_near_the_true_heading() -> None:
     uniform = CEAMCLConfig(test_pose_headings=None).initialisation  # the paper's
     guided = CEAMCLConfig().initialisation  # the default since departure 27
     assert guided.headings == PRIOR
-    # a recovery's search keeps uniform headings unless asked (departure 27)
-    assert CEAMCLConfig().recovery_initialisation.headings is None
-    assert CEAMCLConfig(recovery_test_pose_headings=True).recovery_initialisation.headings == PRIOR
+    # a recovery's search draws them so too (departure 28), or uniformly when asked
+    assert CEAMCLConfig().recovery_initialisation.headings == PRIOR
+    assert CEAMCLConfig(recovery_test_pose_headings=False).recovery_initialisation.headings is None
     density = heading_proposal(grid, log.scan(0), guided)
     assert density is not None
     assert heading_proposal(grid, log.scan(0), uniform) is None

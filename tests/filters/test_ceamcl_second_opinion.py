@@ -872,10 +872,11 @@ def test_the_anchors_place_competes_when_it_fits_as_well_as_a_far_leader(seed: i
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_a_recovery_searches_the_map_at_its_own_density(seed: int) -> None:
     """``recovery_test_poses_per_m2`` (docs/ceamcl.md, "a cheaper recovery"): a recovery's
-    second opinion scores that many test poses a square metre of free space instead of the
-    global initialisation's, and at a third of it still proposes every other room's
-    look-alike (where a kidnapped robot would be) beside the tracked species it keeps."""
-    initial = CEAMCLConfig().recovery_test_poses_per_m2
+    second opinion searches as the global initialisation does unless told a density of its
+    own (departure 28), and at a third of it still proposes every other room's look-alike
+    (where a kidnapped robot would be) beside the tracked species it keeps."""
+    assert CEAMCLConfig().recovery_initialisation == CEAMCLConfig().initialisation
+    initial = CEAMCLConfig().initialisation.test_poses_per_m2
     assert initial is not None
     spent = {}
     for density in (initial, initial / 3):
@@ -888,3 +889,4 @@ def test_a_recovery_searches_the_map_at_its_own_density(seed: int) -> None:
             assert min(position_error(h.pose, image) for h in hyps) < 0.5
     same, third = spent.values()
     assert third < 0.5 * same
+

@@ -66,20 +66,18 @@ class CEAMCLConfig:
             departure 20); with headings drawn from the scan (``test_pose_headings``) 150 per
             m^2 does as well (the default, departure 27).
         recovery_test_poses_per_m2: the density of a recovery's search (its second opinion,
-            ``recovery_prior``); ``None``: the global initialisation's. The default, 450 with
-            uniform headings: sparser or heading-guided searches cut the evaluations of the
-            real-log protocol at the same success, but let far places take the estimate in a
-            room the map holds poorly (docs/ceamcl.md, "a cheaper recovery: measured, not
-            adopted", and departure 27).
+            ``recovery_prior``); ``None`` (the default): the global initialisation's. Until
+            departure 28 (docs/ceamcl.md) recoveries searched at 450 with uniform headings:
+            a search that finds a far look-alike at its peak let it out-fit the tracked place
+            by more than the kidnap odds of 1e-6, in a room the map holds poorly; searches
+            sparser than the first one (100 or 75 per m^2) still did with 1e-9.
         init_polish_rounds: greedy rounds that move each initial sample to a better pose
             nearby (the mutation's Sigma doubled, halved each round) before the first step.
         test_pose_headings: the first round's headings drawn from the scan's geometry, its
             surface normals correlated with the map's (:class:`~ceamcl.filters.headings.
             HeadingPrior`, docs/ceamcl.md, departure 27); ``None``: uniform, as in the paper.
-        recovery_test_pose_headings: a recovery's search draws its headings so too (``False``,
-            the default: uniformly; a guided search finds a far look-alike at its peak as
-            readily as the true place, and in a room the map holds poorly the look-alike then
-            takes the estimate more often, departure 27).
+        recovery_test_pose_headings: a recovery's search draws its headings so too (``True``,
+            the default since departure 28; ``False``: uniformly).
 
     Read differently from the paper (docs/ceamcl.md, "evidence"):
         competition_fitness: the ``w`` of eqs. 9 and 16. "evidence" (default): each species'
@@ -130,7 +128,9 @@ class CEAMCLConfig:
             ones (docs/ceamcl.md, departure 9): each new species starts at ``recovery_prior``
             times the leading species' weight (the odds that the robot was carried off rather
             than the scans being poor), then both gather evidence; ``None``: the old species
-            are dropped and the new ones start level.
+            are dropped and the new ones start level. 1e-9 (20.7 nats; 1e-6 until departure
+            28): more than a far look-alike found at its peak has been measured to out-fit
+            the tracked place by on one scan (18.3 nats, fr079's doubtful room).
         recovery_drift_m, recovery_drift_rad: a new species whose mean pose lies within
             these distances (m, and rad of heading) of a species the filter had starts level
             with it instead of at ``recovery_prior``: the kept pose having drifted off the
@@ -236,14 +236,14 @@ class CEAMCLConfig:
 
     n_test: int = 1_000_000
     test_poses_per_m2: float | None = 150.0
-    recovery_test_poses_per_m2: float | None = 450.0
+    recovery_test_poses_per_m2: float | None = None
     init_refine_share: float = 0.01
     init_refine_per_pose: int = 10
     init_refine_sigma_xy_m: float = 0.1
     init_refine_sigma_rad: float = 0.1
     init_polish_rounds: int = 3
     test_pose_headings: HeadingPrior | None = field(default_factory=HeadingPrior)
-    recovery_test_pose_headings: bool = False
+    recovery_test_pose_headings: bool = True
     cell_m: float = 0.1
     mu: float = 0.85
     eta: float = 2.0
@@ -287,7 +287,7 @@ class CEAMCLConfig:
     recovery_alpha_slow: float = 0.02
     recovery_reads: str = "fittest"
     recovery_warmup_steps: int = 20
-    recovery_prior: float | None = 1e-6
+    recovery_prior: float | None = 1e-9
     recovery_drift_m: float | None = 4.0
     recovery_drift_rad: float = 1.0
     recovery_prior_fades: bool = False
