@@ -501,8 +501,8 @@ def render_markdown(r: dict[str, Any]) -> str:
         "",
         f"A window of {s['scans']:,} scans from the first scan with truth. *update*: a scan at "
         "which the filter was stepped; *+ state*: the update and the reading of the filter's "
-        "localisation state after it (CEAMCL reads its species' state inside its step and "
-        "the map's agreement afterwards, a particle filter clusters its particles for it "
+        "localisation state after it (CEAMCL reads its species' state and the map's "
+        "agreement inside its step, a particle filter clusters its particles for it "
         "afterwards: the runner and the ROS node read it after every update); *per scan*: "
         "all scans, 0 for those that only carry the "
         "odometry; *load*: time spent / time the log lasted (share of one core at the log's "
