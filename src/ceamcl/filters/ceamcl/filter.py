@@ -514,10 +514,7 @@ class CEAMCL:
         pose drifting in a room the map holds poorly is not one."""
         if self.config.recovery_anchor_m is None:
             return
-        if self._read is None:
-            hyps = self.hypotheses()
-            self._read = (hyps, self._read_state(hyps))
-        hyps, read = self._read
+        hyps, read = self._species_read()
         if read.state is State.LOCALISED and hyps:
             self.confident.propose(hyps[0].pose, self.last_scan, self.t)
 
@@ -819,6 +816,15 @@ class CEAMCL:
         step's climb), NaN read as 0: what the viable floors and the kidnap test compare."""
         return float(np.nan_to_num(_reported_fitness(s, self._peak_fitness.get(s.species_id))))
 
+    def _species_read(self) -> tuple[list[Hypothesis], LocalisationState]:
+        """This update's hypotheses and the state the species read from them, without the
+        map's agreement: read once and kept (``_read``) for what the runner (or a node) asks
+        next, until the species change."""
+        if self._read is None:
+            hyps = self.hypotheses()
+            self._read = (hyps, self._read_state(hyps))
+        return self._read
+
     def _lost_too_long(self) -> bool:
         """Has the state said LOST at ``recovery_lost_updates`` consecutive updates (the
         wait doubled after each recovery this fired, until the state leaves LOST)?
@@ -826,11 +832,8 @@ class CEAMCL:
         cfg = self.config
         if cfg.recovery_lost_updates is None or not cfg.recovery:
             return False
-        hyps = self.hypotheses()
-        state = self._read_state(hyps)  # without the map's agreement (docs/state.md)
-        # what the runner (or a node) asks for next, unchanged; the map's agreement is read
-        # when the state is (:meth:`state`): the recovery does not need it
-        self._read = (hyps, state)
+        # without the map's agreement (docs/state.md): the recovery does not need it
+        _, state = self._species_read()
         if state.state is not State.LOST:
             self._lost_streak = 0
             self._lost_wait = cfg.recovery_lost_updates
@@ -959,6 +962,8 @@ class CEAMCL:
         # The map's agreement counts the updates it does not vouch for only where the state is
         # read; read here, at every update, so that what the filter reports next (the estimate
         # while lost, departure 17) does not depend on whether a caller asked for the state.
+        # The read is kept: a caller's state() and hypotheses() reuse it.
+        self._species_read()
         self._species_state()
         comp = self.competition
         ranked, shares = self._ranked_shares()
