@@ -112,8 +112,9 @@ def test_one_function_builds_every_registered_algorithm_by_name() -> None:
     f = registry.make_filter("mcl", grid, np.random.default_rng(0), config=small)
     assert f.config == small  # type: ignore[attr-defined]
     with pytest.raises(ConfigError, match="mcl takes a MCLConfig"):
-        registry.make_filter("mcl", grid, np.random.default_rng(0), config=registry.get(
-            "gmcl").default())
+        registry.make_filter(
+            "mcl", grid, np.random.default_rng(0), config=registry.get("gmcl").default()
+        )
     with pytest.raises(ConfigError, match="unknown algorithm 'ekf'; expected one of ceamcl"):
         registry.make_filter("ekf", grid, np.random.default_rng(0))
 

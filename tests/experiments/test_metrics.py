@@ -181,6 +181,7 @@ def test_weight_shares_are_normalised_and_empty_holds_nothing() -> None:
 
 def test_a_hypothesis_just_outside_the_tolerance_is_spurious() -> None:
     images = symmetric_images(HALL_TRUTH)
+
     def at(offset: tuple[float, float, float]) -> np.ndarray:
         return np.array([[*(images[1] + np.array(offset)), 0.5, 1.0]])
 

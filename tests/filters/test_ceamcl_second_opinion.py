@@ -889,4 +889,3 @@ def test_a_recovery_searches_the_map_at_its_own_density(seed: int) -> None:
             assert min(position_error(h.pose, image) for h in hyps) < 0.5
     same, third = spent.values()
     assert third < 0.5 * same
-

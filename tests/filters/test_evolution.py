@@ -349,7 +349,13 @@ def test_metropolis_mutation_accepts_by_the_likelihood_ratio() -> None:
         loglik = np.zeros(n)
         # every child scores ``delta`` relative to its parent (parents all score 0)
         mutation(
-            poses, loglik, np.arange(n), 1.0, sigma, lambda p, d=delta: np.full(p.shape[0], d), rng,
+            poses,
+            loglik,
+            np.arange(n),
+            1.0,
+            sigma,
+            lambda p, d=delta: np.full(p.shape[0], d),
+            rng,
             "metropolis",
         )
         accepted = np.mean(loglik == delta)
@@ -365,7 +371,13 @@ def test_metropolis_crossover_accepts_pairs_by_the_product_ratio() -> None:
     first, second = np.arange(0, n, 2), np.arange(1, n, 2)
     # each child scores -log(2) / 2: the pair's product is half its parents'
     crossover(
-        poses, loglik, first, second, 1.0, lambda p: np.full(p.shape[0], -np.log(2.0) / 2), rng,
+        poses,
+        loglik,
+        first,
+        second,
+        1.0,
+        lambda p: np.full(p.shape[0], -np.log(2.0) / 2),
+        rng,
         "metropolis",
     )
     accepted = np.mean(loglik[first] < 0)
@@ -380,11 +392,21 @@ def test_best_seen_records_every_child_kept_or_not() -> None:
     rng = np.random.default_rng(7)
     # children far better but rejected cannot happen with Metropolis; use greedy-rejected
     # worse children and check best_seen keeps the parents' own best
-    mutation(poses, loglik, np.arange(2), 1.0, np.ones(3), lambda p: np.full(2, -5.0), rng,
-             "best", best)
+    mutation(
+        poses, loglik, np.arange(2), 1.0, np.ones(3), lambda p: np.full(2, -5.0), rng, "best", best
+    )
     assert best.tolist() == [0.0, 0.0]
-    mutation(poses, loglik, np.arange(2), 1.0, np.ones(3), lambda p: np.full(2, 3.0), rng,
-             "metropolis", best)
+    mutation(
+        poses,
+        loglik,
+        np.arange(2),
+        1.0,
+        np.ones(3),
+        lambda p: np.full(2, 3.0),
+        rng,
+        "metropolis",
+        best,
+    )
     assert best.tolist() == [3.0, 3.0]
 
 

@@ -149,7 +149,6 @@ class NaNSensor:
     temper = 1.0
     scoring = "product"
 
-
     def max_log_beam_likelihood(self, prepared: PreparedScan) -> float:
         return self.inner.max_log_beam_likelihood(prepared)
 

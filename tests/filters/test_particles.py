@@ -45,7 +45,6 @@ class Constant:
     temper = 1.0
     scoring = "product"
 
-
     def max_log_beam_likelihood(self, prepared: PreparedScan) -> float:
         return 0.0
 

@@ -25,7 +25,11 @@ RUN_BUDGET_S = 150.0
 
 
 def run_route(  # type: ignore[no-untyped-def]
-    driver, world: str, tmp_path: Path, seed: int = 0, extra: dict[str, float] | None = None,
+    driver,
+    world: str,
+    tmp_path: Path,
+    seed: int = 0,
+    extra: dict[str, float] | None = None,
     log=None,
 ):
     from tests.ros.harness import NodeProcess, pose_error
@@ -114,7 +118,8 @@ def test_marked_hall_converges_to_truth(driver, tmp_path: Path) -> None:
 
 
 def test_the_node_process_ends_the_demos_run_with_the_demos_hypotheses(
-    driver, tmp_path: Path  # type: ignore[no-untyped-def]
+    driver,
+    tmp_path: Path,  # type: ignore[no-untyped-def]
 ) -> None:
     """``ceamcl demo --seed 0``'s run of the symmetric hall through the node process with the
     demo's settings (tests/ros/test_node_reproduces_demo.py): the four published hypotheses are

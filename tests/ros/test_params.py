@@ -24,33 +24,65 @@ def test_defaults_are_nav2s_and_ceamcl() -> None:
 
 def test_every_problem_is_named_at_once() -> None:
     with pytest.raises(ConfigError) as err:
-        parse({"alhpa1": 0.1, "z_hit": 2.0, "max_beams": "sixty", "seed": -1,
-               "laser_model_type": "likelihood_field_prob", "min_particles": 900,
-               "max_particles": 100})
+        parse(
+            {
+                "alhpa1": 0.1,
+                "z_hit": 2.0,
+                "max_beams": "sixty",
+                "seed": -1,
+                "laser_model_type": "likelihood_field_prob",
+                "min_particles": 900,
+                "max_particles": 100,
+            }
+        )
     text = str(err.value)
-    for expected in ("unknown parameter: alhpa1", "z_hit: expected a number in [0, 1], got 2.0",
-                     "max_beams: expected an integer, got 'sixty'",
-                     "seed: expected a non-negative integer", "laser_model_type: expected one of",
-                     "max_particles: expected a count >= min_particles (900), got 100"):
+    for expected in (
+        "unknown parameter: alhpa1",
+        "z_hit: expected a number in [0, 1], got 2.0",
+        "max_beams: expected an integer, got 'sixty'",
+        "seed: expected a non-negative integer",
+        "laser_model_type: expected one of",
+        "max_particles: expected a count >= min_particles (900), got 100",
+    ):
         assert expected in text
 
 
 def test_nav2_particle_filter_settings_reach_kld_amcl() -> None:
-    p = parse({"algorithm": "kld-amcl", "pf_err": 0.02, "pf_z": 3.0, "min_particles": 100,
-               "recovery_alpha_slow": 0.001, "recovery_alpha_fast": 0.1, "resample_interval": 2,
-               "kld_amcl.bin_xy_m": 0.25})
+    p = parse(
+        {
+            "algorithm": "kld-amcl",
+            "pf_err": 0.02,
+            "pf_z": 3.0,
+            "min_particles": 100,
+            "recovery_alpha_slow": 0.001,
+            "recovery_alpha_fast": 0.1,
+            "resample_interval": 2,
+            "kld_amcl.bin_xy_m": 0.25,
+        }
+    )
     c = p.config
     assert isinstance(c, KLDAMCLConfig)
     assert (c.kld_err, c.kld_z, c.min_particles, c.alpha_slow, c.alpha_fast) == (
-        0.02, 3.0, 100, 0.001, 0.1)
+        0.02,
+        3.0,
+        100,
+        0.001,
+        0.1,
+    )
     assert c.resample_interval == 2 and c.bin_xy_m == 0.25
     # the node gates updates itself (Nav2's update_min_d/a), the filter updates when asked
     assert c.update_min_d == 0.0 and c.update_min_a == 0.0
 
 
 def test_settings_an_algorithm_lacks_are_warned_and_others_kept_aside() -> None:
-    p = parse({"recovery_alpha_fast": 0.1, "ceamcl.delta_per_m2": 40, "gmcl.cluster_cell_m": 0.3,
-               "save_pose_rate": 1.0})
+    p = parse(
+        {
+            "recovery_alpha_fast": 0.1,
+            "ceamcl.delta_per_m2": 40,
+            "gmcl.cluster_cell_m": 0.3,
+            "save_pose_rate": 1.0,
+        }
+    )
     assert p.config.delta_per_m2 == 40
     assert "recovery_alpha_fast: ceamcl has no such setting; ignored" in p.warnings
     assert "save_pose_rate: not implemented by this node; ignored" in p.warnings
@@ -65,8 +97,14 @@ def test_nav2_beam_skipping_reaches_ceamcls_and_is_warned_elsewhere() -> None:
     threshold set its test, and do_beamskip adds amcl's vote at beam_skip_threshold."""
     default = parse({}).config.beam_skip
     assert (default.distance_m, default.error_threshold, default.threshold) == (0.5, 0.9, None)
-    p = parse({"do_beamskip": True, "beam_skip_distance": 0.3, "beam_skip_threshold": 0.4,
-               "beam_skip_error_threshold": 0.8})
+    p = parse(
+        {
+            "do_beamskip": True,
+            "beam_skip_distance": 0.3,
+            "beam_skip_threshold": 0.4,
+            "beam_skip_error_threshold": 0.8,
+        }
+    )
     skip = p.config.beam_skip
     assert (skip.distance_m, skip.error_threshold, skip.threshold) == (0.3, 0.8, 0.4)
     assert p.warnings == ()
@@ -89,8 +127,12 @@ def test_yaml_file_sections_and_nesting(tmp_path: Path) -> None:
         "bt_navigator:\n  ros__parameters:\n    whatever: 1\n"
     )
     values = load_yaml(f)
-    assert values == {"use_sim_time": True, "alpha1": 0.3, "initial_pose.x": 1.5,
-                      "ceamcl.delta_per_m2": 20.0}
+    assert values == {
+        "use_sim_time": True,
+        "alpha1": 0.3,
+        "initial_pose.x": 1.5,
+        "ceamcl.delta_per_m2": 20.0,
+    }
     p = parse(values)
     assert p["initial_pose.x"] == 1.5 and p.config.delta_per_m2 == 20.0
     assert flatten({"a": {"b": {"c": 1}}}) == {"a.b.c": 1}
@@ -99,8 +141,11 @@ def test_yaml_file_sections_and_nesting(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize(
     ("text", "match"),
-    [("amcl: [1, 2]\n", "expected a mapping with ros__parameters"), ("- 1\n", "expected a mapping"),
-     ("a: [\n", "not a YAML file")],
+    [
+        ("amcl: [1, 2]\n", "expected a mapping with ros__parameters"),
+        ("- 1\n", "expected a mapping"),
+        ("a: [\n", "not a YAML file"),
+    ],
 )
 def test_bad_yaml_files_are_named(tmp_path: Path, text: str, match: str) -> None:
     f = tmp_path / "p.yaml"

@@ -65,13 +65,18 @@ def test_real_log_through_the_node_equals_offline(driver, tmp_path: Path) -> Non
         odom_msg = sent(m.transform_msg(ODOM, BASE, tuple(log.odometry[k]), stamp))
         tf.set_transform(ODOM, BASE, m.transform_pose2(odom_msg)[0], stamp, static=False)
         scan = m.scan_from_msg(
-            sent(scan_msg(log, k, LASER, stamp)), tf.lookup(BASE, LASER, stamp),
-            range_min=params["laser_min_range"], range_max=params["laser_max_range"],
+            sent(scan_msg(log, k, LASER, stamp)),
+            tf.lookup(BASE, LASER, stamp),
+            range_min=params["laser_min_range"],
+            range_max=params["laser_max_range"],
         )
         estimate = localiser.scan(tf.lookup(ODOM, BASE, stamp), scan)
         if estimate is not None:
-            offline[stamp] = (float(estimate.pose[0]), float(estimate.pose[1]),
-                              float(estimate.pose[2]))
+            offline[stamp] = (
+                float(estimate.pose[0]),
+                float(estimate.pose[1]),
+                float(estimate.pose[2]),
+            )
 
     with NodeProcess(tmp_path, args) as node:
         driver.configure_and_activate()
@@ -109,16 +114,32 @@ def test_play_feeds_the_node(driver, tmp_path: Path) -> None:
     # The textbook product: this test is about play feeding the node at 200x. With amcl's flat
     # scoring (kld-amcl's default) KLD-sampling keeps a wider cloud and more particles, and on a
     # busy 2-core machine the node published poses for only 38 of 488 scans at that pace.
-    params = {"algorithm": "kld-amcl", "set_initial_pose": "true", "initial_pose.x": first[0],
-              "initial_pose.y": first[1], "initial_pose.yaw": first[2],
-              "transform_tolerance": TOLERANCE_S, "kld_amcl.scoring": "product"}
+    params = {
+        "algorithm": "kld-amcl",
+        "set_initial_pose": "true",
+        "initial_pose.x": first[0],
+        "initial_pose.y": first[1],
+        "initial_pose.yaw": first[2],
+        "transform_tolerance": TOLERANCE_S,
+        "kld_amcl.scoring": "product",
+    }
     args = ["--ros-args", *[a for k, v in params.items() for a in ("-p", f"{k}:={v}")]]
-    play_args = [str(path), "--rate", "200", "--synthetic-odometry", "--quiet", "--wait", "10",
-                 "--delay", "3"]
+    play_args = [
+        str(path),
+        "--rate",
+        "200",
+        "--synthetic-odometry",
+        "--quiet",
+        "--wait",
+        "10",
+        "--delay",
+        "3",
+    ]
     with NodeProcess(tmp_path, args) as node:
         driver.configure_and_activate()
-        with NodeProcess(tmp_path, play_args, command=("-m", "ceamcl", "play"),
-                         name="play") as player:
+        with NodeProcess(
+            tmp_path, play_args, command=("-m", "ceamcl", "play"), name="play"
+        ) as player:
             assert driver.spin_until(lambda: not player.alive, 120.0), player.log()[-2000:]
             assert player.wait(1.0) == 0, player.log()[-2000:]
         driver.spin_until(lambda: False, 1.0)  # the last messages

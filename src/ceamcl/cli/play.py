@@ -39,7 +39,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "--wait", type=float, default=5.0, help="seconds to wait for a subscriber to scan"
     )
     p.add_argument(
-        "--delay", type=float, default=2.0,
+        "--delay",
+        type=float,
+        default=2.0,
         help="seconds between the map and the first scan (the localiser takes the map in)",
     )
     p.add_argument("--quiet", action="store_true")

@@ -84,7 +84,6 @@ def run_trials(
 def run_metadata(settings: ExperimentSettings, argv: Sequence[str] | None = None) -> dict[str, Any]:
     """How and where the numbers were made: command, seed, executor, machine, versions."""
 
-
     return {
         "command": " ".join(["ceamcl", *(argv if argv is not None else sys.argv[1:])]),
         "seed": settings.seed,

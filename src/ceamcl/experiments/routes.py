@@ -153,7 +153,7 @@ class Course:
 def load_grid(world: str | None, map_path: str | None) -> OccupancyGrid:
     """A built-in world or a ROS map, loaded once per process (trial workers reuse it)."""
     if map_path is not None:
-            return load_map(map_path)
+        return load_map(map_path)
     if world is None:
         raise ConfigError("course: neither a built-in world nor a map file was given")
     return get_world(world)

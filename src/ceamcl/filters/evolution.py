@@ -339,7 +339,14 @@ def evolve_groups(
     :func:`ceamcl.filters.particles.evolve`. Returns evaluations."""
     first, second = random_pairs(groups, rng)
     evals = crossover(
-        poses, loglik, first, second, config.p_crossover, evaluate, rng, config.selection,
+        poses,
+        loglik,
+        first,
+        second,
+        config.p_crossover,
+        evaluate,
+        rng,
+        config.selection,
         best_seen,
     )
     everyone = np.concatenate(groups).astype(np.intp) if groups else np.zeros(0, np.intp)
@@ -347,7 +354,14 @@ def evolve_groups(
         [config.mutation_sigma_xy_m, config.mutation_sigma_xy_m, config.mutation_sigma_theta_rad]
     )
     evals += mutation(
-        poses, loglik, everyone, config.p_mutation, sigma, evaluate, rng, config.selection,
+        poses,
+        loglik,
+        everyone,
+        config.p_mutation,
+        sigma,
+        evaluate,
+        rng,
+        config.selection,
         best_seen,
     )
     return evals

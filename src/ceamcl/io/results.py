@@ -71,7 +71,16 @@ def write_json(path: str | os.PathLike[str], data: Mapping[str, Any]) -> Path:
 
 
 SPECIES_FIELDS = (
-    "n", "dn", "fitness", "weight", "area_m2", "resources", "capacity", "x", "y", "theta"
+    "n",
+    "dn",
+    "fitness",
+    "weight",
+    "area_m2",
+    "resources",
+    "capacity",
+    "x",
+    "y",
+    "theta",
 )
 
 

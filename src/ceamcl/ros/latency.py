@@ -61,9 +61,15 @@ def measure_latency(
     env = dict(os.environ)
     env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    params = {"algorithm": algorithm, "max_particles": n_particles,
-              "min_particles": min(500, n_particles), "seed": seed,
-              "update_min_d": 0.0, "update_min_a": 0.0, "base_frame_id": "base_footprint"}
+    params = {
+        "algorithm": algorithm,
+        "max_particles": n_particles,
+        "min_particles": min(500, n_particles),
+        "seed": seed,
+        "update_min_d": 0.0,
+        "update_min_a": 0.0,
+        "base_frame_id": "base_footprint",
+    }
     args = [a for k, v in params.items() for a in ("-p", f"{k}:={v}")]
     scenario = paper_scenario(0, "symmetric-hall")
     log = scenario.simulate(np.random.default_rng(seed))
@@ -72,7 +78,9 @@ def measure_latency(
     node_log = tempfile.TemporaryFile()  # the node's log (a pipe could fill and stall it)
     proc = subprocess.Popen(
         [sys.executable, "-m", "ceamcl.ros", "--autostart", "--ros-args", *args],
-        stdout=node_log, stderr=subprocess.STDOUT, env=env,
+        stdout=node_log,
+        stderr=subprocess.STDOUT,
+        env=env,
     )
     context = rclpy.Context()
     rclpy.init(context=context)
@@ -82,7 +90,8 @@ def measure_latency(
     received: dict[float, float] = {}
     try:
         node.create_subscription(
-            PoseWithCovarianceStamped, "amcl_pose",
+            PoseWithCovarianceStamped,
+            "amcl_pose",
             lambda msg: received.__setitem__(m.seconds(msg.header.stamp), time.perf_counter()),
             LATCHED,
         )
@@ -103,23 +112,24 @@ def measure_latency(
         if not spin_until(lambda: scan_pub.get_subscription_count() > 0, 60.0):
             raise CeamclError("the node did not subscribe to scan within 60 s")
         t0 = time.time()
-        static_pub.publish(TFMessage(
-            transforms=[m.transform_msg("base_footprint", "laser", log.laser.pose, t0)]
-        ))
+        static_pub.publish(
+            TFMessage(transforms=[m.transform_msg("base_footprint", "laser", log.laser.pose, t0)])
+        )
         map_pub.publish(grid_msg(scenario.grid(), "map", t0))
         latencies: list[float] = []
         for k in range(n):
             stamp = t0 + float(log.times[k])
             odom = pose2(log.odometry[k])
-            tf_pub.publish(TFMessage(
-                transforms=[m.transform_msg("odom", "base_footprint", odom, stamp)]
-            ))
+            tf_pub.publish(
+                TFMessage(transforms=[m.transform_msg("odom", "base_footprint", odom, stamp)])
+            )
             key = m.seconds(m.time_msg(stamp))
             moved = k == 0 or not np.array_equal(log.odometry[k], log.odometry[k - 1])
             # the first scan may wait for the map: resend it until the node answers
             for _ in range(30 if k == 0 else 1):
                 sent = time.perf_counter()
                 scan_pub.publish(simulated_scan_msg(log.ranges[k], log.laser, stamp))
+
                 def answered(key: float = key) -> bool:
                     return key in received
 

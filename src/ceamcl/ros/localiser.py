@@ -58,16 +58,24 @@ def sensor_model(params: NodeParams, grid: OccupancyGrid) -> SensorModel:
         return BeamModel(
             grid,
             BeamModelConfig(
-                z_hit=p["z_hit"], z_short=p["z_short"], z_max=p["z_max"], z_rand=p["z_rand"],
-                sigma_hit_m=p["sigma_hit"], lambda_short=p["lambda_short"],
-                max_beams=p["max_beams"], temper=params.laser_temper,
+                z_hit=p["z_hit"],
+                z_short=p["z_short"],
+                z_max=p["z_max"],
+                z_rand=p["z_rand"],
+                sigma_hit_m=p["sigma_hit"],
+                lambda_short=p["lambda_short"],
+                max_beams=p["max_beams"],
+                temper=params.laser_temper,
             ),
         )
     return LikelihoodFieldModel(
         grid,
         LikelihoodFieldConfig(
-            z_hit=p["z_hit"], z_rand=p["z_rand"], sigma_hit_m=p["sigma_hit"],
-            max_occ_dist_m=p["laser_likelihood_max_dist"], max_beams=p["max_beams"],
+            z_hit=p["z_hit"],
+            z_rand=p["z_rand"],
+            sigma_hit_m=p["sigma_hit"],
+            max_occ_dist_m=p["laser_likelihood_max_dist"],
+            max_beams=p["max_beams"],
             temper=params.laser_temper,
         ),
     )
@@ -162,6 +170,8 @@ class Localiser:
         if not (np.all(np.isfinite(estimate.pose)) and np.all(np.isfinite(estimate.covariance))):
             raise CeamclError("the filter gave a non-finite pose; nothing published")
         self.last_estimate = (
-            float(estimate.pose[0]), float(estimate.pose[1]), float(estimate.pose[2])
+            float(estimate.pose[0]),
+            float(estimate.pose[1]),
+            float(estimate.pose[2]),
         )
         return estimate

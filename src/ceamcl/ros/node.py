@@ -140,9 +140,7 @@ class LocalisationNode(LifecycleNode):
             PoseArray, "particle_cloud", qos_profile_sensor_data
         )
         self.hyp_pub = self.create_lifecycle_publisher(PoseArray, "~/hypotheses", 10)
-        self.marker_pub = self.create_lifecycle_publisher(
-            MarkerArray, "~/hypotheses/markers", 10
-        )
+        self.marker_pub = self.create_lifecycle_publisher(MarkerArray, "~/hypotheses/markers", 10)
         self.status_pub = self.create_lifecycle_publisher(
             DiagnosticArray, "~/hypotheses/status", 10
         )
@@ -156,19 +154,21 @@ class LocalisationNode(LifecycleNode):
                 TFMessage, "/tf_static", self._guard("tf_static", self._on_tf_static), latched
             ),
             self.create_subscription(
-                LaserScanMsg, params["scan_topic"], self._guard("scan", self._on_scan),
+                LaserScanMsg,
+                params["scan_topic"],
+                self._guard("scan", self._on_scan),
                 qos_profile_sensor_data,
             ),
             self.create_subscription(
                 OccupancyGridMsg, params["map_topic"], self._guard("map", self._on_map), latched
             ),
             self.create_subscription(
-                PoseWithCovarianceStamped, "initialpose",
-                self._guard("initialpose", self._on_initial_pose), 10,
+                PoseWithCovarianceStamped,
+                "initialpose",
+                self._guard("initialpose", self._on_initial_pose),
+                10,
             ),
-            self.create_service(
-                Empty, "reinitialize_global_localization", self._on_reinitialise
-            ),
+            self.create_service(Empty, "reinitialize_global_localization", self._on_reinitialise),
             self.create_service(Empty, "request_nomotion_update", self._on_nomotion),
         ]
 
@@ -335,8 +335,11 @@ class LocalisationNode(LifecycleNode):
         except TransformError as exc:
             return str(exc)
         scan = m.scan_from_msg(
-            msg, mount, upside_down=frame in self.upside_down,
-            range_min=p["laser_min_range"], range_max=p["laser_max_range"],
+            msg,
+            mount,
+            upside_down=frame in self.upside_down,
+            range_min=p["laser_min_range"],
+            range_max=p["laser_max_range"],
         )
         assert self.localiser is not None
         estimate = self.localiser.scan(odom, scan)
@@ -347,7 +350,9 @@ class LocalisationNode(LifecycleNode):
                 TFMessage(
                     transforms=[
                         m.transform_msg(
-                            p["global_frame_id"], p["odom_frame_id"], self.map_T_odom,
+                            p["global_frame_id"],
+                            p["odom_frame_id"],
+                            self.map_T_odom,
                             stamp + p["transform_tolerance"],
                         )
                     ]

@@ -77,8 +77,14 @@ NAV2_DEFAULTS: dict[str, Any] = {
 OWN_DEFAULTS: dict[str, Any] = {"algorithm": "ceamcl", "seed": 0}
 #: Parameters every ROS node or Nav2 lifecycle node may be given; accepted and not used here.
 IGNORED = frozenset(
-    {"use_sim_time", "bond_heartbeat_period", "bond_disable_heartbeat_timeout",
-     "introspection_mode", "start_type_description_service", "qos_overrides"}
+    {
+        "use_sim_time",
+        "bond_heartbeat_period",
+        "bond_disable_heartbeat_timeout",
+        "introspection_mode",
+        "start_type_description_service",
+        "qos_overrides",
+    }
 )
 LASER_MODELS = {"likelihood_field": "likelihood-field", "beam": "beam"}
 DIFFERENTIAL = ("nav2_amcl::DifferentialMotionModel", "differential")
@@ -184,9 +190,20 @@ def _check_ranges(p: dict[str, Any]) -> list[str]:
         if not ok:
             errors.append(f"{name}: expected {what}, got {p[name]!r}")
 
-    for name in ("alpha1", "alpha2", "alpha3", "alpha4", "alpha5", "update_min_d",
-                 "update_min_a", "transform_tolerance", "laser_likelihood_max_dist",
-                 "recovery_alpha_fast", "recovery_alpha_slow", "lambda_short"):
+    for name in (
+        "alpha1",
+        "alpha2",
+        "alpha3",
+        "alpha4",
+        "alpha5",
+        "update_min_d",
+        "update_min_a",
+        "transform_tolerance",
+        "laser_likelihood_max_dist",
+        "recovery_alpha_fast",
+        "recovery_alpha_slow",
+        "lambda_short",
+    ):
         need(p[name] >= 0, name, "a non-negative number")
     for name in ("z_hit", "z_rand", "z_short", "z_max", "pf_err"):
         need(0 <= p[name] <= 1, name, "a number in [0, 1]")
@@ -198,12 +215,21 @@ def _check_ranges(p: dict[str, Any]) -> list[str]:
     need(p["max_beams"] >= 2, "max_beams", "at least 2")
     need(p["resample_interval"] >= 1, "resample_interval", "at least 1")
     need(p["min_particles"] >= 1, "min_particles", "a positive count")
-    need(p["max_particles"] >= max(1, p["min_particles"]), "max_particles",
-         f"a count >= min_particles ({p['min_particles']})")
-    need(p["laser_model_type"] in LASER_MODELS, "laser_model_type",
-         f"one of {', '.join(LASER_MODELS)}")
-    need(p["robot_model_type"] in DIFFERENTIAL, "robot_model_type",
-         "nav2_amcl::DifferentialMotionModel (the omni model is not implemented)")
+    need(
+        p["max_particles"] >= max(1, p["min_particles"]),
+        "max_particles",
+        f"a count >= min_particles ({p['min_particles']})",
+    )
+    need(
+        p["laser_model_type"] in LASER_MODELS,
+        "laser_model_type",
+        f"one of {', '.join(LASER_MODELS)}",
+    )
+    need(
+        p["robot_model_type"] in DIFFERENTIAL,
+        "robot_model_type",
+        "nav2_amcl::DifferentialMotionModel (the omni model is not implemented)",
+    )
     for name in ("global_frame_id", "odom_frame_id", "base_frame_id"):
         need("/" not in p[name].strip("/") and " " not in p[name], name, "a TF frame id")
     return errors

@@ -108,9 +108,11 @@ def play(
         mounts = log.laser_mount
         fixed_mount = bool(np.all(mounts == mounts[0]))
         if fixed_mount:
-            static_pub.publish(TFMessage(transforms=[
-                m.transform_msg(frames.base, frames.laser, pose2(mounts[0]), start)
-            ]))
+            static_pub.publish(
+                TFMessage(
+                    transforms=[m.transform_msg(frames.base, frames.laser, pose2(mounts[0]), start)]
+                )
+            )
         deadline = time.monotonic() + wait_s
         while scan_pub.get_subscription_count() == 0 and time.monotonic() < deadline:
             time.sleep(0.05)
@@ -122,20 +124,20 @@ def play(
             if pause > 0:
                 time.sleep(pause)
             stamp = due
-            transforms = [
-                m.transform_msg(frames.odom, frames.base, pose2(log.odometry[k]), stamp)
-            ]
+            transforms = [m.transform_msg(frames.odom, frames.base, pose2(log.odometry[k]), stamp)]
             if not fixed_mount:
-                transforms.append(m.transform_msg(
-                    frames.base, frames.laser, pose2(mounts[k]), stamp
-                ))
+                transforms.append(
+                    m.transform_msg(frames.base, frames.laser, pose2(mounts[k]), stamp)
+                )
             tf_pub.publish(TFMessage(transforms=transforms))
             scan_pub.publish(scan_msg(log, k, frames.laser, stamp))
             if truth is not None:
-                truth_pub.publish(PoseStamped(
-                    header=Header(stamp=m.time_msg(stamp), frame_id=frames.map),
-                    pose=m.pose_msg(truth[k]),
-                ))
+                truth_pub.publish(
+                    PoseStamped(
+                        header=Header(stamp=m.time_msg(stamp), frame_id=frames.map),
+                        pose=m.pose_msg(truth[k]),
+                    )
+                )
             if on_scan is not None:
                 on_scan(k)
         # a reliable message still in flight is lost when the node goes: let the last poses
