@@ -27,6 +27,7 @@ from ceamcl.experiments.tuning import (
     write_tuning,
 )
 from ceamcl.filters import registry
+from ceamcl.filters.headings import HeadingPrior
 from ceamcl.maps.worlds import get_world
 
 DOCS_CSV = Path(__file__).resolve().parents[2] / "docs" / "tuning.csv"
@@ -68,11 +69,16 @@ def test_grid_candidates_and_amcls_scoring_takes_no_temper() -> None:
     grid = TuningGrid()
     mcl = candidates(["mcl"], grid)
     kld = candidates(["kld-amcl"], grid)
-    assert len(mcl) == 2 * 4 * 3 * 3 and len(kld) == 2 * 3 * 3
+    # headings from the scan only where there are test poses (two budgets of three)
+    assert len(mcl) == 2 * 4 * 3 * (3 + 2) and len(kld) == 2 * 3 * (3 + 2)
     assert {c.temper for c in kld} == {1.0}
     assert all("temper" not in c.sensor_settings() for c in kld)
+    assert not any(c.init_headings and c.init_test_poses == 0 for c in mcl)
     c = Candidate("kld-amcl", 30, 1.0, 5000, 100_000)
     assert c.config().max_particles == 5000 and c.config().init_test_poses == 100_000
+    assert c.config().init_headings is None
+    guided = Candidate("mcl", 30, 0.1, 5000, 100_000, init_headings=True).config()
+    assert guided.init_headings == HeadingPrior() and guided.init_test_poses == 100_000
     with pytest.raises(ConfigError, match="tunes mcl, gmcl, kld-amcl"):
         candidates(["ceamcl"], grid)
 
@@ -88,10 +94,16 @@ def test_a_small_sweep_runs_table1s_trials_and_writes_every_row(tmp_path: Path) 
         max_time_s=2.0,
     )
     grid = TuningGrid(
-        max_beams=(30,), temper=(1.0, 0.1), n_particles=(200,), init_test_poses=(0, 5000)
+        max_beams=(30,),
+        temper=(1.0, 0.1),
+        n_particles=(200,),
+        init_test_poses=(0, 5000),
+        init_headings=(False, True),
     )
     result = run_tuning(settings, grid, quiet=True)
-    assert len(result.rows) == 2 * 2 + 2  # kld-amcl: temper 1 only
+    # (0 | 5000 uniform | 5000 guided) for each temper; kld-amcl: temper 1 only
+    assert len(result.rows) == 2 * 3 + 3
+    assert sum(r.init_headings for r in result.rows) == 3
     for r in result.rows:
         assert r.runs == 1
         # the initialisation's evaluations count: N_test, or N uniform particles, then the run
@@ -142,6 +154,14 @@ def test_cli_tune(tmp_path: Path) -> None:
     assert [r.temper for r in read_tuning_csv(partial)] == [0.1, 0.03]
     assert len(read_tuning_csv(out / "tuning.csv")) == 2
     assert main(["experiment", "tune", "--algorithms", "ceamcl", "--out", str(out)]) == 2
+    # headings from the scan: a second configuration where there are test poses
+    guided = ["--init-test-poses", "1000", "--init-headings", "uniform,scan"]
+    assert main([*args, *guided, "--out", str(tmp_path / "g")]) == 0
+    back = read_tuning_csv(tmp_path / "g" / "tuning.csv")
+    assert sorted(r.init_headings for r in back) == [False, True]
+    with pytest.raises(SystemExit) as exc:
+        main([*args, "--init-headings", "sideways", "--out", str(tmp_path / "h")])
+    assert exc.value.code == 2
 
 
 # ---------------------------------------------------------------------- the presets

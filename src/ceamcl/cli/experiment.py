@@ -253,7 +253,17 @@ def _kidnapped_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def tuning_rich(result: tuning.TuningResult) -> Table:
-    header = ("algorithm", "beams", "temper", "N", "N_test", "kept all", "success", "conv. [s]")
+    header = (
+        "algorithm",
+        "beams",
+        "temper",
+        "N",
+        "N_test",
+        "headings",
+        "kept all",
+        "success",
+        "conv. [s]",
+    )
     rows = [
         (
             f"{tuning.PRESETS[r.algorithm]} = {r.algorithm}",
@@ -261,6 +271,7 @@ def tuning_rich(result: tuning.TuningResult) -> Table:
             f"{r.temper:g}",
             str(r.n_particles),
             f"{r.init_test_poses:,}",
+            "scan" if r.init_headings else "uniform",
             pct(r.kept_all_rate),
             pct(r.success_rate),
             f"{fmt(r.converged_s)} {r.converged_runs}/{r.runs}",
@@ -311,6 +322,24 @@ def _tuning_arguments(p: argparse.ArgumentParser) -> None:
         metavar="M1,M2",
         help=f"initialisation budgets (default {listed(g.init_test_poses)})",
     )
+    p.add_argument(
+        "--init-headings",
+        type=_headings,
+        default=None,
+        metavar="H1,H2",
+        help="the test poses' headings: uniform, scan (drawn from the scan's geometry, as "
+        "CEAMCL's) or both (default uniform,scan; scan only where there are test poses)",
+    )
+
+
+def _headings(text: str) -> list[bool]:
+    names = _names(text)
+    bad = [t for t in names if t not in ("uniform", "scan")]
+    if bad or not names:
+        raise argparse.ArgumentTypeError(
+            f"expected a comma-separated list of uniform and scan, got {text!r}"
+        )
+    return [t == "scan" for t in names]
 
 
 def _tuning_grid(args: argparse.Namespace) -> tuning.TuningGrid:
@@ -322,6 +351,7 @@ def _tuning_grid(args: argparse.Namespace) -> tuning.TuningGrid:
         init_test_poses=tuple(
             args.init_test_poses if args.init_test_poses is not None else g.init_test_poses
         ),
+        init_headings=tuple(args.init_headings or g.init_headings),
     )
 
 

@@ -45,6 +45,7 @@ from ceamcl.experiments.common import (
 from ceamcl.experiments.executors import ProgressCallback, map_trials, open_executor
 from ceamcl.experiments.trials import Trial, localise_trial, record_trial
 from ceamcl.filters import registry
+from ceamcl.filters.headings import HeadingPrior
 from ceamcl.io.results import ensure_output_dir
 
 #: The baselines the sweep tunes.
@@ -64,9 +65,10 @@ class TuningGrid:
     temper: tuple[float, ...] = (1.0, 0.3, 0.1, 0.03)
     n_particles: tuple[int, ...] = (1000, 2000, 5000)
     init_test_poses: tuple[int, ...] = (0, 100_000, 1_000_000)
+    init_headings: tuple[bool, ...] = (False, True)
 
     def __post_init__(self) -> None:
-        for name in ("max_beams", "temper", "n_particles", "init_test_poses"):
+        for name in ("max_beams", "temper", "n_particles", "init_test_poses", "init_headings"):
             if not getattr(self, name):
                 raise ConfigError(f"{name}: expected at least one value to sweep")
 
@@ -83,14 +85,17 @@ class Candidate:
     temper: float
     n_particles: int
     init_test_poses: int
+    init_headings: bool = False
 
     def config(self) -> Any:
-        """The algorithm's config: its default with this particle budget and start."""
+        """The algorithm's config: its default with this particle budget and start (the test
+        poses' headings from the scan's geometry with ``init_headings``, as CEAMCL's)."""
         spec = registry.get(self.algorithm)
         cfg = spec.default()
         if spec.with_particles is not None:
             cfg = spec.with_particles(cfg, self.n_particles)
-        return replace(cfg, init_test_poses=self.init_test_poses)
+        cfg = replace(cfg, init_test_poses=self.init_test_poses)
+        return replace(cfg, init_headings=HeadingPrior()) if self.init_headings else cfg
 
     def sensor_settings(self) -> dict[str, Any]:
         """The sensor settings (temper only where it applies: not to amcl's scoring)."""
@@ -102,7 +107,7 @@ class Candidate:
 
 def candidates(algorithms: Iterable[str], grid: TuningGrid) -> list[Candidate]:
     """Every configuration of the grid for each algorithm (KLD-AMCL with ``scoring="ros"``,
-    its default, takes temper 1 only)."""
+    its default, takes temper 1 only; headings from the scan only with test poses)."""
     out = []
     for alg in algorithms:
         if alg not in BASELINES:
@@ -115,7 +120,10 @@ def candidates(algorithms: Iterable[str], grid: TuningGrid) -> list[Candidate]:
             for temper in tempers:
                 for n in grid.n_particles:
                     for n_test in grid.init_test_poses:
-                        out.append(Candidate(alg, beams, temper, n, n_test))
+                        for guided in grid.init_headings:
+                            if guided and n_test == 0:
+                                continue  # uniform particles have no test poses to guide
+                            out.append(Candidate(alg, beams, temper, n, n_test, guided))
     return out
 
 
@@ -154,11 +162,17 @@ class TuningRow:
     converged_runs: int
     converged_s: float | None
     likelihood_evaluations: float
+    init_headings: bool = False
 
     @property
     def candidate(self) -> Candidate:
         return Candidate(
-            self.algorithm, self.max_beams, self.temper, self.n_particles, self.init_test_poses
+            self.algorithm,
+            self.max_beams,
+            self.temper,
+            self.n_particles,
+            self.init_test_poses,
+            self.init_headings,
         )
 
 
@@ -274,6 +288,7 @@ def summarise(c: Candidate, outcomes: Sequence[TuningOutcome]) -> TuningRow:
         converged_runs=len(conv),
         converged_s=float(np.mean(conv)) if conv else None,
         likelihood_evaluations=float(np.mean([o.likelihood_evaluations for o in outcomes])),
+        init_headings=c.init_headings,
     )
 
 
@@ -285,6 +300,7 @@ def tuning_markdown(result: TuningResult, meta: dict[str, Any], top: int = 5) ->
         "temper",
         "N",
         "init_test_poses",
+        "headings",
         "kept all",
         "success",
         "converged (s)",
@@ -298,6 +314,7 @@ def tuning_markdown(result: TuningResult, meta: dict[str, Any], top: int = 5) ->
             f"{r.temper:g}",
             str(r.n_particles),
             f"{r.init_test_poses:,}",
+            "scan" if r.init_headings else "uniform",
             pct(r.kept_all_rate),
             pct(r.success_rate),
             f"{fmt(r.converged_s)} ({r.converged_runs}/{r.runs})",
@@ -353,6 +370,13 @@ def append_row(path: Path, row: TuningRow) -> None:
         writer.writerow({k: "" if v is None else v for k, v in asdict(row).items()})
 
 
+def _flag(text: str) -> bool:
+    """A ``tuning.csv`` boolean (``True`` / ``False``; absent in sweeps before the column)."""
+    if text not in ("True", "False"):
+        raise ValueError(f"init_headings: expected True or False, got {text!r}")
+    return text == "True"
+
+
 def read_tuning_csv(path: str | os.PathLike[str]) -> list[TuningRow]:
     """The rows of a ``tuning.csv`` written by :func:`write_tuning` (or :func:`append_row`)."""
     rows = []
@@ -372,6 +396,7 @@ def read_tuning_csv(path: str | os.PathLike[str]) -> list[TuningRow]:
                         converged_runs=int(r["converged_runs"]),
                         converged_s=float(r["converged_s"]) if r["converged_s"] else None,
                         likelihood_evaluations=float(r["likelihood_evaluations"]),
+                        init_headings=_flag(r.get("init_headings") or "False"),
                     )
                 )
             except (KeyError, ValueError) as exc:
