@@ -63,6 +63,10 @@ def test_score_prefers_kept_all_then_success_then_time_then_fewer_evaluations() 
     ranked = sorted(rows, key=score_key)
     assert ranked == [rows[4], rows[3], rows[2], rows[1], rows[0]]
     assert best_rows(rows) == {"mcl": rows[4]}
+    # a rate read back from tuning.csv (six digits) ties the same rate computed
+    read = row(kept_all_rate=0.833333, success_rate=1.0)
+    computed = row(kept_all_rate=10 / 12, success_rate=11 / 12)
+    assert best_rows([computed, read]) == {"mcl": read}
 
 
 def test_grid_candidates_and_amcls_scoring_takes_no_temper() -> None:

@@ -461,9 +461,9 @@ def render_markdown(r: dict[str, Any]) -> str:
         "",
         "First call on a fresh grid (its distance field and likelihood table built inside), then "
         f"the median of {s['init_repeats']} warm repeats. CEAMCL: 10^6 test poses into species "
-        "(section 3.1); `mcl-tuned`: 10^6 uniform poses weighed by the first scan, resampled to "
-        "5,000. `nav2-amcl`: not comparable (its Python wheel has no uniform global "
-        "initialisation).",
+        "(section 3.1); `mcl-tuned`: 10^6 test poses (headings from the scan) weighed by the "
+        "first scan, resampled to 5,000. `nav2-amcl`: not comparable (its Python wheel has no "
+        "uniform global initialisation).",
         "",
     ]
     rows = [

@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 
 from ceamcl.filters.base import Algorithm, StepRecord
 from ceamcl.filters.evolution import EvolutionConfig
+from ceamcl.filters.headings import HeadingPrior
 from ceamcl.filters.mcl import MCL, MCLConfig
 from ceamcl.filters.particles import evolve, importance_weights
 from ceamcl.sensors.scan import PreparedScan
@@ -66,9 +67,11 @@ TUNED_ALGORITHM = Algorithm(
     "gmcl-tuned",
     GMCLConfig,
     GMCL,
-    default_config=lambda: GMCLConfig(n_particles=5000, init_test_poses=1_000_000),
+    default_config=lambda: GMCLConfig(
+        n_particles=1000, init_test_poses=1_000_000, init_headings=HeadingPrior()
+    ),
     with_particles=lambda cfg, n: replace(cfg, n_particles=n),
-    sensor_settings={"max_beams": 30, "temper": 0.1},
+    sensor_settings={"max_beams": 30, "temper": 0.03},
     summary="GMCL with the tuning sweep's best particles, start and sensor settings "
     "(docs/tuning.md)",
 )
