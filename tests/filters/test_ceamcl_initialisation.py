@@ -3,6 +3,7 @@ the first scan of the paper's run produces in the symmetric hall."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -355,3 +356,33 @@ def test_polish_moves_initial_samples_uphill_and_nearer_the_pose() -> None:
     none = CEAMCLConfig(init_polish_rounds=0).initialisation
     same, ll_same, zero = polish(poses, ll0, sensor, prepared, none, rng)
     assert zero == 0 and same is poses and ll_same is ll0
+
+
+def test_a_scan_without_usable_beams_spreads_the_species_without_a_heading_density(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Every reading at the laser's maximum range (no beam the sensor model uses): the
+    species spread uniformly over free space, so the heading density is not worked out
+    for nothing; it is where the scan has beams."""
+    from ceamcl.filters.ceamcl import filter as ceamcl_filter
+
+    seen: list[object] = []
+    real = ceamcl_filter.heading_proposal
+
+    def recording(grid: Any, scan: Any, settings: Any) -> Any:
+        seen.append(scan)
+        return real(grid, scan, settings)
+
+    monkeypatch.setattr(ceamcl_filter, "heading_proposal", recording)
+    sc = paper_scenario()
+    grid = sc.grid()
+    f = make_filter("ceamcl", grid, np.random.default_rng(0))
+    assert isinstance(f, CEAMCL)
+    log = Simulator(grid).run(np.array([[3.75, 3.75, np.pi / 2]]), np.random.default_rng(1))
+    scan = log.scan(0)
+    blind = replace(scan, ranges=np.full_like(scan.ranges, scan.range_max))
+    f.initialise_global(blind)
+    assert seen == [None]
+    assert f.particle_set.n > 0 and np.all(np.isfinite(f.particle_set.poses))
+    f.initialise_global(scan)
+    assert seen[-1] is scan

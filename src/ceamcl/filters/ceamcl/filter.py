@@ -218,7 +218,10 @@ class CEAMCL:
         self._read = None
         self._peak_fitness = {}
         settings = self.config.initialisation if settings is None else settings
-        headings = heading_proposal(self.grid, self.last_scan, settings)
+        # a scan without usable beams spreads the species uniformly: no heading density to draw
+        headings = heading_proposal(
+            self.grid, self.last_scan if prepared is not None else None, settings
+        )
         init, evaluations = initial_species(
             self.grid, self.sensor, prepared, settings, self.rng, headings
         )
