@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -120,6 +121,26 @@ def test_a_small_sweep_runs_table1s_trials_and_writes_every_row(tmp_path: Path) 
         assert a.kept_all_rate == b.kept_all_rate and a.runs == b.runs
         assert a.likelihood_evaluations == pytest.approx(b.likelihood_evaluations, rel=1e-5)
     assert "Chosen presets" in (tmp_path / "tuning.md").read_text()
+
+
+def test_a_tuning_csv_row_with_a_bad_field_is_refused_naming_its_line(tmp_path: Path) -> None:
+    good = tmp_path / "good.csv"
+    with good.open("w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=[*asdict(row()).keys()])
+        w.writeheader()
+        w.writerow(asdict(row(init_headings=True)))
+        w.writerow(asdict(row()))
+    assert [r.init_headings for r in read_tuning_csv(good)] == [True, False]
+    text = good.read_text().splitlines()
+    bad = tmp_path / "bad.csv"
+    bad.write_text("\n".join([text[0], text[1], text[2].replace("False", "maybe")]) + "\n")
+    with pytest.raises(ConfigError, match=r"bad\.csv:3: .*init_headings"):
+        read_tuning_csv(bad)
+    # a sweep written before the column reads as uniform headings
+    old = tmp_path / "old.csv"
+    header = text[0].replace(",init_headings", "")
+    old.write_text(header + "\n" + text[2].rsplit(",", 1)[0] + "\n")
+    assert [r.init_headings for r in read_tuning_csv(old)] == [False]
 
 
 def test_make_filter_applies_sensor_settings_to_either_model() -> None:
