@@ -94,8 +94,8 @@ class Candidate:
         cfg = spec.default()
         if spec.with_particles is not None:
             cfg = spec.with_particles(cfg, self.n_particles)
-        cfg = replace(cfg, init_test_poses=self.init_test_poses)
-        return replace(cfg, init_headings=HeadingPrior()) if self.init_headings else cfg
+        headings = HeadingPrior() if self.init_headings else cfg.init_headings
+        return replace(cfg, init_test_poses=self.init_test_poses, init_headings=headings)
 
     def sensor_settings(self) -> dict[str, Any]:
         """The sensor settings (temper only where it applies: not to amcl's scoring)."""

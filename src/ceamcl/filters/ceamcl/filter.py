@@ -966,7 +966,6 @@ class CEAMCL:
         # read; read here, at every update, so that what the filter reports next (the estimate
         # while lost, departure 17) does not depend on whether a caller asked for the state.
         # The read is kept: a caller's state() and hypotheses() reuse it.
-        self._species_read()
         self._species_state()
         comp = self.competition
         ranked, shares = self._ranked_shares()
@@ -1284,13 +1283,14 @@ class CEAMCL:
         """:meth:`state` as the species read it."""
         if not self.stats or self.t == 0:
             return initialising()
-        if self._read is not None and (
-            hypotheses is None or _same_hypotheses(hypotheses, self._read[0])
+        if hypotheses is None or (
+            self._read is not None and _same_hypotheses(hypotheses, self._read[0])
         ):
-            read_hyps, read = self._read
+            read_hyps, read = self._species_read()
             return self.map_agreement.apply(read, self.t, self.last_scan, read_hyps)
-        hyps = self.hypotheses() if hypotheses is None else hypotheses
-        return self.map_agreement.apply(self._read_state(hyps), self.t, self.last_scan, hyps)
+        return self.map_agreement.apply(
+            self._read_state(hypotheses), self.t, self.last_scan, hypotheses
+        )
 
     def _read_state(self, hyps: Sequence[Hypothesis]) -> LocalisationState:
         """The state from the species alone, as the recovery reads it."""
