@@ -50,7 +50,7 @@ from ceamcl.experiments.metrics import (
 )
 from ceamcl.filters.base import LocalisationFilter
 from ceamcl.filters.policies import Policy, on_motion
-from ceamcl.filters.registry import make_filter, with_config
+from ceamcl.filters.registry import DEFAULT_SENSOR, check_sensor, make_filter, with_config
 from ceamcl.filters.state import summarise_states
 from ceamcl.io.logs import DEFAULT_SYNTHETIC_NOISE, open_log, poses_look_corrected
 from ceamcl.io.recorded import RecordedLog
@@ -277,19 +277,24 @@ def replay_log(
     on_frame: Callable[[int, int], None] | None = None,
     pace: UpdatePace | None = None,
     truth_doubt: TruthDoubt | None = None,
+    sensor: str = DEFAULT_SENSOR,
 ) -> ReplayOutcome:
     """Global localisation over the whole log; with ``out``, the files of ``ceamcl run``.
 
     ``outputs`` (:class:`ceamcl.outputs.OutputOptions`) adds ``run.gif``/``run.mp4``,
     ``report.html`` and an MCAP file (with the log's scans, and its truth where it has one);
     the particles are kept every ``outputs.stride`` steps only when one of them is asked for.
-    ``on_frame(i, total)`` reports the animation's progress.
+    ``on_frame(i, total)`` reports the animation's progress. ``sensor`` names the sensor
+    model (:data:`ceamcl.filters.registry.SENSOR_MODELS`; the Nav2 peer keeps the wheel's).
     """
+    check_sensor(sensor)
     out_dir = ensure_output_dir(out) if out is not None else None
     log = prepared.log
     if on_start is not None:
         on_start(len(log))
-    f = make_paced_filter(algorithm, grid, filter_rng(prepared.seed, 0, algorithm), pace)
+    f = make_paced_filter(
+        algorithm, grid, filter_rng(prepared.seed, 0, algorithm), pace, sensor=sensor
+    )
     snapshot_every = outputs.snapshot_every if outputs is not None else 0
     result = run_filter(
         f,
@@ -298,7 +303,7 @@ def replay_log(
         snapshot_every=snapshot_every,
         update_when=None if pace is None else pace.policy(),
     )
-    summary = run_summary(result, prepared, grid, map_source, pace, truth_doubt)
+    summary = run_summary(result, prepared, grid, map_source, pace, truth_doubt, sensor)
     files = write_run_files(
         result,
         grid,
@@ -338,9 +343,11 @@ def run_summary(
     map_source: str,
     pace: UpdatePace | None = None,
     truth_doubt: TruthDoubt | None = None,
+    sensor: str = DEFAULT_SENSOR,
 ) -> dict[str, Any]:
     """The fields of ``summary.json`` of ``ceamcl run``; ``truth_doubt``: the truth check of
-    the log on ``grid`` when the caller has it (else it is made here)."""
+    the log on ``grid`` when the caller has it (else it is made here); ``sensor``: the sensor
+    model the filter weighed with."""
     log = prepared.log
     step_ms = result.step_ms
     summary: dict[str, Any] = {
@@ -366,6 +373,7 @@ def run_summary(
         "median_step_ms": float(np.median(step_ms)),
         "updates": result.updates,
         "update_policy": "every scan" if pace is None else pace.describe(),
+        "sensor": sensor,
         "median_update_ms": float(np.median(result.update_ms)),
         "particles_initial": int(result.diagnostics[0].n_particles),
         "particles_final": int(result.diagnostics[-1].n_particles),

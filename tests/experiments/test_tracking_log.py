@@ -12,9 +12,12 @@ from ceamcl.experiments.tracking_log import (
     TrackingTrial,
     perturbed_start,
     run_tracking_trial,
+    tracking_filter,
 )
+from ceamcl.filters.registry import SENSOR_MODELS
 from ceamcl.pose import heading_error, position_error
 from ceamcl.replay import UpdatePace
+from ceamcl.sensors import BeamModel, LikelihoodFieldModel
 from ceamcl.simulation import office_scenario
 
 
@@ -62,3 +65,39 @@ def test_the_rmse_outside_doubtful_truth_leaves_out_only_those_scans() -> None:
     assert marked.ape_rmse_m == plain.ape_rmse_m  # the run itself is the same
     assert marked.ape_rmse_outside_doubtful_m == pytest.approx(np.sqrt(np.mean(pos[15:] ** 2)))
     assert marked.ape_rmse_outside_doubtful_m < marked.ape_rmse_m
+
+
+@pytest.mark.parametrize("algorithm", ["mcl", "ceamcl", "kld-amcl"])
+@pytest.mark.parametrize(
+    ("sensor", "model"), [("likelihood-field", LikelihoodFieldModel), ("beam", BeamModel)]
+)
+def test_tracking_weighs_with_the_sensor_model_it_is_given(
+    algorithm: str, sensor: str, model: type
+) -> None:
+    """``evaluate-log --sensor``: the filter of a tracking trial weighs with that model (as
+    Nav2's ``laser_model_type`` chooses), on the same map, whatever the algorithm's budget."""
+    assert sensor in SENSOR_MODELS
+    grid = office_scenario().grid()
+    f = tracking_filter(algorithm, grid, np.random.default_rng(0), 200, None, sensor)
+    assert type(f.sensor) is model  # type: ignore[attr-defined]
+    assert f.sensor.grid is grid  # type: ignore[attr-defined]
+
+
+def test_tracking_with_the_beam_model_corrects_the_start_error() -> None:
+    """The beam model, chosen for a tracking trial, is what the filter weighs with: it pulls
+    the perturbed start onto the truth as the default field does, and the run differs from the
+    field's (the same seed and start)."""
+    sc = office_scenario()
+    grid = sc.grid()
+    log = sc.simulate(np.random.default_rng(7), grid)
+    start = perturbed_start(log.true_poses[0], 0)
+    runs = {
+        sensor: run_tracking_trial(
+            TrackingTrial("ceamcl", grid, log, start, 200, 0, UpdatePace(0.2, 0.2), sensor=sensor)  # type: ignore[arg-type]
+        )
+        for sensor in ("likelihood-field", "beam")
+    }
+    beam = runs["beam"]
+    assert beam.ape_median_m < 0.2 and beam.ape_rmse_m < 0.3
+    assert beam.position_errors[-10:].max() < 0.3
+    assert not np.array_equal(beam.estimates, runs["likelihood-field"].estimates)

@@ -13,6 +13,7 @@ from ceamcl.cli.experiment import RUN_BYTES
 from ceamcl.cli.run import (
     add_log_arguments,
     add_pace_arguments,
+    add_sensor_argument,
     add_truth_arguments,
     open_inputs,
     print_truth,
@@ -92,6 +93,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     )
     add_truth_arguments(p)
     add_pace_arguments(p)
+    add_sensor_argument(p)
     p.add_argument(
         "--executor",
         default="local",
@@ -137,6 +139,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
         console.print(
             f"filter updates (every algorithm): {'every scan' if pace is None else pace.describe()}"
         )
+        console.print(f"sensor model: {registry.describe_sensor(args.sensor)}")
         for name, why in skipped.items():
             console.print(f"[yellow]{name} skipped[/]: {why}")
     if args.tracking:
@@ -162,6 +165,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
             skipped=skipped,
             pace=pace,
             truth_doubt=doubt,
+            sensor=args.sensor,
         )
     if not args.quiet:
         title = (
@@ -225,6 +229,7 @@ def run_tracking(
             out=args.out,
             skipped=skipped,
             truth_doubt=doubt,
+            sensor=args.sensor,
         )
     if not args.quiet:
         columns = ["algorithm", "scored", "updates", "APE RMSE [m]", "median [m]", "max [m]"]

@@ -98,6 +98,17 @@ def add_log_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--base-frame", default="base_link", help="bag: TF child frame (robot base)")
 
 
+def add_sensor_argument(p: argparse.ArgumentParser) -> None:
+    """The laser's sensor model, as Nav2's ``laser_model_type`` chooses it."""
+    p.add_argument(
+        "--sensor",
+        choices=registry.SENSOR_MODELS,
+        default=registry.DEFAULT_SENSOR,
+        help="sensor model of every algorithm but nav2-amcl, which always uses the wheel's own "
+        "beam model (Nav2's laser_model_type; default %(default)s; docs/sensor-models.md)",
+    )
+
+
 def add_truth_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--truth",
@@ -291,6 +302,7 @@ def run_table(title: str, summary: Mapping[str, Any]) -> Table:
         ),
         ("initialisation [ms]", number(s["initialisation_ms"], 0)),
         ("filter updates", f"{s['updates']} ({s['update_policy']})"),
+        ("sensor model", str(s.get("sensor", registry.DEFAULT_SENSOR))),
         ("mean step [ms]", number(s["mean_step_ms"], 1)),
         ("median update [ms]", number(s["median_update_ms"], 1)),
         ("mean particles", number(s["mean_particles"], 0)),
@@ -318,6 +330,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     )
     add_truth_arguments(p)
     add_pace_arguments(p)
+    add_sensor_argument(p)
     p.add_argument("--out", default="run-out", help="folder for the results")
     p.add_argument("--quiet", action="store_true", help="no progress bar or table")
     # Real logs are long: no animation unless --gif asks for it (docs/outputs.md).
@@ -357,6 +370,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
             on_frame=bar.frame,
             pace=pace,
             truth_doubt=doubt,
+            sensor=args.sensor,
         )
     if not args.quiet:
         console.print(

@@ -31,6 +31,7 @@ from ceamcl.experiments.metrics import (
     score_errors,
     within,
 )
+from ceamcl.filters.registry import DEFAULT_SENSOR, check_sensor
 from ceamcl.io.recorded import RecordedLog
 from ceamcl.io.results import ensure_output_dir
 from ceamcl.io.truth_check import TruthDoubt, doubtful_truth
@@ -52,6 +53,8 @@ class LogTrial:
     hold: int = HOLD_STEPS
     pace: UpdatePace | None = None
     hold_m: float | None = None
+    #: the sensor model of the core algorithms (the Nav2 peer keeps the wheel's beam model)
+    sensor: str = DEFAULT_SENSOR
 
 
 @dataclass(frozen=True)
@@ -96,7 +99,7 @@ class LogTrialResult:
 def run_log_trial(trial: LogTrial) -> LogTrialResult:
     """Run one trial (a top-level function, so any executor can run it)."""
     rng = filter_rng(trial.seed, trial.start_index, trial.algorithm)
-    f = make_paced_filter(trial.algorithm, trial.grid, rng, trial.pace)
+    f = make_paced_filter(trial.algorithm, trial.grid, rng, trial.pace, sensor=trial.sensor)
     result = run_filter(
         f, trial.log, update_when=None if trial.pace is None else trial.pace.policy()
     )
@@ -171,6 +174,7 @@ class Evaluation:
     window: str
     out_dir: Path | None
     update_policy: str = "every scan"
+    sensor: str = DEFAULT_SENSOR
 
 
 def aggregate(results: Sequence[LogTrialResult], algorithms: Sequence[str]) -> list[dict[str, Any]]:
@@ -239,13 +243,16 @@ def evaluate_log(
     skipped: dict[str, str] | None = None,
     pace: UpdatePace | None = None,
     truth_doubt: TruthDoubt | None = None,
+    sensor: str = DEFAULT_SENSOR,
 ) -> Evaluation:
     """Global localisation from ``starts`` points of the log with each algorithm.
 
     Writes ``evaluate.csv``, ``evaluate.md``, ``errors.png`` and ``success.png`` to ``out``;
     ``evaluate.md`` says how well the truth explains its scans (``truth_doubt``, made here when
-    the caller has none).
+    the caller has none). ``sensor`` names the sensor model of every core algorithm
+    (:data:`ceamcl.filters.registry.SENSOR_MODELS`; the Nav2 peer keeps the wheel's own).
     """
+    check_sensor(sensor)
     log = prepared.log
     if not prepared.has_truth:
         raise ConfigError(
@@ -269,6 +276,7 @@ def evaluate_log(
             hold=hold,
             pace=pace,
             hold_m=hold_m,
+            sensor=sensor,
         )
         for s, e in windows
         for algo in algorithms
@@ -285,6 +293,7 @@ def evaluate_log(
         window_what,
         out_dir,
         "every scan" if pace is None else pace.describe(),
+        sensor,
     )
     if out_dir is not None:
         doubt = truth_doubt or doubtful_truth(log, grid)

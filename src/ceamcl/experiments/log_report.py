@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 
 from ceamcl.experiments.common import fmt, write_csv, write_text
 from ceamcl.experiments.metrics import HEADING_TOL_RAD, HOLD_STEPS, POSITION_TOL_M
+from ceamcl.filters.registry import describe_sensor
 from ceamcl.replay import truth_source
 
 if TYPE_CHECKING:
@@ -91,6 +92,7 @@ def evaluation_markdown(
         f"- ground truth: {truth_source(prepared)}",
         *([f"- {truth_note}"] if truth_note else []),
         f"- filter updates (every algorithm): {ev.update_policy}",
+        f"- sensor model: {describe_sensor(ev.sensor)}",
         f"- {len(ev.windows)} start points, windows of {ev.window} "
         f"({min(lengths)}-{max(lengths)} scans)",
         f"- success: within {POSITION_TOL_M} m and {HEADING_TOL_RAD} rad from a step on to the "

@@ -35,7 +35,13 @@ from ceamcl.errors import ConfigError
 from ceamcl.experiments.common import fmt, pct, write_csv, write_text
 from ceamcl.experiments.executors import Batch
 from ceamcl.filters.base import LocalisationFilter
-from ceamcl.filters.registry import get, with_config
+from ceamcl.filters.registry import (
+    DEFAULT_SENSOR,
+    check_sensor,
+    describe_sensor,
+    get,
+    with_config,
+)
 from ceamcl.io.recorded import RecordedLog
 from ceamcl.io.results import ensure_output_dir
 from ceamcl.io.truth_check import TruthDoubt, doubtful_truth
@@ -74,14 +80,16 @@ def tracking_filter(
     rng: np.random.Generator,
     particles: int,
     pace: UpdatePace | None,
+    sensor: str = DEFAULT_SENSOR,
 ) -> LocalisationFilter:
     """The filter with the particle budget ``particles``: through the registry's budget where
-    the algorithm has one, and as the size of CEAMCL's tracking species."""
+    the algorithm has one, and as the size of CEAMCL's tracking species; ``sensor`` names
+    the sensor model (the Nav2 peer keeps the wheel's beam model)."""
     if get(algorithm).with_particles is not None:
-        return make_paced_filter(algorithm, grid, rng, pace, n_particles=particles)
+        return make_paced_filter(algorithm, grid, rng, pace, n_particles=particles, sensor=sensor)
     if algorithm == "ceamcl":
         cfg = with_config("ceamcl", tracking_samples=particles)
-        return make_paced_filter(algorithm, grid, rng, pace, config=cfg)
+        return make_paced_filter(algorithm, grid, rng, pace, config=cfg, sensor=sensor)
     raise ConfigError(f"tracking: {algorithm} has no particle budget to set")
 
 
@@ -96,6 +104,7 @@ class TrackingTrial:
     pace: UpdatePace | None = None
     #: scans of ``log`` where the truth is doubtful (:func:`doubtful_truth`); ``None``: none
     doubtful: NDArray[np.bool_] | None = None
+    sensor: str = DEFAULT_SENSOR
 
 
 @dataclass(frozen=True)
@@ -126,7 +135,7 @@ def run_tracking_trial(trial: TrackingTrial) -> TrackingResult:
     """One algorithm over the whole log from the perturbed start (a top-level function, so any
     executor can run it)."""
     rng = filter_rng(trial.seed, 0, trial.algorithm)
-    f = tracking_filter(trial.algorithm, trial.grid, rng, trial.particles, trial.pace)
+    f = tracking_filter(trial.algorithm, trial.grid, rng, trial.particles, trial.pace, trial.sensor)
     result = run_filter(
         f,
         trial.log,
@@ -185,6 +194,7 @@ class Tracking:
     out_dir: Path | None
     #: ``(first scan, last scan, lowest share)`` where the truth is doubtful (log's indices)
     doubtful: tuple[tuple[int, int, float], ...] = ()
+    sensor: str = DEFAULT_SENSOR
 
 
 def track_log(
@@ -199,10 +209,13 @@ def track_log(
     out: str | os.PathLike[str] | None = None,
     skipped: dict[str, str] | None = None,
     truth_doubt: TruthDoubt | None = None,
+    sensor: str = DEFAULT_SENSOR,
 ) -> Tracking:
     """Pose tracking over the whole log with each algorithm (module docstring); the trials run
     as ``batch`` says (default: local processes, no progress). ``truth_doubt``: the truth
-    check for ``tracking.md`` when the caller has it (else it is made here)."""
+    check for ``tracking.md`` when the caller has it (else it is made here). ``sensor``: the
+    sensor model of every core algorithm (the Nav2 peer keeps the wheel's beam model)."""
+    check_sensor(sensor)
     log = prepared.log
     known = log.has_truth_at
     if not prepared.has_truth or not known.any():
@@ -220,7 +233,7 @@ def track_log(
     doubt = truth_doubt or doubtful_truth(prepared.log, grid)
     doubtful = doubt.mask(len(log))[first:]
     trials = [
-        TrackingTrial(a, grid, window, start, particles, prepared.seed, pace, doubtful)
+        TrackingTrial(a, grid, window, start, particles, prepared.seed, pace, doubtful, sensor)
         for a in algorithms
     ]
     results = (batch or Batch()).run(run_tracking_trial, trials, f"track {log.name}")
@@ -234,6 +247,7 @@ def track_log(
         dict(skipped or {}),
         out_dir,
         doubt.stretches,
+        sensor,
     )
     if out_dir is not None:
         write_tracking(tracking, prepared, out_dir, doubt.summary())
@@ -278,6 +292,7 @@ def tracking_markdown(
         f"{START_TURN_RAD} rad: ({x:.3f}, {y:.3f}, {th:.3f}), seed {prepared.seed}",
         f"- particle budget: {tracking.particles} for every algorithm",
         f"- filter updates (every algorithm): {tracking.update_policy}",
+        f"- sensor model: {describe_sensor(tracking.sensor)}",
         "- APE: position error of the estimate at the scans with truth, no alignment; "
         '"outside doubtful truth": the RMSE without the stretches where the truth does not '
         "explain its own scans on the map (none: the same as over every scan)",

@@ -54,6 +54,8 @@ ALGORITHMS: tuple[str, ...] = tuple(a.name for a in _BUILT_IN)
 PRESETS: tuple[str, ...] = tuple(a.name for a in _PRESETS)
 #: Sensor models by name (``make_sensor``).
 SENSOR_MODELS: tuple[str, ...] = ("likelihood-field", "beam")
+#: The sensor model filters get unless told otherwise: ROS amcl's and Nav2's default too.
+DEFAULT_SENSOR = "likelihood-field"
 
 _BY_NAME: dict[str, Algorithm] = {a.name: a for a in (*_BUILT_IN, *_PRESETS)}
 
@@ -110,15 +112,25 @@ def resolve(wanted: Iterable[str] | None) -> tuple[list[str], dict[str, str]]:
     return [n for n in chosen if n not in skipped], skipped
 
 
+def check_sensor(name: str) -> None:
+    """Refuse an unknown sensor model's name (:class:`ConfigError`), before anything runs."""
+    if name not in SENSOR_MODELS:
+        raise ConfigError(
+            f"sensor: unknown sensor model {name!r}; expected one of {', '.join(SENSOR_MODELS)}"
+        )
+
+
+def describe_sensor(name: str) -> str:
+    """The sensor model of a run or comparison, in words, for its report."""
+    return f"{name} for every algorithm but nav2-amcl (the wheel's own beam model)"
+
+
 def make_sensor(name: str, grid: OccupancyGrid) -> SensorModel:
     """A sensor model by name, with its default (ROS amcl) parameters."""
-    if name == "likelihood-field":
-        return LikelihoodFieldModel(grid)
+    check_sensor(name)
     if name == "beam":
         return BeamModel(grid)
-    raise ConfigError(
-        f"sensor: unknown sensor model {name!r}; expected one of {', '.join(SENSOR_MODELS)}"
-    )
+    return LikelihoodFieldModel(grid)
 
 
 def make_filter(
@@ -126,7 +138,7 @@ def make_filter(
     grid: OccupancyGrid,
     rng: np.random.Generator,
     *,
-    sensor: str | SensorModel = "likelihood-field",
+    sensor: str | SensorModel = DEFAULT_SENSOR,
     odometry_noise: OdometryNoise | None = None,
     n_particles: int | None = None,
     config: Any = None,
@@ -170,8 +182,11 @@ def with_config(algorithm: str, **changes: Any) -> Any:
 
 __all__ = [
     "ALGORITHMS",
+    "DEFAULT_SENSOR",
     "PRESETS",
     "SENSOR_MODELS",
+    "check_sensor",
+    "describe_sensor",
     "get",
     "make_filter",
     "make_sensor",
