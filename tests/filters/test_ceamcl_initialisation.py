@@ -386,3 +386,69 @@ def test_a_scan_without_usable_beams_spreads_the_species_without_a_heading_densi
     assert f.particle_set.n > 0 and np.all(np.isfinite(f.particle_set.poses))
     f.initialise_global(scan)
     assert seen[-1] is scan
+
+
+# ---------------------------------------------------------------- departure 29
+def test_the_search_model_is_the_filters_own_unless_it_casts_rays() -> None:
+    from ceamcl.filters.ceamcl.initialisation import search_model
+    from ceamcl.sensors import BeamModel
+    from ceamcl.sensors.base import with_settings
+
+    grid = paper_scenario().grid()
+    field = LikelihoodFieldModel(grid)
+    assert search_model(field) is field
+    beam = with_settings(BeamModel(grid), {"max_beams": 30, "temper": 0.1, "sigma_hit_m": 0.15})
+    search = search_model(beam)
+    assert isinstance(search, LikelihoodFieldModel) and search.grid is grid
+    c = search.config
+    assert (c.max_beams, c.temper, c.sigma_hit_m, c.scoring) == (30, 0.1, 0.15, "product")
+
+
+@pytest.mark.parametrize("room", [0, 2])
+def test_a_beam_model_filter_searches_with_the_field_and_judges_with_its_own(
+    monkeypatch: pytest.MonkeyPatch, room: int
+) -> None:
+    """The global search of a filter weighing with the beam model: the likelihood field
+    scores the test poses, the beam model only the best of them (5 %, the second round and
+    the polish), and every initial sample carries the beam model's log-likelihood; the four
+    images are still found. With ``search_with_field=False`` the beam model scores them all."""
+    from ceamcl.filters.ceamcl import initialisation
+    from ceamcl.sensors import BeamModel
+
+    grid, truth, scan = _first_scan(room, 5)
+    counts = {"beam": 0, "field": 0}
+    for cls, key in ((BeamModel, "beam"), (LikelihoodFieldModel, "field")):
+        real = cls.log_likelihood
+
+        def counting(self: Any, poses: Any, prepared: Any, _r: Any = real, _k: str = key) -> Any:
+            counts[_k] += int(np.asarray(poses).reshape(-1, 3).shape[0])
+            return _r(self, poses, prepared)
+
+        monkeypatch.setattr(cls, "log_likelihood", counting)
+    f = make_filter("ceamcl", grid, np.random.default_rng(3), sensor="beam")
+    assert isinstance(f, CEAMCL)
+    f.initialise_global(scan)
+    n_test = f.config.initialisation.test_pose_count(grid.free_area_m2)
+    judged = max(initialisation.JUDGED_MIN, int(np.ceil(initialisation.JUDGED_SHARE * n_test)))
+    assert counts["field"] >= n_test  # every test pose, by the field
+    assert judged <= counts["beam"] < 0.25 * counts["field"]  # the best, by the beam model
+    searched = counts["beam"]
+    prepared = f.sensor.prepare(scan)
+    np.testing.assert_allclose(
+        f.particle_set.loglik, f.sensor.log_likelihood(f.particle_set.poses, prepared)
+    )
+    means = np.array([s.mean for s in f.stats.values()])
+    for image in symmetric_images(truth):
+        dist = np.hypot(means[:, 0] - image[0], means[:, 1] - image[1])
+        dth = np.abs(np.angle(np.exp(1j * (means[:, 2] - image[2]))))
+        assert np.any((dist < 0.5) & (dth < 0.3)), f"no species near image {image}"
+    counts.update(beam=0, field=0)
+    g = make_filter(
+        "ceamcl",
+        grid,
+        np.random.default_rng(3),
+        sensor="beam",
+        config=replace(CEAMCLConfig(), search_with_field=False),
+    )
+    g.initialise_global(scan)
+    assert counts["field"] == 0 and counts["beam"] >= n_test > 4 * searched

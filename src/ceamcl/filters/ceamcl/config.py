@@ -78,6 +78,12 @@ class CEAMCLConfig:
             HeadingPrior`, docs/ceamcl.md, departure 27); ``None``: uniform, as in the paper.
         recovery_test_pose_headings: a recovery's search draws its headings so too (``True``,
             the default since departure 28; ``False``: uniformly).
+        search_with_field: a filter weighing with the beam model scores the test poses of
+            its global initialisation with ROS amcl's likelihood field of the same parameters
+            and weighs the samples it chose with the beam model (:func:`~ceamcl.filters.
+            ceamcl.initialisation.search_model`, docs/ceamcl.md, departure 29); ``False``:
+            ray-cast every test pose. Recoveries always search with the filter's own model.
+            No effect with the field.
 
     Read differently from the paper (docs/ceamcl.md, "evidence"):
         competition_fitness: the ``w`` of eqs. 9 and 16. "evidence" (default): each species'
@@ -244,6 +250,7 @@ class CEAMCLConfig:
     init_polish_rounds: int = 3
     test_pose_headings: HeadingPrior | None = field(default_factory=HeadingPrior)
     recovery_test_pose_headings: bool = True
+    search_with_field: bool = True
     cell_m: float = 0.1
     mu: float = 0.85
     eta: float = 2.0

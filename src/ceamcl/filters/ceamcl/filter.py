@@ -52,6 +52,7 @@ from ceamcl.filters.ceamcl.initialisation import (
     heading_proposal,
     initial_species,
     polish,
+    search_model,
 )
 from ceamcl.filters.ceamcl.phases import (
     Competition,
@@ -125,6 +126,8 @@ class CEAMCL:
         self.sensor = sensor
         self.config = config or CEAMCLConfig()
         self.rng = rng
+        #: the model that scores a search's test poses (``search_with_field``), made once
+        self._search: SensorModel | None = None
         self.particle_set = ParticleSet.from_poses(np.zeros((0, 3)))
         self.stats: dict[int, SpeciesStats] = {}
         self.competition = Competition()
@@ -222,15 +225,26 @@ class CEAMCL:
         headings = heading_proposal(
             self.grid, self.last_scan if prepared is not None else None, settings
         )
+        # a recovery (``kept``) searches with the filter's own model: with the field, a
+        # ray-casting filter's second opinions lost fr079's track (departure 29)
+        search, searched = (self._search_sensor() if kept is None else self.sensor), prepared
+        if search is not self.sensor and prepared is not None:
+            searched = usable(search, self.last_scan)
+            if searched is None:  # no beam the field can use: the filter's own model
+                search, searched = self.sensor, prepared
+        # a search model other than the filter's scores the test poses; the filter's own
+        # judges the best of them, and section 3.1 forms the species from its scores
+        judge = (self.sensor, prepared) if search is not self.sensor and prepared else None
         init, evaluations = initial_species(
-            self.grid, self.sensor, prepared, settings, self.rng, headings
+            self.grid, search, searched, settings, self.rng, headings, judge
         )
         self.initial = init
+        loglik = init.loglik
         # Not in the paper: a few greedy moves bring each chosen test pose nearer its peak
         # (docs/ceamcl.md, "test poses"); ``self.initial`` keeps section 3.1's own choice.
         poses, loglik, spent = polish(
             init.poses,
-            init.loglik,
+            loglik,
             self.sensor,
             prepared,
             settings,
@@ -283,6 +297,15 @@ class CEAMCL:
         )
         self.events.n0 += init.n0
         self.events.v_cells += init.v_size
+
+    def _search_sensor(self) -> SensorModel:
+        """The model that scores a search's test poses (``search_with_field``): the filter's
+        own, or the likelihood field a ray-casting model searches with (made once)."""
+        if not self.config.search_with_field:
+            return self.sensor
+        if self._search is None:
+            self._search = search_model(self.sensor)
+        return self._search
 
     def _recovery_handicaps(
         self, old: ParticleSet, log_prior: float, old_priors: dict[int, float]
