@@ -225,8 +225,8 @@ class CEAMCL:
         headings = heading_proposal(
             self.grid, self.last_scan if prepared is not None else None, settings
         )
-        # a recovery (``kept``) searches with the filter's own model: with the field, a
-        # ray-casting filter's second opinions lost fr079's track (departure 29)
+        # a recovery (``kept``) searches with the filter's own model: searched with the field,
+        # a ray-casting filter's recoveries lost fr079's track at every scan (departure 29)
         search, searched = (self._search_sensor() if kept is None else self.sensor), prepared
         if search is not self.sensor and prepared is not None:
             searched = usable(search, self.last_scan)
@@ -234,17 +234,18 @@ class CEAMCL:
                 search, searched = self.sensor, prepared
         # a search model other than the filter's scores the test poses; the filter's own
         # judges the best of them, and section 3.1 forms the species from its scores
-        judge = (self.sensor, prepared) if search is not self.sensor and prepared else None
+        judge = None
+        if search is not self.sensor and prepared is not None:
+            judge = (self.sensor, prepared)
         init, evaluations = initial_species(
             self.grid, search, searched, settings, self.rng, headings, judge
         )
         self.initial = init
-        loglik = init.loglik
         # Not in the paper: a few greedy moves bring each chosen test pose nearer its peak
         # (docs/ceamcl.md, "test poses"); ``self.initial`` keeps section 3.1's own choice.
         poses, loglik, spent = polish(
             init.poses,
-            loglik,
+            init.loglik,
             self.sensor,
             prepared,
             settings,

@@ -348,7 +348,8 @@ def search_model(sensor: SensorModel) -> SensorModel:
     1,015 m^2 against 0.15-0.27 s with the field), so a filter weighing with it searches with
     ROS amcl's likelihood field on the same map, with the same hit model, beams and tempering
     (its ``z_hit``, ``z_rand``, ``sigma_hit_m``, ``max_beams``, ``temper``, ``scoring``), and
-    weighs the samples it chose with its own (docs/ceamcl.md, departure 29)."""
+    its own model judges the best of them (:func:`initial_species`' ``judge``; docs/ceamcl.md,
+    departure 29)."""
     if not isinstance(sensor, BeamModel):
         return sensor
     c = sensor.config
