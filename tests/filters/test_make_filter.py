@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -33,3 +35,24 @@ def test_a_config_of_another_filter_is_refused() -> None:
     with pytest.raises(ConfigError, match="config: ceamcl"):
         make_filter("ceamcl", grid, np.random.default_rng(0), config=MCLConfig())
     assert type(make_filter("mcl", grid, np.random.default_rng(0))) is MCL
+
+
+def test_an_unknown_sensor_model_is_refused_before_any_run(tmp_path: Path) -> None:
+    """``--sensor`` in the library: a name outside ``SENSOR_MODELS`` is a ConfigError naming
+    the field and the choices, from the registry and from the runs that take it (before any
+    window is cut or file written)."""
+    from ceamcl.experiments.evaluate_log import evaluate_log
+    from ceamcl.filters.registry import SENSOR_MODELS, check_sensor
+
+    grid = get_world("small-office")
+    for call in (
+        lambda: check_sensor("sonar"),
+        lambda: make_filter("mcl", grid, np.random.default_rng(0), sensor="sonar"),
+        lambda: evaluate_log(None, grid, ["mcl"], sensor="sonar", out=tmp_path),  # type: ignore[arg-type]
+    ):
+        with pytest.raises(ConfigError, match="sensor: unknown sensor model 'sonar'") as info:
+            call()
+        assert all(name in str(info.value) for name in SENSOR_MODELS)
+    assert not any(tmp_path.iterdir())  # nothing written
+    for name in SENSOR_MODELS:
+        check_sensor(name)
