@@ -382,3 +382,22 @@ def test_demo_prints_the_hypotheses_before_the_filter_state(
     assert "at the end" in out and "off truth [m, rad]" in out
     assert out.index("pose [m, m, rad]") < out.index("the filter at the end")
     assert "likelihood evaluations (initialisation)" in out
+
+
+def test_ceamcl_with_the_beam_model_is_told_what_its_state_reads() -> None:
+    """``run``/``evaluate-log --sensor beam`` with CEAMCL: a note says the state's thresholds
+    were chosen with the field (docs/sensor-models.md); no note otherwise."""
+    import io
+
+    from rich.console import Console
+
+    from ceamcl.cli.run import print_sensor_note
+
+    def said(sensor: str, algorithms: list[str]) -> str:
+        buf = io.StringIO()
+        print_sensor_note(Console(file=buf, width=200), sensor, algorithms)
+        return buf.getvalue()
+
+    assert "reads LOST at most scans" in said("beam", ["mcl", "ceamcl"])
+    assert said("beam", ["mcl", "nav2-amcl"]) == ""
+    assert said("likelihood-field", ["ceamcl"]) == ""

@@ -16,6 +16,7 @@ from ceamcl.cli.run import (
     add_sensor_argument,
     add_truth_arguments,
     open_inputs,
+    print_sensor_note,
     print_truth,
     truth_doubt,
 )
@@ -140,6 +141,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
             f"filter updates (every algorithm): {'every scan' if pace is None else pace.describe()}"
         )
         console.print(f"sensor model: {registry.describe_sensor(args.sensor)}")
+        print_sensor_note(console, args.sensor, algos)
         for name, why in skipped.items():
             console.print(f"[yellow]{name} skipped[/]: {why}")
     if args.tracking:

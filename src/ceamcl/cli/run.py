@@ -4,7 +4,7 @@ localisation, and write its trajectory, summary, diagnostics and plot."""
 from __future__ import annotations
 
 import argparse
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from rich.console import Console
@@ -107,6 +107,20 @@ def add_sensor_argument(p: argparse.ArgumentParser) -> None:
         help="sensor model of every algorithm but nav2-amcl, which always uses the wheel's own "
         "beam model (Nav2's laser_model_type; default %(default)s; docs/sensor-models.md)",
     )
+
+
+#: What a user of the beam model with CEAMCL should know (docs/sensor-models.md).
+BEAM_STATE_NOTE = (
+    "CEAMCL's localisation state was calibrated with the likelihood field; with the beam "
+    "model its fitness lies lower, so on real logs the state reads LOST at most scans and a "
+    "recovery (a ray-cast global search) starts about every 20 scans (docs/sensor-models.md)"
+)
+
+
+def print_sensor_note(console: Console, sensor: str, algorithms: Sequence[str]) -> None:
+    """Say so when CEAMCL runs with the beam model (:data:`BEAM_STATE_NOTE`)."""
+    if sensor == "beam" and "ceamcl" in algorithms:
+        console.print(Text(f"note: {BEAM_STATE_NOTE}", style="yellow"))
 
 
 def add_truth_arguments(p: argparse.ArgumentParser) -> None:
@@ -347,6 +361,8 @@ def run(args: argparse.Namespace, console: Console) -> int:
         console.print(f"map: {map_source}")
         print_truth(console, prepared, doubt)
         console.print(f"filter updates: {'every scan' if pace is None else pace.describe()}")
+        console.print(f"sensor model: {args.sensor}")
+        print_sensor_note(console, args.sensor, [args.algorithm])
         if prepared.noise is not None:
             n = prepared.noise
             console.print(
