@@ -237,3 +237,16 @@ def test_table1_runs_a_preset(tmp_path: Path) -> None:
 def test_every_algorithm_includes_the_presets() -> None:
     chosen, _ = registry.resolve(None)
     assert set(PRESETS.values()) <= set(chosen)
+
+
+def test_a_candidates_temper_reaches_the_sensor_even_when_it_is_one() -> None:
+    """Untempered means temper 1 in the sensor model, not the sensor's default (0.2): the
+    sweep's "temper 1" rows ran at 0.2 until 2026-11-29 because 1 was left out."""
+    grid = paper_course().grid()
+    for temper in (1.0, 0.1):
+        c = Candidate("mcl", 30, temper, 500, 0)
+        assert c.sensor_settings() == {"max_beams": 30, "temper": temper}
+        f = registry.make_filter(
+            "mcl", grid, np.random.default_rng(0), sensor_settings=c.sensor_settings()
+        )
+        assert f.sensor.temper == temper  # type: ignore[attr-defined]

@@ -98,11 +98,18 @@ class Candidate:
         return replace(cfg, init_test_poses=self.init_test_poses, init_headings=headings)
 
     def sensor_settings(self) -> dict[str, Any]:
-        """The sensor settings (temper only where it applies: not to amcl's scoring)."""
+        """The sensor settings (temper only where it applies: not to amcl's scoring). The
+        product's temper is always given: left out, the sensor's default (0.2) would apply,
+        as it did to every "temper 1" row of the sweep until 2026-11-29 (docs/tuning.md)."""
         out: dict[str, Any] = {"max_beams": self.max_beams}
-        if self.temper != 1.0:
+        if _scoring(self.algorithm) != "ros":
             out["temper"] = self.temper
         return out
+
+
+def _scoring(algorithm: str) -> str:
+    """How ``algorithm`` combines beams by default: amcl's ``"ros"`` takes no tempering."""
+    return str(getattr(registry.get(algorithm).default(), "scoring", "product"))
 
 
 def candidates(algorithms: Iterable[str], grid: TuningGrid) -> list[Candidate]:
@@ -114,8 +121,7 @@ def candidates(algorithms: Iterable[str], grid: TuningGrid) -> list[Candidate]:
             raise ConfigError(
                 f"algorithms: the tuning sweep tunes {', '.join(BASELINES)}, got {alg!r}"
             )
-        cfg = registry.get(alg).default()
-        tempers = (1.0,) if getattr(cfg, "scoring", "product") == "ros" else grid.temper
+        tempers = (1.0,) if _scoring(alg) == "ros" else grid.temper
         for beams in grid.max_beams:
             for temper in tempers:
                 for n in grid.n_particles:
