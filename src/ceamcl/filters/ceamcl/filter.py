@@ -225,18 +225,14 @@ class CEAMCL:
         headings = heading_proposal(
             self.grid, self.last_scan if prepared is not None else None, settings
         )
-        # a recovery (``kept``) searches with the filter's own model: searched with the field,
-        # a ray-casting filter's recoveries lost fr079's track at every scan (departure 29)
-        search, searched = (self._search_sensor() if kept is None else self.sensor), prepared
-        if search is not self.sensor and prepared is not None:
-            searched = usable(search, self.last_scan)
-            if searched is None:  # no beam the field can use: the filter's own model
-                search, searched = self.sensor, prepared
-        # a search model other than the filter's scores the test poses; the filter's own
-        # judges the best of them, and section 3.1 forms the species from its scores
-        judge = None
-        if search is not self.sensor and prepared is not None:
-            judge = (self.sensor, prepared)
+        # Departure 29: a ray-casting filter's global search scores its test poses with the
+        # field and its own model judges the best of them; a recovery (``kept``) searches with
+        # its own model (searched with the field, recoveries lost fr079's track at every scan).
+        search, searched, judge = self.sensor, prepared, None
+        if kept is None and prepared is not None and self._search_sensor() is not self.sensor:
+            field_scan = usable(self._search_sensor(), self.last_scan)
+            if field_scan is not None:  # else no beam the field can use: our own model
+                search, searched, judge = self._search_sensor(), field_scan, (self.sensor, prepared)
         init, evaluations = initial_species(
             self.grid, search, searched, settings, self.rng, headings, judge
         )
