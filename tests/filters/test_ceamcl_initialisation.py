@@ -390,9 +390,9 @@ def test_a_scan_without_usable_beams_spreads_the_species_without_a_heading_densi
 
 # ---------------------------------------------------------------- departure 29
 def test_the_search_model_is_the_filters_own_unless_it_casts_rays() -> None:
-    from ceamcl.filters.ceamcl.initialisation import search_model
     from ceamcl.sensors import BeamModel
     from ceamcl.sensors.base import with_settings
+    from ceamcl.sensors.search import search_model
 
     grid = paper_scenario().grid()
     field = LikelihoodFieldModel(grid)
@@ -412,8 +412,8 @@ def test_a_beam_model_filter_searches_with_the_field_and_judges_with_its_own(
     scores the test poses, the beam model only the best of them (5 %, the second round and
     the polish), and every initial sample carries the beam model's log-likelihood; the four
     images are still found. With ``search_with_field=False`` the beam model scores them all."""
-    from ceamcl.filters.ceamcl import initialisation
     from ceamcl.sensors import BeamModel
+    from ceamcl.sensors.search import judged_count
 
     grid, truth, scan = _first_scan(room, 5)
     counts = {"beam": 0, "field": 0}
@@ -429,7 +429,7 @@ def test_a_beam_model_filter_searches_with_the_field_and_judges_with_its_own(
     assert isinstance(f, CEAMCL)
     f.initialise_global(scan)
     n_test = f.config.initialisation.test_pose_count(grid.free_area_m2)
-    judged = max(initialisation.JUDGED_MIN, int(np.ceil(initialisation.JUDGED_SHARE * n_test)))
+    judged = judged_count(n_test)
     assert counts["field"] >= n_test  # every test pose, by the field
     assert judged <= counts["beam"] < 0.25 * counts["field"]  # the best, by the beam model
     searched = counts["beam"]

@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 
@@ -125,3 +127,61 @@ def test_test_poses_are_checked_against_the_memory_budget() -> None:
 def test_negative_test_poses_are_refused(algorithm: str) -> None:
     with pytest.raises((ConfigError, ValueError), match="init_test_poses"):
         with_config(algorithm, init_test_poses=-1)
+
+
+@pytest.mark.parametrize("algorithm", BASELINES)
+@pytest.mark.parametrize("with_field", [True, False])
+def test_with_the_beam_model_the_field_searches_and_the_beam_model_judges(
+    monkeypatch: pytest.MonkeyPatch, algorithm: str, with_field: bool
+) -> None:
+    """A baseline weighing with the beam model starts as CEAMCL does (docs/baselines.md): the
+    likelihood field of the same parameters scores the test poses, the beam model the best 5 %
+    of them (at least 2,000), and the particles are resampled from those by the beam model's
+    weights; both counts are the start's likelihood evaluations, and the four images are
+    still found. ``init_search_with_field=False``: the beam model scores every test pose."""
+    from ceamcl.sensors import BeamModel, LikelihoodFieldModel
+    from ceamcl.sensors.search import judged_count
+
+    course = paper_course()
+    grid = course.grid()
+    log = course.scenario(0).simulate(np.random.default_rng(3), grid)
+    counts = {"beam": 0, "field": 0}
+    for cls, key in ((BeamModel, "beam"), (LikelihoodFieldModel, "field")):
+        real = cls.log_likelihood
+
+        def counting(self: Any, poses: Any, prepared: Any, _r: Any = real, _k: str = key) -> Any:
+            counts[_k] += int(np.asarray(poses).reshape(-1, 3).shape[0])
+            return _r(self, poses, prepared)
+
+        monkeypatch.setattr(cls, "log_likelihood", counting)
+    n_test = 100_000
+    extra = {"scoring": "product"} if algorithm == "kld-amcl" else {}
+    config = with_config(
+        algorithm, init_test_poses=n_test, init_search_with_field=with_field, **extra
+    )
+    f = make_filter(
+        algorithm, grid, np.random.default_rng(4), config=config, n_particles=1000, sensor="beam"
+    )
+    first = f.initialise_global(log.scan(0))
+    if with_field:
+        k = judged_count(n_test)
+        assert k == 5_000 and counts["field"] == n_test
+        assert counts["beam"] >= k  # the judged poses (GMCL's evolution scores more)
+        assert first.likelihood_evaluations >= n_test + k
+    else:
+        assert counts["field"] == 0 and counts["beam"] >= n_test
+    if algorithm != "gmcl":  # GMCL's evolution moves the particles on after the start
+        spent = n_test + judged_count(n_test) if with_field else n_test
+        assert first.likelihood_evaluations == spent
+        ps = f.particle_set  # type: ignore[attr-defined]
+        beam = f.sensor  # type: ignore[attr-defined]
+        assert isinstance(beam, BeamModel)
+        np.testing.assert_allclose(
+            ps.loglik, beam.log_likelihood(ps.poses, beam.prepare(log.scan(0)))
+        )
+    # each image holds particles (when written: 21-648 of 1000, the same with the beam model
+    # scoring every test pose); 1000 uniform poses put about 4 within 0.5 m of a pose
+    poses = f.particles().poses
+    for image in course.images(log.true_poses[0]):
+        near = np.hypot(poses[:, 0] - image[0], poses[:, 1] - image[1]) < 0.5
+        assert near.sum() >= 12, (image, near.sum())

@@ -83,6 +83,7 @@ from ceamcl.motion.odometry import (
 from ceamcl.sensors.base import SensorModel, fitness, with_settings
 from ceamcl.sensors.scan import LaserScan, PreparedScan
 from ceamcl.sensors.scoring import SCORINGS
+from ceamcl.sensors.search import search_model
 
 #: Upper standard-normal quantile for 1 - delta = 0.99 (amcl's ``kld_z`` default is 0.99 in the
 #: ROS 1 wiki and Nav2's ``pf_z`` passes 0.99 itself, where the formula needs this quantile).
@@ -146,6 +147,10 @@ class KLDAMCLConfig:
     init_batch: test poses weighed per likelihood call (bounds memory).
     init_headings: with ``init_test_poses``, the test poses' headings drawn from the scan's
         geometry (importance-weighted; :mod:`~ceamcl.filters.headings`); ``None``: uniform.
+    init_search_with_field: with ``init_test_poses`` and the beam model, the likelihood field
+        of the same parameters scores the test poses and the beam model the best of them, as
+        CEAMCL's search does (:func:`~ceamcl.sensors.search.search_model`, docs/baselines.md);
+        ``False``: the beam model ray-casts every test pose. No effect with the field.
     """
 
     min_particles: int = 500
@@ -163,6 +168,7 @@ class KLDAMCLConfig:
     init_test_poses: int = 0
     init_batch: int = INIT_BATCH
     init_headings: HeadingPrior | None = None
+    init_search_with_field: bool = True
 
     def __post_init__(self) -> None:
         if self.scoring not in SCORINGS:
@@ -428,6 +434,7 @@ class KLDAMCL(ParticleClusterState):
             batch=cfg.init_batch,
             headings=cfg.init_headings,
             scan=scan,
+            search=search_model(self.sensor) if cfg.init_search_with_field else None,
         )
         self._reset(ps)
         if evaluations == 0:  # no usable beam: uniform, and the next scan updates at once

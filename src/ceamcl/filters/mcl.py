@@ -50,6 +50,7 @@ from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel
 from ceamcl.pose import pose_covariance, pose_mean
 from ceamcl.sensors.base import SensorModel
 from ceamcl.sensors.scan import LaserScan, PreparedScan
+from ceamcl.sensors.search import search_model
 
 
 @dataclass(frozen=True)
@@ -67,6 +68,10 @@ class MCLConfig:
     init_headings: with ``init_test_poses``, the test poses' headings drawn from the scan's
         geometry and their weights divided by that density, as CEAMCL's test poses may draw
         them (:mod:`~ceamcl.filters.headings`); ``None``: uniform headings.
+    init_search_with_field: with ``init_test_poses`` and the beam model, the likelihood field
+        of the same parameters scores the test poses and the beam model the best of them, as
+        CEAMCL's search does (:func:`~ceamcl.sensors.search.search_model`, docs/baselines.md);
+        ``False``: the beam model ray-casts every test pose. No effect with the field.
     """
 
     n_particles: int = 5000
@@ -75,6 +80,7 @@ class MCLConfig:
     init_test_poses: int = 0
     init_batch: int = INIT_BATCH
     init_headings: HeadingPrior | None = None
+    init_search_with_field: bool = True
 
     def __post_init__(self) -> None:
         if self.n_particles < 1:
@@ -138,6 +144,7 @@ class MCL(ParticleClusterState):
                 batch=cfg.init_batch,
                 headings=cfg.init_headings,
                 scan=scan,
+                search=search_model(self.sensor) if cfg.init_search_with_field else None,
             )
             return StepRecord(resampled=evaluations > 0, likelihood_evaluations=evaluations)
         self.particle_set = uniform(self.grid, cfg.n_particles, self.rng)

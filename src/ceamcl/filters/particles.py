@@ -45,6 +45,7 @@ from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel
 from ceamcl.sensors.base import SensorModel, fitness
 from ceamcl.sensors.scan import LaserScan, PreparedScan
+from ceamcl.sensors.search import judged_count
 
 
 def uniform_log_weights(n: int) -> NDArray[np.float64]:
@@ -179,6 +180,7 @@ def importance_start(
     batch: int = INIT_BATCH,
     headings: HeadingPrior | None = None,
     scan: LaserScan | None = None,
+    search: SensorModel | None = None,
 ) -> tuple[ParticleSet, int]:
     """Global initialisation with a budget of ``n_test`` likelihood evaluations, the start
     CEAMCL's section 3.1 makes for every baseline (``init_test_poses``): ``n_test`` poses
@@ -194,6 +196,12 @@ def importance_start(
     geometry as CEAMCL's may be (:mod:`ceamcl.filters.headings`), each weight divided
     by the density its heading was drawn with, so that the particles still sample the
     posterior of a uniform start.
+
+    ``search`` (with the step's ``scan``): a cheaper model than ``sensor`` that scores the test
+    poses (:func:`~ceamcl.sensors.search.search_model`: the likelihood field for the beam
+    model); ``sensor`` then scores again the best :func:`~ceamcl.sensors.search.judged_count`
+    of them under it, and the particles are resampled from those alone, by ``sensor``'s
+    weights (docs/baselines.md). Both models' evaluations are counted.
     """
     if n_test < 1 or n < 1 or batch < 1:
         raise ConfigError(f"init_test_poses: expected positive counts, got {n_test}, {n}, {batch}")
@@ -205,19 +213,28 @@ def importance_start(
     if headings is not None and scan is not None:
         density = scan_heading_density(grid, scan, headings)
         poses[:, 2] = sample_headings(density, n_test, rng)
-    ll = np.concatenate(
-        [
-            sanitise_log_likelihood(sensor.log_likelihood(poses[i : i + batch], prepared))
-            for i in range(0, n_test, batch)
-        ]
+    searched = usable(search, scan) if search is not None and search is not sensor else None
+    if search is not None and searched is not None:
+        ll = _scored(search, searched, poses, batch)
+    else:
+        ll = _scored(sensor, prepared, poses, batch)
+    # the proposal's density at each heading, relative to uniform's (1: uniform headings)
+    rel = (
+        np.ones(n_test)
+        if density is None
+        else density[heading_bins(poses[:, 2], density.size)] * density.size
     )
-    if density is None:
-        _, w, ok = normalise_log_weights(ll)
-    else:  # importance weights: likelihood over the proposal's density (uniform: 1)
-        rel = density[heading_bins(poses[:, 2], density.size)] * density.size
-        _, w, ok = normalise_log_weights(ll - np.log(rel))
+    evaluations = n_test
+    if searched is not None:  # the best under the search model, judged by the filter's own
+        k = judged_count(n_test)
+        best = np.sort(np.argpartition(-(ll - np.log(rel)), k - 1)[:k])
+        poses, rel = poses[best], rel[best]
+        ll = _scored(sensor, prepared, poses, batch)
+        evaluations += k
+    # importance weights: likelihood over the proposal's density
+    _, w, ok = normalise_log_weights(ll - np.log(rel))
     if not ok:
-        return uniform(grid, n, rng), n_test
+        return uniform(grid, n, rng), evaluations
     ancestors = resampler("systematic")(w, n, rng)
     chosen = ll[ancestors]
     ps = ParticleSet(
@@ -227,7 +244,20 @@ def importance_start(
         fitness=fitness(chosen, prepared, sensor),
         labels=np.zeros(n, dtype=np.int64),
     )
-    return ps, n_test
+    return ps, evaluations
+
+
+def _scored(
+    sensor: SensorModel, prepared: PreparedScan, poses: NDArray[np.float64], batch: int
+) -> NDArray[np.float64]:
+    """``sensor``'s log-likelihood of ``poses``, ``batch`` poses per call (NaN and +inf as
+    impossible)."""
+    return np.concatenate(
+        [
+            sanitise_log_likelihood(sensor.log_likelihood(poses[i : i + batch], prepared))
+            for i in range(0, poses.shape[0], batch)
+        ]
+    )
 
 
 # ---------------------------------------------------------------------- prediction

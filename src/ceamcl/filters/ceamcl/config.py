@@ -80,8 +80,8 @@ class CEAMCLConfig:
             the default since departure 28; ``False``: uniformly).
         search_with_field: a filter weighing with the beam model scores the test poses of
             its global initialisation with ROS amcl's likelihood field of the same parameters
-            and weighs the samples it chose with the beam model (:func:`~ceamcl.filters.
-            ceamcl.initialisation.search_model`, docs/ceamcl.md, departure 29); ``False``:
+            and weighs the samples it chose with the beam model
+            (:func:`~ceamcl.sensors.search.search_model`, docs/ceamcl.md, departure 29); ``False``:
             ray-cast every test pose. Recoveries always search with the filter's own model.
             No effect with the field.
 

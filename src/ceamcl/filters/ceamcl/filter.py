@@ -52,7 +52,6 @@ from ceamcl.filters.ceamcl.initialisation import (
     heading_proposal,
     initial_species,
     polish,
-    search_model,
 )
 from ceamcl.filters.ceamcl.phases import (
     Competition,
@@ -92,6 +91,7 @@ from ceamcl.pose import pose_mean
 from ceamcl.sensors.base import SensorModel, fitness
 from ceamcl.sensors.beam_skip import skip_unexplained_beams
 from ceamcl.sensors.scan import LaserScan, PreparedScan
+from ceamcl.sensors.search import search_model
 from ceamcl.sensors.see_through import see_through_penalty
 
 #: A species' log-weight never falls below this (exp of it is still a positive number, so

@@ -35,9 +35,8 @@ from ceamcl.filters.headings import HeadingPrior, sample_headings, scan_heading_
 from ceamcl.filters.resampling import sanitise_log_likelihood
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.sensors.base import SensorModel, fitness
-from ceamcl.sensors.beam_model import BeamModel
-from ceamcl.sensors.likelihood_field import LikelihoodFieldConfig, LikelihoodFieldModel
 from ceamcl.sensors.scan import LaserScan, PreparedScan
+from ceamcl.sensors.search import judged_count
 
 _FOUR = ndimage.generate_binary_structure(2, 1)
 
@@ -341,31 +340,6 @@ def generate_initial_species(
     )
 
 
-def search_model(sensor: SensorModel) -> SensorModel:
-    """The model that scores the global initialisation's test poses (section 3.1's step 1):
-    the filter's own, unless it casts rays. The beam model
-    spends seconds on the 150 test poses a square metre of a building (4.3-4.6 s on fhw's
-    1,015 m^2 against 0.15-0.27 s with the field), so a filter weighing with it searches with
-    ROS amcl's likelihood field on the same map, with the same hit model, beams and tempering
-    (its ``z_hit``, ``z_rand``, ``sigma_hit_m``, ``max_beams``, ``temper``, ``scoring``), and
-    its own model judges the best of them (:func:`initial_species`' ``judge``; docs/ceamcl.md,
-    departure 29)."""
-    if not isinstance(sensor, BeamModel):
-        return sensor
-    c = sensor.config
-    return LikelihoodFieldModel(
-        sensor.grid,
-        LikelihoodFieldConfig(
-            z_hit=c.z_hit,
-            z_rand=c.z_rand,
-            sigma_hit_m=c.sigma_hit_m,
-            max_beams=c.max_beams,
-            temper=c.temper,
-            scoring=c.scoring,
-        ),
-    )
-
-
 def sample_test_poses(
     grid: OccupancyGrid,
     config: InitialisationConfig,
@@ -514,13 +488,6 @@ def score_test_poses(
     return ll, fit, evaluations
 
 
-#: With a search model other than the filter's (:func:`search_model`), the share of the
-#: test poses, the best under the search model, that the filter's own model scores again
-#: (at least :data:`JUDGED_MIN` of them); section 3.1's cells are formed from those scores.
-JUDGED_SHARE = 0.05
-JUDGED_MIN = 2_000
-
-
 def initial_species(
     grid: OccupancyGrid,
     sensor: SensorModel,
@@ -534,7 +501,8 @@ def initial_species(
     where the scan has beams to score them), their scores, the species; and the evaluations
     spent. ``headings``: the density of :func:`heading_proposal` (``None``: uniform).
     ``judge``: the filter's own model and its scan when ``sensor`` is a cheaper search model:
-    the best :data:`JUDGED_SHARE` of the test poses under ``sensor`` are scored again with it,
+    the best :data:`~ceamcl.sensors.search.JUDGED_SHARE` of the test poses under ``sensor`` are
+    scored again with it,
     and the species are formed from those scores alone (docs/ceamcl.md, departure 29)."""
     test = sample_test_poses(grid, config, rng, headings if prepared is not None else None)
     ll, fit, evaluations = score_test_poses(test, sensor, prepared, config)
@@ -543,7 +511,7 @@ def initial_species(
         if judge is not None:
             sensor, prepared = judge
             first = ll.size
-            k = min(first, max(JUDGED_MIN, int(np.ceil(JUDGED_SHARE * first))))
+            k = judged_count(first)
             test = test[np.sort(np.argpartition(-ll, k - 1)[:k])]
             ll, fit, spent = score_test_poses(test, sensor, prepared, config)
             evaluations += spent
