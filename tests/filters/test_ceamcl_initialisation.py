@@ -406,25 +406,16 @@ def test_the_search_model_is_the_filters_own_unless_it_casts_rays() -> None:
 
 @pytest.mark.parametrize("room", [0, 2])
 def test_a_beam_model_filter_searches_with_the_field_and_judges_with_its_own(
-    monkeypatch: pytest.MonkeyPatch, room: int
+    model_evaluations: dict[str, int], room: int
 ) -> None:
     """The global search of a filter weighing with the beam model: the likelihood field
     scores the test poses, the beam model only the best of them (5 %, the second round and
     the polish), and every initial sample carries the beam model's log-likelihood; the four
     images are still found. With ``search_with_field=False`` the beam model scores them all."""
-    from ceamcl.sensors import BeamModel
     from ceamcl.sensors.search import judged_count
 
     grid, truth, scan = _first_scan(room, 5)
-    counts = {"beam": 0, "field": 0}
-    for cls, key in ((BeamModel, "beam"), (LikelihoodFieldModel, "field")):
-        real = cls.log_likelihood
-
-        def counting(self: Any, poses: Any, prepared: Any, _r: Any = real, _k: str = key) -> Any:
-            counts[_k] += int(np.asarray(poses).reshape(-1, 3).shape[0])
-            return _r(self, poses, prepared)
-
-        monkeypatch.setattr(cls, "log_likelihood", counting)
+    counts = model_evaluations
     f = make_filter("ceamcl", grid, np.random.default_rng(3), sensor="beam")
     assert isinstance(f, CEAMCL)
     f.initialise_global(scan)

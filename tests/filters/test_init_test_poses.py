@@ -3,8 +3,6 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 import pytest
 
@@ -132,28 +130,20 @@ def test_negative_test_poses_are_refused(algorithm: str) -> None:
 @pytest.mark.parametrize("algorithm", BASELINES)
 @pytest.mark.parametrize("with_field", [True, False])
 def test_with_the_beam_model_the_field_searches_and_the_beam_model_judges(
-    monkeypatch: pytest.MonkeyPatch, algorithm: str, with_field: bool
+    model_evaluations: dict[str, int], algorithm: str, with_field: bool
 ) -> None:
     """A baseline weighing with the beam model starts as CEAMCL does (docs/baselines.md): the
     likelihood field of the same parameters scores the test poses, the beam model the best 5 %
     of them (at least 2,000), and the particles are resampled from those by the beam model's
     weights; both counts are the start's likelihood evaluations, and the four images are
     still found. ``init_search_with_field=False``: the beam model scores every test pose."""
-    from ceamcl.sensors import BeamModel, LikelihoodFieldModel
+    from ceamcl.sensors import BeamModel
     from ceamcl.sensors.search import judged_count
 
     course = paper_course()
     grid = course.grid()
     log = course.scenario(0).simulate(np.random.default_rng(3), grid)
-    counts = {"beam": 0, "field": 0}
-    for cls, key in ((BeamModel, "beam"), (LikelihoodFieldModel, "field")):
-        real = cls.log_likelihood
-
-        def counting(self: Any, poses: Any, prepared: Any, _r: Any = real, _k: str = key) -> Any:
-            counts[_k] += int(np.asarray(poses).reshape(-1, 3).shape[0])
-            return _r(self, poses, prepared)
-
-        monkeypatch.setattr(cls, "log_likelihood", counting)
+    counts = model_evaluations
     n_test = 100_000
     extra = {"scoring": "product"} if algorithm == "kld-amcl" else {}
     config = with_config(
