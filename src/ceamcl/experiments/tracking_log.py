@@ -295,7 +295,8 @@ def tracking_markdown(
         f"- sensor model: {describe_sensor(tracking.sensor)}",
         "- APE: position error of the estimate at the scans with truth, no alignment; "
         '"outside doubtful truth": the RMSE without the stretches where the truth does not '
-        "explain its own scans on the map (none: the same as over every scan)",
+        "explain its own scans on the map (the stretches the ground-truth line names; with "
+        "none, the same as over every scan)",
         "- within 2 sigma: share of scored scans whose true position lies inside the 2-sigma "
         "ellipse of the estimate's covariance (86.5 % if the covariance is calibrated; much "
         "lower: overconfident)",
