@@ -87,3 +87,32 @@ def test_the_read_made_during_a_step_is_the_one_callers_get_after_it() -> None:
         assert f.state(fresh) == said
     f.initialise_pose(WRONG, np.diag([0.1**2, 0.1**2, 0.05**2]))
     assert f.state().state is State.INITIALISING
+
+
+@pytest.mark.parametrize("init_is_a_search", [True, False])
+def test_a_lost_streak_right_after_the_global_search_waits_as_after_a_recovery(
+    init_is_a_search: bool,
+) -> None:
+    """Departure 30: the global initialisation is a search of the whole map, so a LOST streak
+    from its first update waits twice ``recovery_lost_updates`` before the recovery searches
+    the map again, as a streak after a recovery does; ``init_is_a_search=False``: it fires at
+    the third LOST update. Here every scan after the first is noise."""
+    sc = office_scenario()
+    log = sc.simulate(np.random.default_rng(0))
+    config = replace(CEAMCLConfig(), init_is_a_search=init_is_a_search)
+    f = make_filter("ceamcl", sc.grid(), np.random.default_rng(1), config=config)
+    assert isinstance(f, CEAMCL)
+    f.initialise_global(log.scan(0))
+    first = log.scan(0)
+    noise = np.random.default_rng(2).uniform(0.3, 0.9 * first.range_max, first.ranges.shape)
+    crowd = replace(first, ranges=noise)  # readings no place of the map explains
+    fired = None
+    for k in range(1, 10):
+        record = f.step(increment_between(log.odometry[0], log.odometry[0]), crowd)
+        if record.reinitialised:
+            fired = k
+            break
+        assert f.state().state is State.LOST
+    n = config.recovery_lost_updates
+    assert n is not None
+    assert fired == (2 * n if init_is_a_search else n)

@@ -215,6 +215,11 @@ class CEAMCLConfig:
             a fall, not a filter that stays lost. Each further recovery fired this way before
             the state leaves LOST waits twice as long, so a place the map does not hold costs
             a bounded share of the time. ``None``: the kidnap test alone.
+        init_is_a_search: the global initialisation counts as the first search of a LOST
+            streak that starts at its first update: the lost-streak recovery then waits twice
+            ``recovery_lost_updates`` (until the state leaves LOST), since it would repeat the
+            search the initialisation has just made (docs/ceamcl.md, departure 30).
+            ``False``: it fires after ``recovery_lost_updates`` as after any update.
 
     Not in the paper (unmapped obstacles, docs/ceamcl.md):
         beam_skip: while a single species lives (tracking), the short readings it cannot
@@ -309,6 +314,7 @@ class CEAMCLConfig:
     anchor_species: bool = True
     far_vouch_share: float | None = 0.63
     recovery_lost_updates: int | None = 3
+    init_is_a_search: bool = True
     beam_skip: BeamSkipConfig | None = field(default_factory=BeamSkipConfig)
     confirm_fit_below: float | None = DEFAULT_THRESHOLDS.fit_min
     look_around_m: float | None = 0.3

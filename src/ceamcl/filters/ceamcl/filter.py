@@ -196,6 +196,8 @@ class CEAMCL:
         self.events = Events()
         self._evaluations = 0
         self._initialise_from(usable(self.sensor, scan))
+        if self.config.init_is_a_search:  # departure 30
+            self._lost_wait = 2 * (self.config.recovery_lost_updates or 0)
         return self._record(reinitialised=False)
 
     def _initialise_from(
