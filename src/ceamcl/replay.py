@@ -50,7 +50,13 @@ from ceamcl.experiments.metrics import (
 )
 from ceamcl.filters.base import LocalisationFilter
 from ceamcl.filters.policies import Policy, on_motion
-from ceamcl.filters.registry import DEFAULT_SENSOR, check_sensor, make_filter, with_config
+from ceamcl.filters.registry import (
+    DEFAULT_SENSOR,
+    check_sensor,
+    make_filter,
+    sensor_of,
+    with_config,
+)
 from ceamcl.filters.state import summarise_states
 from ceamcl.io.logs import DEFAULT_SYNTHETIC_NOISE, open_log, poses_look_corrected
 from ceamcl.io.recorded import RecordedLog
@@ -347,7 +353,8 @@ def run_summary(
 ) -> dict[str, Any]:
     """The fields of ``summary.json`` of ``ceamcl run``; ``truth_doubt``: the truth check of
     the log on ``grid`` when the caller has it (else it is made here); ``sensor``: the sensor
-    model the filter weighed with."""
+    model the filter was given (``summary.json`` names the one it weighed with,
+    :func:`~ceamcl.filters.registry.sensor_of`)."""
     log = prepared.log
     step_ms = result.step_ms
     summary: dict[str, Any] = {
@@ -373,7 +380,7 @@ def run_summary(
         "median_step_ms": float(np.median(step_ms)),
         "updates": result.updates,
         "update_policy": "every scan" if pace is None else pace.describe(),
-        "sensor": sensor,
+        "sensor": sensor_of(result.algorithm, sensor),
         "median_update_ms": float(np.median(result.update_ms)),
         "particles_initial": int(result.diagnostics[0].n_particles),
         "particles_final": int(result.diagnostics[-1].n_particles),

@@ -56,3 +56,17 @@ def test_an_unknown_sensor_model_is_refused_before_any_run(tmp_path: Path) -> No
     assert not any(tmp_path.iterdir())  # nothing written
     for name in SENSOR_MODELS:
         check_sensor(name)
+
+
+def test_a_run_names_the_sensor_model_its_algorithm_weighs_with() -> None:
+    """``ceamcl run`` and ``summary.json`` name the model the filter weighs with: the one
+    asked for, but for the Nav2 wheel, which weighs with its own beam model whatever it is
+    given (as the comparisons' reports say)."""
+    from ceamcl.filters.registry import SENSOR_MODELS, describe_sensor, sensor_of
+
+    for name in SENSOR_MODELS:
+        assert sensor_of("ceamcl", name) == sensor_of("mcl-tuned", name) == name
+        assert sensor_of("nav2-amcl", name) == "the wheel's own beam model"
+        assert describe_sensor(name) == (
+            f"{name} for every algorithm but nav2-amcl (the wheel's own beam model)"
+        )

@@ -361,7 +361,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
         console.print(f"map: {map_source}")
         print_truth(console, prepared, doubt)
         console.print(f"filter updates: {'every scan' if pace is None else pace.describe()}")
-        console.print(f"sensor model: {args.sensor}")
+        console.print(f"sensor model: {registry.sensor_of(args.algorithm, args.sensor)}")
         print_sensor_note(console, args.sensor, [args.algorithm])
         if prepared.noise is not None:
             n = prepared.noise

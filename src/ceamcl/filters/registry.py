@@ -120,9 +120,19 @@ def check_sensor(name: str) -> None:
         )
 
 
+#: Algorithms that weigh with a sensor model of their own whatever they are given, and it.
+OWN_SENSOR: dict[str, str] = {"nav2-amcl": "the wheel's own beam model"}
+
+
 def describe_sensor(name: str) -> str:
     """The sensor model of a run or comparison, in words, for its report."""
-    return f"{name} for every algorithm but nav2-amcl (the wheel's own beam model)"
+    own = ", ".join(f"{a} ({m})" for a, m in OWN_SENSOR.items())
+    return f"{name} for every algorithm but {own}"
+
+
+def sensor_of(algorithm: str, name: str) -> str:
+    """The sensor model ``algorithm`` weighs with when it is given the one called ``name``."""
+    return OWN_SENSOR.get(algorithm, name)
 
 
 def make_sensor(name: str, grid: OccupancyGrid) -> SensorModel:
@@ -192,6 +202,7 @@ __all__ = [
     "make_sensor",
     "names",
     "resolve",
+    "sensor_of",
     "unavailable_reason",
     "with_config",
 ]
