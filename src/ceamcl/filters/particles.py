@@ -45,7 +45,7 @@ from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel
 from ceamcl.sensors.base import SensorModel, fitness
 from ceamcl.sensors.scan import LaserScan, PreparedScan
-from ceamcl.sensors.search import judged_count
+from ceamcl.sensors.search import judged
 
 
 def uniform_log_weights(n: int) -> NDArray[np.float64]:
@@ -199,9 +199,9 @@ def importance_start(
 
     ``search`` (with the step's ``scan``): a cheaper model than ``sensor`` that scores the test
     poses (:func:`~ceamcl.sensors.search.search_model`: the likelihood field for the beam
-    model); ``sensor`` then scores again the best :func:`~ceamcl.sensors.search.judged_count`
-    of them under it, and the particles are resampled from those alone, by ``sensor``'s
-    weights (docs/baselines.md). Both models' evaluations are counted.
+    model); ``sensor`` then scores again the best of them under it
+    (:func:`~ceamcl.sensors.search.judged`), and the particles are resampled from those alone,
+    by ``sensor``'s weights (docs/baselines.md). Both models' evaluations are counted.
     """
     if n_test < 1 or n < 1 or batch < 1:
         raise ConfigError(f"init_test_poses: expected positive counts, got {n_test}, {n}, {batch}")
@@ -226,11 +226,10 @@ def importance_start(
     )
     evaluations = n_test
     if searched is not None:  # the best under the search model, judged by the filter's own
-        k = judged_count(n_test)
-        best = np.sort(np.argpartition(-(ll - np.log(rel)), k - 1)[:k])
+        best = judged(ll - np.log(rel))
         poses, rel = poses[best], rel[best]
         ll = _scored(sensor, prepared, poses, batch)
-        evaluations += k
+        evaluations += best.size
     # importance weights: likelihood over the proposal's density
     _, w, ok = normalise_log_weights(ll - np.log(rel))
     if not ok:

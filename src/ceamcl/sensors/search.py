@@ -15,6 +15,9 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
 from ceamcl.sensors.base import SensorModel
 from ceamcl.sensors.beam_model import BeamModel
 from ceamcl.sensors.likelihood_field import LikelihoodFieldConfig, LikelihoodFieldModel
@@ -49,3 +52,11 @@ def search_model(sensor: SensorModel) -> SensorModel:
 def judged_count(scored: int) -> int:
     """How many of ``scored`` test poses the filter's own model judges again."""
     return min(scored, max(JUDGED_MIN, math.ceil(JUDGED_SHARE * scored)))
+
+
+def judged(scores: ArrayLike) -> NDArray[np.intp]:
+    """The indices, in order, of the :func:`judged_count` best of ``scores`` (the search
+    model's, one per test pose): the test poses the filter's own model scores again."""
+    s = np.asarray(scores, dtype=np.float64)
+    k = judged_count(s.size)
+    return np.sort(np.argpartition(-s, k - 1)[:k])

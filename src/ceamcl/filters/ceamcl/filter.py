@@ -231,10 +231,11 @@ class CEAMCL:
         # field and its own model judges the best of them; a recovery (``kept``) searches with
         # its own model (searched with the field, recoveries lost fr079's track at every scan).
         search, searched, judge = self.sensor, prepared, None
-        if kept is None and prepared is not None and self._search_sensor() is not self.sensor:
-            field_scan = usable(self._search_sensor(), self.last_scan)
+        field = self._search_sensor()
+        if kept is None and prepared is not None and field is not self.sensor:
+            field_scan = usable(field, self.last_scan)
             if field_scan is not None:  # else no beam the field can use: our own model
-                search, searched, judge = self._search_sensor(), field_scan, (self.sensor, prepared)
+                search, searched, judge = field, field_scan, (self.sensor, prepared)
         init, evaluations = initial_species(
             self.grid, search, searched, settings, self.rng, headings, judge
         )

@@ -36,7 +36,7 @@ from ceamcl.filters.resampling import sanitise_log_likelihood
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.sensors.base import SensorModel, fitness
 from ceamcl.sensors.scan import LaserScan, PreparedScan
-from ceamcl.sensors.search import judged_count
+from ceamcl.sensors.search import judged
 
 _FOUR = ndimage.generate_binary_structure(2, 1)
 
@@ -501,9 +501,9 @@ def initial_species(
     where the scan has beams to score them), their scores, the species; and the evaluations
     spent. ``headings``: the density of :func:`heading_proposal` (``None``: uniform).
     ``judge``: the filter's own model and its scan when ``sensor`` is a cheaper search model:
-    the best :data:`~ceamcl.sensors.search.JUDGED_SHARE` of the test poses under ``sensor`` are
-    scored again with it,
-    and the species are formed from those scores alone (docs/ceamcl.md, departure 29)."""
+    the best of the test poses under ``sensor`` (:func:`~ceamcl.sensors.search.judged`) are
+    scored again with it, and the species are formed from those scores alone (docs/ceamcl.md,
+    departure 29)."""
     test = sample_test_poses(grid, config, rng, headings if prepared is not None else None)
     ll, fit, evaluations = score_test_poses(test, sensor, prepared, config)
     if evaluations:
@@ -511,13 +511,13 @@ def initial_species(
         if judge is not None:
             sensor, prepared = judge
             first = ll.size
-            k = judged_count(first)
-            test = test[np.sort(np.argpartition(-ll, k - 1)[:k])]
+            test = test[judged(ll)]
             ll, fit, spent = score_test_poses(test, sensor, prepared, config)
             evaluations += spent
             # the second round draws around as many of the judged poses as it would have
             # drawn around of the whole first round
-            refine = replace(config, refine_share=min(1.0, config.refine_share * first / k))
+            share = config.refine_share * first / test.shape[0]
+            refine = replace(config, refine_share=min(1.0, share))
         test, ll, fit, spent = with_second_round(grid, test, ll, fit, sensor, prepared, refine, rng)
         evaluations += spent
     return generate_initial_species(grid, test, ll, fit, config), evaluations
