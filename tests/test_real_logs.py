@@ -18,6 +18,7 @@ from ceamcl.io.logs import open_log
 from ceamcl.io.tum import read_tum
 from ceamcl.mapping import map_from_log
 from ceamcl.maps.ros_io import load_map
+from ceamcl.peers import available as peers_available
 from ceamcl.replay import filter_rng as _filter_rng
 from ceamcl.replay import obtain_map, prepare_log
 from ceamcl.runner import run_filter
@@ -157,6 +158,27 @@ def test_evaluate_log_cli_small(tmp_path: Path) -> None:
         assert float(row["likelihood_evaluations"]) == 5000 * (1 + int(row["updates"]))
     assert "| mcl | 2 |" in (out / "evaluate.md").read_text()
     assert (out / "errors.png").is_file() and (out / "success.png").is_file()
+
+
+@pytest.mark.skipif(not peers_available(), reason="Nav2 AMCL wheel not installed")
+def test_evaluate_log_says_nav2_amcl_is_not_comparable_in_global_localisation(
+    tmp_path: Path,
+) -> None:
+    """Issue 17: the wheel has no uniform global initialisation, so evaluate-log's row of
+    nav2-amcl says "not comparable" where the others give a success rate, and evaluate.csv
+    keeps its measured runs, marked."""
+    out = tmp_path / "ev"
+    argv = ["evaluate-log", str(log_path("intel")), "--starts", "1", "--scans", "6"]
+    argv += ["--hold", "3", "--algorithms", "mcl", "nav2-amcl", "--executor", "serial"]
+    assert main([*argv, "--out", str(out), "--quiet"]) == 0
+    text = (out / "evaluate.md").read_text()
+    rows = {line.split("|")[1].strip(): line for line in text.splitlines() if line.startswith("| ")}
+    assert rows["nav2-amcl"].split("|")[3].strip() == "not comparable"
+    assert rows["mcl"].split("|")[3].strip().endswith("%")
+    assert "nav2-amcl: global localisation not comparable" in text
+    with (out / "evaluate.csv").open() as fh:
+        marked = {r["algorithm"]: r["localises_globally"] for r in csv.DictReader(fh)}
+    assert marked == {"mcl": "True", "nav2-amcl": "False"}
 
 
 def test_the_kidnap_test_reads_the_fittest_individual() -> None:

@@ -189,19 +189,26 @@ def run(args: argparse.Namespace, console: Console) -> int:
         rows = [
             (
                 row["algorithm"],
-                pct(row["success_rate"]),
-                str(row["confidently_wrong"]),
-                fmt(row["time_to_converge_s"], 1, "-"),
-                fmt(row["distance_to_converge_m"], 1, "-"),
-                fmt(row["position_rmse_m"], 3, "-"),
-                fmt(row["position_rmse_from_first_m"], 3, "-"),
-                fmt(row["heading_rmse_rad"], 3, "-"),
+                registry.global_cell(row["algorithm"], pct(row["success_rate"])),
+                *(
+                    registry.global_cell(row["algorithm"], cell, "-")
+                    for cell in (
+                        str(row["confidently_wrong"]),
+                        fmt(row["time_to_converge_s"], 1, "-"),
+                        fmt(row["distance_to_converge_m"], 1, "-"),
+                        fmt(row["position_rmse_m"], 3, "-"),
+                        fmt(row["position_rmse_from_first_m"], 3, "-"),
+                        fmt(row["heading_rmse_rad"], 3, "-"),
+                    )
+                ),
                 fmt(row["mean_particles"], 0, "-"),
                 fmt(row["median_step_ms"], 1, "-"),
             )
             for row in ev.table
         ]
         console.print(plain_table(title, header, rows))
+        for note in registry.global_notes(row["algorithm"] for row in ev.table):
+            console.print(note, highlight=False)
         console.print(f"results written to [bold]{ev.out_dir}[/]")
     return 0
 

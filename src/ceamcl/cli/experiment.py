@@ -12,6 +12,7 @@ from typing import Any
 
 from rich.console import Console, Group, RenderableType
 from rich.table import Table
+from rich.text import Text
 
 from ceamcl import budget
 from ceamcl.cli.common import (
@@ -88,13 +89,25 @@ class Experiment:
 PRECISION_COLUMNS = ("at truth", "spurious", "conf. wrong", "nearest [m, rad]", "evals/run")
 
 
-def precision_row(p: PrecisionSummary) -> tuple[str, ...]:
-    return (
+def precision_row(p: PrecisionSummary, algorithm: str | None = None) -> tuple[str, ...]:
+    """One row of :data:`PRECISION_COLUMNS`; with ``algorithm``, for an algorithm without a
+    global localisation of its own the first figure reads "not comparable", the rest "-"."""
+    measured = (
         pct(p.truth_weight),
         pct(p.spurious_weight),
         pct(p.confidently_wrong_rate),
         f"{fmt(p.nearest_position_error_mean_m, 2, '-')}, "
         f"{fmt(p.nearest_heading_error_mean_rad, 2, '-')}",
+    )
+    return (
+        *(
+            measured
+            if algorithm is None
+            else (
+                registry.global_cell(algorithm, c, registry.NOT_COMPARABLE if k == 0 else "-")
+                for k, c in enumerate(measured)
+            )
+        ),
         compact_count(p.likelihood_evaluations, "not counted"),
     )
 
@@ -103,12 +116,19 @@ def precision_table(
     title: str,
     labels: tuple[str, ...],
     rows: Sequence[tuple[tuple[str, ...], PrecisionSummary]],
+    *,
+    global_localisation: bool = True,
 ) -> Table:
-    """The precision side (docs/experiments.md) as its own plain table: one row per label."""
+    """The precision side (docs/experiments.md) as its own plain table: one row per label,
+    whose first element is the algorithm; ``global_localisation``: the rows measure a global
+    localisation (an algorithm without one of its own reads "not comparable")."""
     return plain_table(
         f"{title}: precision side (docs/experiments.md)",
         (*labels, *PRECISION_COLUMNS),
-        [(*label, *precision_row(p)) for label, p in rows],
+        [
+            (*label, *precision_row(p, label[0] if global_localisation else None))
+            for label, p in rows
+        ],
         left=len(labels),
     )
 
@@ -132,14 +152,20 @@ def table1_rich(result: Table1Result) -> Group:
             if s.converged_runs == 0
             else f"{fmt(s.expired_s)} {s.expired_runs}/{s.converged_runs}"
         )
+        measured = (
+            f"{fmt(s.converged_s)} {s.converged_runs}/{s.runs}",
+            exp,
+            pct(s.success_rate),
+            pct(s.kept_all_rate),
+            fmt(s.final_error_mean_m, 2, "-"),
+        )
         rows.append(
             (
                 s.algorithm,
-                f"{fmt(s.converged_s)} {s.converged_runs}/{s.runs}",
-                exp,
-                pct(s.success_rate),
-                pct(s.kept_all_rate),
-                fmt(s.final_error_mean_m, 2, "-"),
+                *(
+                    registry.global_cell(s.algorithm, c, registry.NOT_COMPARABLE if k == 2 else "-")
+                    for k, c in enumerate(measured)
+                ),
                 fmt(s.mean_particles, 0, "-"),
                 fmt(s.median_step_ms, 1, "-"),
             )
@@ -152,6 +178,7 @@ def table1_rich(result: Table1Result) -> Group:
             ("algorithm",),
             [((s.algorithm,), s.precision) for s in result.summaries],
         ),
+        *(Text(note) for note in registry.global_notes(s.algorithm for s in result.summaries)),
     )
 
 
@@ -171,7 +198,10 @@ def marked_rich(result: MarkedResult) -> Group:
     right = plain_table(
         f"final estimate right on {name}, per start route",
         ("algorithm", *cols),
-        [(alg, *(pct(by_route.get(c)) for c in cols)) for alg, by_route in result.shares.items()],
+        [
+            (alg, *(registry.global_cell(alg, pct(by_route.get(c))) for c in cols))
+            for alg, by_route in result.shares.items()
+        ],
     )
     per_route = [
         ((alg, c), result.precision[alg][c])
@@ -180,7 +210,9 @@ def marked_rich(result: MarkedResult) -> Group:
         if c in result.precision[alg]
     ]
     return Group(
-        right, precision_table(f"At the goal on {name}", ("algorithm", "route"), per_route)
+        right,
+        precision_table(f"At the goal on {name}", ("algorithm", "route"), per_route),
+        *(Text(note) for note in registry.global_notes(result.shares)),
     )
 
 
@@ -203,6 +235,7 @@ def kidnapped_rich(result: KidnapResult) -> Group:
             f"At the end on {name}",
             ("algorithm",),
             [((s.algorithm,), s.precision) for s in result.summaries],
+            global_localisation=False,  # a kidnapped robot: every filter starts on the truth
         ),
     )
 

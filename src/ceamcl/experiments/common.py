@@ -20,6 +20,7 @@ from ceamcl.experiments.executors import ProgressCallback, map_trials, open_exec
 from ceamcl.experiments.metrics import CONFIDENT_SHARE, PrecisionSummary
 from ceamcl.experiments.routes import Course
 from ceamcl.experiments.trials import Trial, TrialRecord, localise_trial, run_trial
+from ceamcl.filters import registry
 from ceamcl.io.results import ensure_output_dir, write_json
 from ceamcl.outputs import OutputOptions, write_outputs
 
@@ -373,16 +374,20 @@ PRECISION_HEADER = (
 )
 
 
-def precision_cells(p: PrecisionSummary) -> list[str]:
-    """The cells of :data:`PRECISION_HEADER` for one row."""
-    return [
+def precision_cells(p: PrecisionSummary, algorithm: str | None = None) -> list[str]:
+    """The cells of :data:`PRECISION_HEADER` for one row; with ``algorithm``, those that
+    measure global localisation read "-" for one that has none of its own (its success
+    column says "not comparable": :func:`ceamcl.filters.registry.global_cell`)."""
+    measured = [
         f"{pct(p.true_image_weight)} / {pct(p.spurious_weight)}",
         pct(p.confidently_wrong_rate),
         f"{fmt(p.nearest_position_error_mean_m, never='-')} / "
         f"{fmt(p.nearest_position_error_median_m, never='-')}, "
         f"{fmt(p.nearest_heading_error_mean_rad, never='-')}",
-        evaluations(p.likelihood_evaluations),
     ]
+    if algorithm is not None:
+        measured = [registry.global_cell(algorithm, c, "-") for c in measured]
+    return [*measured, evaluations(p.likelihood_evaluations)]
 
 
 PRECISION_DEFINITIONS = (

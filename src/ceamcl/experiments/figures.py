@@ -17,6 +17,7 @@ from matplotlib.axes import Axes
 
 from ceamcl.experiments.common import Curve
 from ceamcl.experiments.metrics import POSITION_TOL_M
+from ceamcl.filters import registry
 
 if TYPE_CHECKING:
     from ceamcl.experiments.evaluate_log import Evaluation
@@ -162,8 +163,17 @@ def plot_evaluation(ev: Evaluation, out_dir: Path) -> None:
     plt.close(fig)
 
     fig, ax = plt.subplots(figsize=(6, 4))
-    rates = [100 * row["success_rate"] for row in ev.table]
+    # an algorithm without a global localisation of its own gets no bar, and says why not
+    shown = [registry.localises_globally(a) for a in algos]
+    rates = [
+        100 * row["success_rate"] if ok else 0.0 for row, ok in zip(ev.table, shown, strict=True)
+    ]
     ax.bar(algos, rates, color=[cmap(i) for i in range(len(algos))])
+    for i, ok in enumerate(shown):
+        if not ok:
+            ax.text(
+                i, 2, registry.NOT_COMPARABLE, rotation=90, ha="center", va="bottom", fontsize=8
+            )
     ax.set_ylim(0, 100)
     ax.set_ylabel("success [%]")
     ax.set_title(f"global localisation from {len(ev.windows)} starts")

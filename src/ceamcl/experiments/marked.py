@@ -38,6 +38,7 @@ from ceamcl.experiments.metrics import (
     precision_summary,
 )
 from ceamcl.experiments.trials import TrialRecord
+from ceamcl.filters import registry
 from ceamcl.io.results import ensure_output_dir
 
 ALL_ROUTES = "all"
@@ -97,7 +98,15 @@ def route_columns(result: MarkedResult) -> list[str]:
 def marked_markdown(result: MarkedResult, meta: dict[str, Any]) -> str:
     cols = route_columns(result)
     rows = [
-        [alg, *(f"{pct(result.shares[alg].get(c))} of {result.runs[alg].get(c, 0)}" for c in cols)]
+        [
+            alg,
+            *(
+                registry.global_cell(
+                    alg, f"{pct(result.shares[alg].get(c))} of {result.runs[alg].get(c, 0)}"
+                )
+                for c in cols
+            ),
+        ]
         for alg in result.shares
     ]
     detail = [
@@ -105,9 +114,9 @@ def marked_markdown(result: MarkedResult, meta: dict[str, Any]) -> str:
             alg,
             c,
             str(result.runs[alg][c]),
-            pct(result.shares[alg][c]),
-            pct(result.precision[alg][c].truth_weight),
-            *precision_cells(result.precision[alg][c]),
+            registry.global_cell(alg, pct(result.shares[alg][c])),
+            registry.global_cell(alg, pct(result.precision[alg][c].truth_weight), "-"),
+            *precision_cells(result.precision[alg][c], alg),
         ]
         for alg in result.shares
         for c in cols
@@ -141,6 +150,7 @@ def marked_markdown(result: MarkedResult, meta: dict[str, Any]) -> str:
             "image is not spurious here. *Weight at the truth* is the share held by the "
             "hypotheses within the tolerances of the truth itself: what the mark decides.",
             "",
+            *(f"{note}.\n" for note in registry.global_notes(result.shares)),
             metadata_markdown(meta, result.settings.skipped),
         ]
     )

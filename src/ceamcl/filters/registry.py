@@ -135,6 +135,41 @@ def sensor_of(algorithm: str, name: str) -> str:
     return OWN_SENSOR.get(algorithm, name)
 
 
+#: Algorithms without a global localisation of their own, and why: their figures of global
+#: localisation (success, convergence, the precision side) are not comparable with the
+#: others', and tables print :data:`NOT_COMPARABLE` in their place (the measured values stay
+#: in the CSV files).
+NO_GLOBAL_LOCALISATION: dict[str, str] = {
+    "nav2-amcl": "its Python wheel has no uniform global initialisation; it starts from one "
+    "Gaussian over the map's free space (ceamcl.peers.nav2_amcl)"
+}
+#: What a table prints for such a figure.
+NOT_COMPARABLE = "not comparable"
+
+
+def localises_globally(algorithm: str) -> bool:
+    """Whether ``algorithm``'s global-localisation figures compare with the others'."""
+    return algorithm not in NO_GLOBAL_LOCALISATION
+
+
+def global_cell(algorithm: str, cell: str, instead: str = NOT_COMPARABLE) -> str:
+    """A table cell holding a figure of global localisation: ``cell``, or ``instead`` (by
+    default :data:`NOT_COMPARABLE`; a table that says so in its success column passes "-" for
+    the columns that follow from it) for an algorithm without a global localisation of its
+    own."""
+    return cell if localises_globally(algorithm) else instead
+
+
+def global_notes(algorithms: Iterable[str]) -> list[str]:
+    """One line per algorithm of ``algorithms`` whose global-localisation figures a table
+    marks :data:`NOT_COMPARABLE`, saying why."""
+    return [
+        f"{a}: global localisation {NOT_COMPARABLE}: {NO_GLOBAL_LOCALISATION[a]}"
+        for a in dict.fromkeys(algorithms)
+        if not localises_globally(a)
+    ]
+
+
 def make_sensor(name: str, grid: OccupancyGrid) -> SensorModel:
     """A sensor model by name, with its default (ROS amcl) parameters."""
     check_sensor(name)
@@ -193,11 +228,17 @@ def with_config(algorithm: str, **changes: Any) -> Any:
 __all__ = [
     "ALGORITHMS",
     "DEFAULT_SENSOR",
+    "NOT_COMPARABLE",
+    "NO_GLOBAL_LOCALISATION",
+    "OWN_SENSOR",
     "PRESETS",
     "SENSOR_MODELS",
     "check_sensor",
     "describe_sensor",
     "get",
+    "global_cell",
+    "global_notes",
+    "localises_globally",
     "make_filter",
     "make_sensor",
     "names",
