@@ -285,3 +285,21 @@ def test_global_localisation_rows_say_not_comparable(
     assert csv_rows["nav2-amcl"]["localises_globally"] == "False"
     assert csv_rows["ceamcl"]["localises_globally"] == "True"
     assert 0.0 <= float(csv_rows["nav2-amcl"]["success_rate"]) <= 1.0  # measured, kept
+
+
+@needs_wheel
+def test_marked_hall_rows_say_not_comparable(tmp_path: Path) -> None:
+    """The same for the marked-hall experiment: its route cells say "not comparable" and
+    marked.csv marks the measured rows."""
+    from ceamcl.cli import main
+
+    out = tmp_path / "m"
+    args = ["experiment", "marked", "--trials", "1", "--starts", "0", "--executor", "serial"]
+    args += ["--algorithms", "mcl,nav2-amcl", "--max-time", "2", "--quiet", "--out", str(out)]
+    assert main(args) == 0
+    text = (out / "marked.md").read_text()
+    assert "| nav2-amcl | not comparable | not comparable |" in text
+    assert "| mcl | not comparable" not in text
+    with (out / "marked.csv").open() as fh:
+        marked = {(r["algorithm"], r["localises_globally"]) for r in csv.DictReader(fh)}
+    assert marked == {("mcl", "True"), ("nav2-amcl", "False")}

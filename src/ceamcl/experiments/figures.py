@@ -114,7 +114,10 @@ def plot_shares(
     ax.set_ylim(0, 105)
     ax.set_ylabel(ylabel)
     ax.grid(axis="y", alpha=0.3)
-    ax.legend(fontsize=8)
+    if algs:
+        ax.legend(fontsize=8)
+    else:  # every algorithm asked for lacks a global localisation of its own
+        ax.text(0.5, 0.5, "no algorithm to compare", ha="center", transform=ax.transAxes)
     ax.set_title(title)
     return _save(fig, path)
 

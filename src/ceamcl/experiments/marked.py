@@ -169,6 +169,8 @@ def write_marked(
             "runs": result.runs[alg][c],
             "final_estimate_ok_rate": v,
             **precision_columns(result.precision[alg][c]),
+            # False: the figures measure a start that is not a global localisation
+            "localises_globally": registry.localises_globally(alg),
         }
         for alg, by_route in result.shares.items()
         for c, v in by_route.items()
@@ -177,7 +179,9 @@ def write_marked(
         write_csv(out_dir / "marked.csv", rows),
         write_csv(out_dir / "trials.csv", trial_rows(result.records)),
         plot_shares(
-            result.shares,
+            # an algorithm without a global localisation of its own gets no bar (marked.md
+            # says why)
+            {a: v for a, v in result.shares.items() if registry.localises_globally(a)},
             out_dir / "marked.png",
             f"Final estimate within {POSITION_TOL_M} m and {HEADING_TOL_RAD} rad "
             f"on {result.settings.course.name}",
