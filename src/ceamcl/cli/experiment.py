@@ -7,6 +7,7 @@ import argparse
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -92,24 +93,16 @@ PRECISION_COLUMNS = ("at truth", "spurious", "conf. wrong", "nearest [m, rad]", 
 def precision_row(p: PrecisionSummary, algorithm: str | None = None) -> tuple[str, ...]:
     """One row of :data:`PRECISION_COLUMNS`; with ``algorithm``, for an algorithm without a
     global localisation of its own the first figure reads "not comparable", the rest "-"."""
-    measured = (
+    measured: tuple[str, ...] = (
         pct(p.truth_weight),
         pct(p.spurious_weight),
         pct(p.confidently_wrong_rate),
         f"{fmt(p.nearest_position_error_mean_m, 2, '-')}, "
         f"{fmt(p.nearest_heading_error_mean_rad, 2, '-')}",
     )
-    return (
-        *(
-            measured
-            if algorithm is None
-            else (
-                registry.global_cell(algorithm, c, registry.NOT_COMPARABLE if k == 0 else "-")
-                for k, c in enumerate(measured)
-            )
-        ),
-        compact_count(p.likelihood_evaluations, "not counted"),
-    )
+    if algorithm is not None and not registry.localises_globally(algorithm):
+        measured = (registry.NOT_COMPARABLE, *("-" for _ in measured[1:]))
+    return (*measured, compact_count(p.likelihood_evaluations, "not counted"))
 
 
 def precision_table(
@@ -152,20 +145,17 @@ def table1_rich(result: Table1Result) -> Group:
             if s.converged_runs == 0
             else f"{fmt(s.expired_s)} {s.expired_runs}/{s.converged_runs}"
         )
-        measured = (
-            f"{fmt(s.converged_s)} {s.converged_runs}/{s.runs}",
-            exp,
-            pct(s.success_rate),
-            pct(s.kept_all_rate),
-            fmt(s.final_error_mean_m, 2, "-"),
-        )
+        # figures of a global localisation: "not comparable" in the success column, "-" in
+        # the rest, for an algorithm without one of its own
+        follows = partial(registry.global_cell, s.algorithm, instead="-")
         rows.append(
             (
                 s.algorithm,
-                *(
-                    registry.global_cell(s.algorithm, c, registry.NOT_COMPARABLE if k == 2 else "-")
-                    for k, c in enumerate(measured)
-                ),
+                follows(f"{fmt(s.converged_s)} {s.converged_runs}/{s.runs}"),
+                follows(exp),
+                registry.global_cell(s.algorithm, pct(s.success_rate)),
+                follows(pct(s.kept_all_rate)),
+                follows(fmt(s.final_error_mean_m, 2, "-")),
                 fmt(s.mean_particles, 0, "-"),
                 fmt(s.median_step_ms, 1, "-"),
             )
