@@ -203,3 +203,16 @@ def test_table1_on_a_users_ros_map_with_a_route_file(tmp_path: Path) -> None:
     assert [(t["route"], t["repetition"]) for t in trials] == [("corridor", "0"), ("corridor", "1")]
     assert "office-routes" in (out / "table1.md").read_text()
     assert "kept all 1" in (out / "table1.md").read_text()
+
+
+@pytest.mark.parametrize("experiment", ["tune", "state"])
+def test_an_experiment_without_runs_to_draw_refuses_the_visual_flags(
+    experiment: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # tune keeps one row per configuration and state its runs' states: --gif used to be
+    # accepted and, for tune, to fail after the whole sweep; now it is refused before any trial
+    out = tmp_path / "x"
+    assert main(["experiment", experiment, "--gif", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"the {experiment} experiment writes tables" in err and len(err.splitlines()) == 1
+    assert not out.exists()

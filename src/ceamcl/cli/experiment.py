@@ -67,6 +67,9 @@ class Experiment:
     ``routes(settings, args)``: the routes one algorithm runs per trial, when the experiment
     runs more than the settings' course (the state experiment's three scenarios), and
     ``where(args)`` names them.
+    ``visuals``: whether its result keeps trial records to run again for the visual outputs
+    (``--gif``, ``--mp4``, ``--report``, ``--mcap``); without, those flags are refused before
+    any trial runs.
     """
 
     help: str
@@ -82,6 +85,7 @@ class Experiment:
     count: Callable[[ExperimentSettings, argparse.Namespace], int] | None = None
     routes: Callable[[ExperimentSettings, argparse.Namespace], int] | None = None
     where: Callable[[argparse.Namespace], str] | None = None
+    visuals: bool = True
 
 
 # ---------------------------------------------------------------- the tables printed
@@ -453,6 +457,7 @@ EXPERIMENTS: dict[str, Experiment] = {
         add_arguments=_tuning_arguments,
         default_algorithms=tuning.BASELINES,
         default_seed=tuning.TUNING_SEED,
+        visuals=False,  # one row per configuration: no run to draw
     ),
     "state": Experiment(
         "the localisation state (LOCALISED / AMBIGUOUS / LOST): precision and recall on "
@@ -467,6 +472,7 @@ EXPERIMENTS: dict[str, Experiment] = {
         state_rich,
         state_experiment.write_state,
         default_algorithms=state_experiment.DEFAULT_ALGORITHMS,
+        visuals=False,  # its runs keep their states, not their particles
         routes=lambda settings, args: sum(len(c.routes) for c in _state_courses(args)),
         where=lambda args: ", ".join(c.name for c in _state_courses(args)),
     ),
@@ -627,6 +633,12 @@ def run(args: argparse.Namespace, console: Console) -> int:
     experiment = EXPERIMENTS[args.experiment]
     settings = _settings(args, console)
     outputs = _output_options(args)  # refuses --mp4 without ffmpeg before the trials
+    if outputs.any and not experiment.visuals:
+        raise ConfigError(
+            f"--gif/--mp4/--report/--mcap: the {args.experiment} experiment writes tables, "
+            "not runs to draw; expected none of these flags (ceamcl experiment table1, marked, "
+            "delta and kidnapped draw their first run of each algorithm)"
+        )
     routes = (
         len(settings.course.routes)
         if experiment.routes is None
