@@ -401,3 +401,29 @@ def test_ceamcl_with_the_beam_model_is_told_what_its_state_reads() -> None:
     assert "reads LOST at most scans" in said("beam", ["mcl", "ceamcl"])
     assert said("beam", ["mcl", "nav2-amcl"]) == ""
     assert said("likelihood-field", ["ceamcl"]) == ""
+
+
+def test_every_option_with_a_default_shows_it_in_its_help() -> None:
+    """README: `--help` shows every default. An option without help text showed nothing, and
+    a default of 0 (equal to False) was hidden as if it were a flag's absence."""
+    import argparse
+
+    from ceamcl.cli import DefaultsFormatter, _leaf_parsers, build_parser
+
+    missing = []
+    for leaf in _leaf_parsers(build_parser()):
+        formatter = DefaultsFormatter(leaf.prog)
+        for action in leaf._actions:
+            default = action.default
+            if (
+                not action.option_strings
+                or action.nargs == 0
+                or default is None
+                or default is False
+                or default is argparse.SUPPRESS
+            ):
+                continue
+            text = formatter._expand_help(action) if action.help else ""
+            if "default" not in text:
+                missing.append(f"{leaf.prog} {action.option_strings[-1]}")
+    assert not missing, missing

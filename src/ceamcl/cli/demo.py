@@ -39,7 +39,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         help="any registered algorithm (nav2-amcl needs the [peers] extra)",
     )
     demo.add_argument(
-        "--world", choices=("symmetric-hall", "marked-hall"), default="symmetric-hall"
+        "--world",
+        choices=("symmetric-hall", "marked-hall"),
+        default="symmetric-hall",
+        help="the paper's hall, or the same with a box in room 3",
     )
     demo.add_argument(
         "--start-room",
@@ -48,7 +51,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         default=0,
         help="room the robot starts in (0 SW, 1 SE, 2 NE, 3 NW)",
     )
-    demo.add_argument("--seed", type=non_negative_int, default=0)
+    demo.add_argument(
+        "--seed", type=non_negative_int, default=0, help="one seed reproduces the run bit for bit"
+    )
     demo.add_argument(
         "--sensor",
         choices=registry.SENSOR_MODELS,

@@ -31,10 +31,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     )
     p.add_argument("--seed", type=non_negative_int, default=0, help="seed of that odometry")
     p.add_argument("--max-range", type=positive_float, default=None, help="metres")
-    p.add_argument("--base-frame", default="base_footprint")
-    p.add_argument("--odom-frame", default="odom")
-    p.add_argument("--map-frame", default="map")
-    p.add_argument("--laser-frame", default="laser")
+    p.add_argument("--base-frame", default="base_footprint", help="the robot's TF frame")
+    p.add_argument("--odom-frame", default="odom", help="the odometry's TF frame")
+    p.add_argument("--map-frame", default="map", help="the map's frame (/map's header)")
+    p.add_argument("--laser-frame", default="laser", help="the scans' frame")
     p.add_argument(
         "--wait", type=float, default=5.0, help="seconds to wait for a subscriber to scan"
     )

@@ -32,16 +32,22 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "soak",
         help="run a filter for many steps on a looping simulated drive; check memory and sizes",
     )
-    soak.add_argument("--steps", type=positive_int, default=100_000)
-    soak.add_argument("--algorithm", choices=registry.names(), default="ceamcl")
-    soak.add_argument("--world", choices=SOAK_WORLDS, default="small-office")
+    soak.add_argument("--steps", type=positive_int, default=100_000, help="filter steps to run")
+    soak.add_argument(
+        "--algorithm", choices=registry.names(), default="ceamcl", help="the filter to run"
+    )
+    soak.add_argument(
+        "--world", choices=SOAK_WORLDS, default="small-office", help="the world driven round"
+    )
     soak.add_argument(
         "--sensor",
         choices=registry.SENSOR_MODELS,
         default="likelihood-field",
         help="sensor model (nav2-amcl always uses the wheel's own beam model)",
     )
-    soak.add_argument("--seed", type=non_negative_int, default=0)
+    soak.add_argument(
+        "--seed", type=non_negative_int, default=0, help="seed of the drive and the filter"
+    )
     soak.add_argument(
         "--particles", type=positive_int, default=None, help="sample size of MCL / GMCL"
     )

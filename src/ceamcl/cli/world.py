@@ -16,7 +16,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     world = sub.add_parser("world", help="export a built-in world as a ROS map (YAML + image)")
     world.add_argument("name", nargs="?", choices=WORLD_NAMES)
     world.add_argument("-o", "--output", help="path of the map YAML to write")
-    world.add_argument("--format", choices=("pgm", "png"), default="pgm")
+    world.add_argument(
+        "--format", choices=("pgm", "png"), default="pgm", help="image format of the map"
+    )
     world.add_argument("--list", action="store_true", help="list the built-in worlds")
     world.set_defaults(run=run)
 
