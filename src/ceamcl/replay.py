@@ -31,7 +31,7 @@ import os
 import warnings
 import zlib
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, is_dataclass, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -53,6 +53,7 @@ from ceamcl.filters.policies import Policy, on_motion
 from ceamcl.filters.registry import (
     DEFAULT_SENSOR,
     check_sensor,
+    get,
     make_filter,
     sensor_of,
     with_config,
@@ -190,9 +191,18 @@ def obtain_map(
 #: Nav2 amcl's defaults: update once the robot has moved 0.25 m or turned 0.2 rad.
 DEFAULT_UPDATE_MIN_D = 0.25
 DEFAULT_UPDATE_MIN_A = 0.2
-#: Algorithms that hold their own update thresholds (amcl's): under a shared pace they are
-#: set to 0 so that the runner alone decides, for every algorithm alike.
-_OWN_THRESHOLDS = ("kld-amcl", "kld-amcl-recovery")
+#: The config fields of an algorithm that holds its own update thresholds (amcl's, KLD-AMCL
+#: and its presets): under a shared pace they are set to 0 so that the runner alone decides,
+#: for every algorithm alike.
+_OWN_THRESHOLDS = ("update_min_d", "update_min_a")
+
+
+def _holds_thresholds(algorithm: str) -> bool:
+    """Whether ``algorithm``'s config has update thresholds of its own (by its fields, so a
+    preset of such a filter, ``kld-amcl-tuned``, counts too)."""
+    config_type = get(algorithm).config_type
+    names = {f.name for f in fields(config_type)} if is_dataclass(config_type) else set()
+    return all(name in names for name in _OWN_THRESHOLDS)
 
 
 @dataclass(frozen=True)
@@ -250,8 +260,8 @@ def make_paced_filter(
 ) -> LocalisationFilter:
     """:func:`ceamcl.filters.registry.make_filter`; under a ``pace`` an algorithm with update
     thresholds of its own (KLD-AMCL) gets them at 0, so the runner's policy alone decides."""
-    if pace is not None and algorithm in _OWN_THRESHOLDS and "config" not in kwargs:
-        kwargs["config"] = with_config(algorithm, update_min_d=0.0, update_min_a=0.0)
+    if pace is not None and "config" not in kwargs and _holds_thresholds(algorithm):
+        kwargs["config"] = with_config(algorithm, **dict.fromkeys(_OWN_THRESHOLDS, 0.0))
     return make_filter(algorithm, grid, rng, **kwargs)
 
 
