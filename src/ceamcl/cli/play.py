@@ -61,7 +61,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     if args.synthetic_odometry:
         log = log.with_synthetic_odometry(OdometryNoise(), np.random.default_rng(args.seed))
     truth = log.true_poses
-    if truth is None and poses_look_corrected(args.log):
+    if truth is None and poses_look_corrected(log)[0]:
         truth = log.poses
     if args.map is not None:
         from ceamcl.maps.ros_io import load_map
