@@ -26,7 +26,7 @@ from ceamcl.experiments.metrics import (
     restarts,
     weight_shares,
 )
-from ceamcl.filters import make_filter
+from ceamcl.filters import make_filter, registry
 from ceamcl.filters.ceamcl.records import species_of
 from ceamcl.filters.state import summarise_states
 from ceamcl.io.results import ensure_output_dir
@@ -184,7 +184,12 @@ def run_demo(
     snapshot_every = outputs.snapshot_every if outputs is not None else 0
     result = run_filter(f, log, on_step=on_step, snapshot_every=snapshot_every)
     summary = summarise(
-        result, log, seed=seed, scenario=scenario, start_room=start_room, sensor=sensor
+        result,
+        log,
+        seed=seed,
+        scenario=scenario,
+        start_room=start_room,
+        sensor=registry.sensor_of(algorithm, sensor),  # the Nav2 peer weighs with its own
     )
     files = write_run_files(
         result,

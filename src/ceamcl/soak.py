@@ -303,7 +303,12 @@ def run_soak(
     end = time.perf_counter()
     loop_s = end - t_loop
     return SoakReport(
-        config={**asdict(config), "warmup_steps": warmup},
+        config={
+            **asdict(config),
+            # the model the filter weighs with (the Nav2 peer: its own, whatever it was given)
+            "sensor": registry.sensor_of(config.algorithm, config.sensor),
+            "warmup_steps": warmup,
+        },
         steps=config.steps,
         warmup_steps=warmup,
         wall_s=end - t_init,

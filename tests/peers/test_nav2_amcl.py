@@ -303,3 +303,18 @@ def test_marked_hall_rows_say_not_comparable(tmp_path: Path) -> None:
     with (out / "marked.csv").open() as fh:
         marked = {(r["algorithm"], r["localises_globally"]) for r in csv.DictReader(fh)}
     assert marked == {("mcl", "True"), ("nav2-amcl", "False")}
+
+
+@needs_wheel
+def test_a_runs_summary_names_the_model_the_peer_weighs_with(tmp_path: Path) -> None:
+    """The Nav2 peer weighs with the wheel's beam model whatever sensor model it is given; the
+    summaries of `demo` and `soak` named the one it was given."""
+    import json
+
+    from ceamcl.cli import main
+
+    out = tmp_path / "s"
+    args = ["soak", "--algorithm", "nav2-amcl", "--steps", "30", "--warmup", "5", "--quiet"]
+    assert main([*args, "--out", str(out)]) in (0, 1)  # 1: growth over the limit, not our point
+    config = json.loads((out / "soak.json").read_text())["config"]
+    assert config["sensor"] == "the wheel's own beam model"
