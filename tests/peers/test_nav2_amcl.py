@@ -318,3 +318,23 @@ def test_a_runs_summary_names_the_model_the_peer_weighs_with(tmp_path: Path) -> 
     assert main([*args, "--out", str(out)]) in (0, 1)  # 1: growth over the limit, not our point
     config = json.loads((out / "soak.json").read_text())["config"]
     assert config["sensor"] == "the wheel's own beam model"
+
+
+@needs_wheel
+def test_kidnapped_start_is_not_comparable_but_its_recovery_is(tmp_path: Path) -> None:
+    """The kidnapped robot starts with a global localisation, which the wheel does not have:
+    'localised before kidnap' says "not comparable" for it; the recovery after the kidnap (the
+    wheel's own) keeps its measured figure."""
+    from ceamcl.cli import main
+
+    out = tmp_path / "k"
+    args = ["experiment", "kidnapped", "--trials", "1", "--executor", "serial", "--quiet"]
+    args += ["--algorithms", "mcl,nav2-amcl", "--max-time", "30", "--recovery-window", "4"]
+    assert main([*args, "--out", str(out)]) == 0
+    rows = {
+        line.split("|")[1].strip(): [c.strip() for c in line.split("|")[2:]]
+        for line in (out / "kidnapped.md").read_text().splitlines()
+        if line.startswith("| ") and not line.startswith("| algorithm")
+    }
+    assert rows["nav2-amcl"][1] == "not comparable" and rows["mcl"][1].endswith("%")
+    assert rows["nav2-amcl"][2].endswith("%")  # recovered: measured

@@ -216,7 +216,8 @@ def kidnapped_rich(result: KidnapResult) -> Group:
         (
             s.algorithm,
             str(s.runs),
-            pct(s.localised_before_rate),
+            # the start is a global localisation: not comparable for a filter without one
+            registry.global_cell(s.algorithm, pct(s.localised_before_rate)),
             pct(s.recovery_rate),
             fmt(s.mean_recovery_s, 1, "-"),
         )
@@ -229,8 +230,11 @@ def kidnapped_rich(result: KidnapResult) -> Group:
             f"At the end on {name}",
             ("algorithm",),
             [((s.algorithm,), s.precision) for s in result.summaries],
-            global_localisation=False,  # a kidnapped robot: every filter starts on the truth
+            # after the kidnap every filter finds the robot again by its own recovery (the
+            # Nav2 peer by the wheel's random particles), a comparable figure
+            global_localisation=False,
         ),
+        *(Text(note) for note in registry.global_notes(s.algorithm for s in result.summaries)),
     )
 
 

@@ -48,6 +48,7 @@ from ceamcl.experiments.metrics import (
     within,
 )
 from ceamcl.experiments.trials import TrialRecord
+from ceamcl.filters import registry
 from ceamcl.io.results import ensure_output_dir
 
 DEFAULT_WINDOW_S = 30.0
@@ -168,7 +169,8 @@ def kidnapped_markdown(result: KidnapResult, meta: dict[str, Any]) -> str:
         [
             s.algorithm,
             str(s.runs),
-            pct(s.localised_before_rate),
+            # the start is a global localisation: not comparable for a filter without one
+            registry.global_cell(s.algorithm, pct(s.localised_before_rate)),
             pct(s.recovery_rate),
             f"{fmt(s.mean_recovery_s, 1, '-')} / {fmt(s.median_recovery_s, 1, '-')}",
             f"{s.mean_particles:.0f}",
@@ -186,6 +188,10 @@ def kidnapped_markdown(result: KidnapResult, meta: dict[str, Any]) -> str:
             "end of the run. Recovery time: from the kidnap to that moment (recovered runs).",
             "",
             markdown_table(header, rows),
+            *(
+                f"{note} (before the kidnap; its measured figures are in `kidnapped.csv`).\n"
+                for note in registry.global_notes(s.algorithm for s in result.summaries)
+            ),
             PRECISION_DEFINITIONS.replace("at the goal", "at the end of the run"),
             "",
             metadata_markdown(meta, result.settings.skipped),
