@@ -427,3 +427,39 @@ def test_every_option_with_a_default_shows_it_in_its_help() -> None:
             if "default" not in text:
                 missing.append(f"{leaf.prog} {action.option_strings[-1]}")
     assert not missing, missing
+
+
+@pytest.mark.parametrize(
+    ("args", "named"),
+    [
+        (["evaluate-log", "LOG", "--particles", "500"], "particles: only with --tracking"),
+        (["evaluate-log", "LOG", "--executor", "bogus"], "executor: unknown executor"),
+        (["evaluate-log", "LOG", "--executor", "dask://h:1", "--workers", "2"], "workers:"),
+        (["evaluate-log", "LOG", "--every-scan", "--update-min-d", "0.2"], "update-min-d/-a"),
+        (["run", "LOG", "--every-scan", "--update-min-a", "0.1"], "update-min-d/-a"),
+        (["run", "LOG", "--truth-from", "C", "--truth", "no"], "truth: --truth no"),
+        (["evaluate-log", "LOG", "--tracking", "--starts", "5"], "starts: --starts"),
+        (["evaluate-log", "LOG", "--tracking", "--hold-m", "3"], "hold-m: --hold-m"),
+        (["evaluate-log", "LOG", "--tracking", "--particles", "10**11"], "over the memory budget"),
+        (["experiment", "state", "--executor", "bogus"], "executor: unknown executor"),
+        (["experiment", "tune", "--max-beams", "inf"], "argument --max-beams"),
+        (["experiment", "tune", "--particle-counts", "1.7"], "argument --particle-counts"),
+        (["play", "LOG", "--delay", "inf"], "argument --delay"),
+    ],
+)
+def test_option_conflicts_and_bad_values_are_refused_before_any_work(
+    args: list[str], named: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Each of these was accepted and ignored, refused only after the log was read and the map
+    built, or ended in a traceback. The log does not exist: an error about the option, not
+    about the log, shows that the option was judged first."""
+    args = [str(tmp_path / "missing.log") if a == "LOG" else a for a in args]
+    args = [str(10**11) if a == "10**11" else a for a in args]
+    try:  # argparse's own refusals end in SystemExit(2), the others return 2
+        code = main([*args, "--out", str(tmp_path / "out")] if args[0] != "play" else args)
+    except SystemExit as exc:
+        code = exc.code
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert named in err and "Traceback" not in err
+    assert "missing.log" not in err

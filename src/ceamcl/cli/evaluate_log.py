@@ -8,7 +8,14 @@ import argparse
 from rich.console import Console
 
 from ceamcl import budget
-from ceamcl.cli.common import TrialsProgress, plain_table, plural, positive_float, positive_int
+from ceamcl.cli.common import (
+    TrialsProgress,
+    check_particles,
+    plain_table,
+    plural,
+    positive_float,
+    positive_int,
+)
 from ceamcl.cli.experiment import RUN_BYTES
 from ceamcl.cli.run import (
     add_log_arguments,
@@ -23,7 +30,7 @@ from ceamcl.cli.run import (
 from ceamcl.errors import ConfigError
 from ceamcl.experiments.common import fmt, pct
 from ceamcl.experiments.evaluate_log import evaluate_log
-from ceamcl.experiments.executors import Batch
+from ceamcl.experiments.executors import Batch, check_executor
 from ceamcl.experiments.log_windows import DEFAULT_WINDOW_M
 from ceamcl.experiments.metrics import DEFAULT_HOLD_M, HOLD_STEPS
 from ceamcl.experiments.tracking_log import DEFAULT_TRACKING_PARTICLES, track_log
@@ -31,6 +38,9 @@ from ceamcl.filters import registry
 from ceamcl.io.truth_check import TruthDoubt
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.replay import PreparedLog, UpdatePace
+
+#: Start points of the windowed protocol when --starts is not given.
+DEFAULT_STARTS = 20
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -49,7 +59,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument(
         "--resolution", type=positive_float, default=0.05, help="cell side of a built map [m]"
     )
-    p.add_argument("--starts", type=positive_int, default=20, metavar="K", help="start points")
+    p.add_argument(
+        "--starts", type=positive_int, default=DEFAULT_STARTS, metavar="K", help="start points"
+    )
     p.add_argument(
         "--algorithms",
         nargs="+",
@@ -127,11 +139,37 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.set_defaults(run=run)
 
 
+def _check_mode(args: argparse.Namespace) -> None:
+    """Options of one mode refused in the other, before any work (each would be ignored)."""
+    if args.tracking:
+        windowed = {
+            "starts": args.starts != DEFAULT_STARTS,
+            "window-m": args.window_m is not None,
+            "window-s": args.window_s is not None,
+            "scans": args.scans is not None,
+            "hold-m": args.hold_m is not None,
+            "hold": args.hold is not None,
+        }
+        given = [f"--{k}" for k, v in windowed.items() if v]
+        if given:
+            raise ConfigError(
+                f"{given[0][2:]}: {', '.join(given)} only with the windowed protocol; --tracking "
+                "runs the whole log from one start"
+            )
+        if args.particles is not None:
+            check_particles(args.particles)
+    elif args.particles is not None:
+        raise ConfigError("particles: only with --tracking (global localisation uses defaults)")
+    check_executor(args.executor, args.workers)
+
+
 def run(args: argparse.Namespace, console: Console) -> int:
+    _check_mode(args)
     algos, skipped = registry.resolve(args.algorithms)
     if not algos:
         raise ConfigError("algorithms: none of the chosen algorithms can run here")
-    budget.require("--starts x algorithms", args.starts * len(algos), RUN_BYTES, "runs")
+    runs = len(algos) if args.tracking else args.starts * len(algos)
+    budget.require("--starts x algorithms", runs, RUN_BYTES, "runs")
     prepared, grid, map_source, pace = open_inputs(args)
     doubt = truth_doubt(prepared, grid)
     if not args.quiet:
@@ -146,8 +184,6 @@ def run(args: argparse.Namespace, console: Console) -> int:
             console.print(f"[yellow]{name} skipped[/]: {why}")
     if args.tracking:
         return run_tracking(args, console, prepared, grid, map_source, algos, skipped, pace, doubt)
-    if args.particles is not None:
-        raise ConfigError("particles: only with --tracking (global localisation uses defaults)")
     with TrialsProgress(console, quiet=args.quiet) as progress:
         ev = evaluate_log(
             prepared,

@@ -4,6 +4,7 @@ kidnapped robot, over many seeded trials on local processes or a Dask cluster.""
 from __future__ import annotations
 
 import argparse
+import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
@@ -41,7 +42,7 @@ from ceamcl.experiments.common import (
     write_trial_outputs,
 )
 from ceamcl.experiments.delta import DeltaResult
-from ceamcl.experiments.executors import ProgressCallback
+from ceamcl.experiments.executors import ProgressCallback, check_executor
 from ceamcl.experiments.kidnapped import KidnapResult
 from ceamcl.experiments.marked import MarkedResult
 from ceamcl.experiments.metrics import PrecisionSummary
@@ -312,11 +313,25 @@ def tuning_rich(result: tuning.TuningResult) -> Table:
     return plain_table("tuning sweep: the best row of each baseline", header, rows)
 
 
-def _ints(text: str) -> list[int]:
-    try:
-        return [int(float(t)) for t in _names(text)]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected comma-separated counts, got {text!r}") from None
+def _counts(minimum: int) -> Callable[[str], list[int]]:
+    """argparse type: comma-separated whole numbers of at least ``minimum`` (``1e6`` is read as
+    1000000; ``1.7``, ``inf`` or ``nan`` are refused, not truncated or left to fail later)."""
+
+    def parse(text: str) -> list[int]:
+        values = []
+        for t in _names(text):
+            try:
+                v = float(t)
+            except ValueError:
+                v = math.nan
+            if not (math.isfinite(v) and v == int(v) and v >= minimum):
+                raise argparse.ArgumentTypeError(
+                    f"expected comma-separated whole numbers >= {minimum}, got {t!r} in {text!r}"
+                )
+            values.append(int(v))
+        return values
+
+    return parse
 
 
 def _tuning_arguments(p: argparse.ArgumentParser) -> None:
@@ -327,7 +342,7 @@ def _tuning_arguments(p: argparse.ArgumentParser) -> None:
 
     p.add_argument(
         "--max-beams",
-        type=_ints,
+        type=_counts(1),
         default=None,
         metavar="B1,B2",
         help=f"max_beams values (default {listed(g.max_beams)})",
@@ -341,14 +356,14 @@ def _tuning_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--particle-counts",
-        type=_ints,
+        type=_counts(1),
         default=None,
         metavar="N1,N2",
         help=f"particle counts (default {listed(g.n_particles)})",
     )
     p.add_argument(
         "--init-test-poses",
-        type=_ints,
+        type=_counts(0),
         default=None,
         metavar="M1,M2",
         help=f"initialisation budgets (default {listed(g.init_test_poses)})",
@@ -635,6 +650,7 @@ RUN_BYTES = 256 * 1024
 
 def run(args: argparse.Namespace, console: Console) -> int:
     experiment = EXPERIMENTS[args.experiment]
+    check_executor(args.executor, args.workers)  # before any course or log is prepared
     settings = _settings(args, console)
     outputs = _output_options(args)  # refuses --mp4 without ffmpeg before the trials
     if outputs.any and not experiment.visuals:

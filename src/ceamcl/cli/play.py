@@ -6,7 +6,12 @@ import argparse
 
 from rich.console import Console
 
-from ceamcl.cli.common import make_progress, non_negative_int, positive_float
+from ceamcl.cli.common import (
+    make_progress,
+    non_negative_float,
+    non_negative_int,
+    positive_float,
+)
 from ceamcl.cli.node import import_ros
 from ceamcl.errors import CeamclError
 
@@ -36,11 +41,14 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--map-frame", default="map", help="the map's frame (/map's header)")
     p.add_argument("--laser-frame", default="laser", help="the scans' frame")
     p.add_argument(
-        "--wait", type=float, default=5.0, help="seconds to wait for a subscriber to scan"
+        "--wait",
+        type=non_negative_float,
+        default=5.0,
+        help="seconds to wait for a subscriber to scan",
     )
     p.add_argument(
         "--delay",
-        type=float,
+        type=non_negative_float,
         default=2.0,
         help="seconds between the map and the first scan (the localiser takes the map in)",
     )

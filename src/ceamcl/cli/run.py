@@ -193,6 +193,7 @@ def open_inputs(
     """What ``ceamcl run`` and ``ceamcl evaluate-log`` start from: the log with its truth and
     odometry decided, the map (and a sentence saying which), physical-sense warnings given,
     and the update pace."""
+    check_log_arguments(args)
     prepared = prepare_log(
         log_path(args),
         seed=args.seed,
@@ -207,6 +208,18 @@ def open_inputs(
     )
     physical_warnings(prepared.log, grid, args.map or f"the map built from {prepared.map_log.path}")
     return prepared, grid, map_source, pace_of(args, prepared)
+
+
+def check_log_arguments(args: argparse.Namespace) -> None:
+    """Refuse, before the log is read, the combinations of ``run`` and ``evaluate-log`` options
+    one of which would be ignored or refused only after the work of reading it."""
+    if args.every_scan and (args.update_min_d is not None or args.update_min_a is not None):
+        raise ConfigError("update-min-d/-a: not with --every-scan, which updates at every scan")
+    if args.truth_from is not None and args.truth != "auto":
+        raise ConfigError(
+            f"truth: --truth {args.truth} has no effect with --truth-from, whose corrected log "
+            "is the truth; expected one of them"
+        )
 
 
 def pace_of(args: argparse.Namespace, prepared: PreparedLog) -> UpdatePace | None:

@@ -112,12 +112,37 @@ def _end_workers(pool: ProcessPoolExecutor) -> None:
     pool.shutdown(wait=True, cancel_futures=True)
 
 
+def check_executor(spec: str, workers: int | None = None) -> None:
+    """Refuse an executor spec :func:`open_executor` would refuse (its form, not whether a
+    Dask scheduler answers), and ``workers`` where the spec takes none, before any work."""
+    if spec in ("serial", "local", "dask"):
+        if workers is not None:
+            _check_workers(workers)
+        return
+    if spec.startswith("dask://"):
+        host, sep, port = spec[len("dask://") :].rpartition(":")
+        if not sep or not host or not port.isdigit():
+            raise ConfigError(
+                f"executor: expected dask://HOST:PORT (e.g. dask://10.0.0.5:8786), got {spec!r}"
+            )
+        if workers is not None:
+            raise ConfigError(
+                "workers: a Dask scheduler's workers are its own (start them with dask-worker); "
+                f"expected no --workers with --executor {spec}"
+            )
+        return
+    raise ConfigError(
+        f"executor: unknown executor {spec!r}; expected one of {', '.join(EXECUTOR_SPECS)}"
+    )
+
+
 @contextmanager
 def open_executor(spec: str = "local", workers: int | None = None) -> Iterator[Executor]:
     """An executor for ``spec`` (see the module docstring), shut down on exit.
 
     Raises :class:`ConfigError` for an unknown spec, a bad worker count or a missing Dask.
     """
+    check_executor(spec, workers)
     if spec == "serial":
         if workers is not None:
             _check_workers(workers)
