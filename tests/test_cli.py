@@ -442,9 +442,12 @@ def test_every_option_with_a_default_shows_it_in_its_help() -> None:
         (["evaluate-log", "LOG", "--tracking", "--hold-m", "3"], "hold-m: --hold-m"),
         (["evaluate-log", "LOG", "--tracking", "--particles", "10**11"], "over the memory budget"),
         (["experiment", "state", "--executor", "bogus"], "executor: unknown executor"),
+        (["experiment", "state", "--starts", "0"], "starts: the state experiment's"),
         (["experiment", "tune", "--max-beams", "inf"], "argument --max-beams"),
         (["experiment", "tune", "--particle-counts", "1.7"], "argument --particle-counts"),
         (["play", "LOG", "--delay", "inf"], "argument --delay"),
+        (["demo", "--particles", "7"], "particles: ceamcl sizes its own sample"),
+        (["soak", "--particles", "7", "--steps", "5"], "particles: ceamcl sizes its own sample"),
     ],
 )
 def test_option_conflicts_and_bad_values_are_refused_before_any_work(

@@ -249,7 +249,8 @@ def memory_cases() -> list[Case]:
                 Case(
                     "memory",
                     f"{cmd}-particles-{n}",
-                    (cmd, "--particles", n, "--out", "out", "--quiet"),
+                    # a fixed-size filter: CEAMCL, the default, takes no particle count
+                    (cmd, "--algorithm", "mcl", "--particles", n, "--out", "out", "--quiet"),
                     lambda d: None,
                     ("--particles:", "memory budget"),
                 )

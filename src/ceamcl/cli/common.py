@@ -101,10 +101,18 @@ def require_available(algorithm: str) -> None:
         raise ConfigError(f"algorithm: {algorithm} cannot run here: {reason}")
 
 
-def check_particles(count: int | None) -> None:
-    """Refuse a ``--particles`` count beyond the memory budget, before any filter is built."""
-    if count is not None:
-        budget.require("--particles", count, budget.PARTICLE_BYTES, "particles")
+def check_particles(count: int | None, algorithm: str | None = None) -> None:
+    """Refuse a ``--particles`` count beyond the memory budget, before any filter is built;
+    with ``algorithm``, refuse one for an algorithm that sizes itself (CEAMCL: eq. 16), which
+    would ignore it."""
+    if count is None:
+        return
+    if algorithm is not None and registry.get(algorithm).with_particles is None:
+        raise ConfigError(
+            f"particles: {algorithm} sizes its own sample (it takes no particle count); "
+            "expected no --particles"
+        )
+    budget.require("--particles", count, budget.PARTICLE_BYTES, "particles")
 
 
 def make_progress(label: str, console: Console, *, quiet: bool = False) -> Progress:

@@ -73,7 +73,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 
 def run(args: argparse.Namespace, console: Console) -> int:
-    check_particles(args.particles)
+    check_particles(args.particles, args.algorithm)
     outputs = OutputOptions.from_args(args)
     require_available(args.algorithm)
     progress = make_progress(

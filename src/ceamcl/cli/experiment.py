@@ -615,6 +615,12 @@ def _settings(args: argparse.Namespace, console: Console) -> ExperimentSettings:
                 f"algorithms: expected one or more algorithm names, got {args.algorithms!r} "
                 "(leave --algorithms out to run all)"
             )
+    if args.experiment == "state" and args.world is None and args.routes is None:
+        if args.starts is not None:  # each built-in scenario numbers its own routes
+            raise ConfigError(
+                "starts: the state experiment's three scenarios each have their own routes; "
+                "choose one with --world or --routes to pick its starts"
+            )
     course = resolve_course(args.experiment, args.world, args.routes).select(args.starts)
     skipped: dict[str, str] = {}
     fixed = EXPERIMENTS[args.experiment].algorithms

@@ -69,7 +69,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 
 def run(args: argparse.Namespace, console: Console) -> int:
-    check_particles(args.particles)
+    check_particles(args.particles, args.algorithm)
     require_available(args.algorithm)
     config = SoakConfig(
         steps=args.steps,
