@@ -466,3 +466,31 @@ def test_option_conflicts_and_bad_values_are_refused_before_any_work(
     assert code == 2, err
     assert named in err and "Traceback" not in err
     assert "missing.log" not in err
+
+
+def test_world_output_without_a_world_to_write_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # it listed the worlds and exited 0 without writing the file it was asked for
+    target = tmp_path / "map.yaml"
+    assert main(["world", "-o", str(target)]) == 2
+    assert main(["world", "--list", "-o", str(target)]) == 2
+    assert capsys.readouterr().err.count("expected a NAME") == 2 and not target.exists()
+
+
+def test_bench_data_without_real_maps_is_refused_for_the_latency_run_too(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    # --ros-latency returned before the check and ignored --data
+    assert main(["bench", "--ros-latency", "--data", "/nonexistent"]) == 2
+    assert "--data is read with --real-maps only" in capsys.readouterr().err
+
+
+def test_evaluate_log_takes_comma_separated_algorithms_as_experiment_does(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    # an unknown name is still refused before the log is read, by the registry's message
+    args = ["evaluate-log", str(tmp_path / "missing.log"), "--algorithms", "mcl,ekf"]
+    assert main([*args, "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "unknown algorithm 'ekf'" in err and "missing.log" not in err

@@ -155,12 +155,12 @@ def _print_targets(console: Console, targets: list[dict[str, Any]]) -> None:
 def run(args: argparse.Namespace, console: Console) -> int:
     if args.ros_latency and args.real_maps:
         raise ConfigError("bench: --ros-latency and --real-maps are two runs; pass one of them")
+    if args.data is not None and not args.real_maps:
+        raise ConfigError("bench: --data is read with --real-maps only")
     if args.ros_latency:
         return run_ros_latency(args, console)
     if args.real_maps:
         return run_real_maps(args, console)
-    if args.data is not None:
-        raise ConfigError("bench: --data is read with --real-maps only")
     out = ensure_output_dir(args.out)  # fail before minutes of work, not after
     settings = BenchSettings.quick_run() if args.quick else BenchSettings()
     with_peer = peers.available()

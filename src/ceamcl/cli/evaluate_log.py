@@ -65,10 +65,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument(
         "--algorithms",
         nargs="+",
-        choices=registry.names(),
         default=None,
         metavar="A",
-        help=f"algorithms to run (default all: {', '.join(registry.names())})",
+        help="algorithms to run, space- or comma-separated, as for `ceamcl experiment` "
+        f"(default all: {', '.join(registry.names())})",
     )
     window = p.add_mutually_exclusive_group()
     window.add_argument(
@@ -165,7 +165,10 @@ def _check_mode(args: argparse.Namespace) -> None:
 
 def run(args: argparse.Namespace, console: Console) -> int:
     _check_mode(args)
-    algos, skipped = registry.resolve(args.algorithms)
+    wanted = None
+    if args.algorithms is not None:
+        wanted = [n.strip() for a in args.algorithms for n in a.split(",") if n.strip()]
+    algos, skipped = registry.resolve(wanted)
     if not algos:
         raise ConfigError("algorithms: none of the chosen algorithms can run here")
     runs = len(algos) if args.tracking else args.starts * len(algos)

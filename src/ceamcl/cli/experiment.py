@@ -521,6 +521,7 @@ def _add_common(
     default_trials: int,
     fixed: tuple[str, ...] | None = None,
     default_seed: int = 0,
+    default_algorithms: tuple[str, ...] | None = None,
 ) -> None:
     p.add_argument(
         "--trials",
@@ -533,8 +534,9 @@ def _add_common(
         nargs="+",
         default=None,
         metavar="NAME",
-        help="algorithms to run, space- or comma-separated (default: all; see --help of "
-        "`ceamcl experiment`)"
+        help="algorithms to run, space- or comma-separated (default: "
+        + ("all" if default_algorithms is None else ", ".join(default_algorithms))
+        + "; see --help of `ceamcl experiment`)"
         if fixed is None
         else f"only {', '.join(fixed)}: the {name} experiment is about {', '.join(fixed)} "
         "alone, other names are refused",
@@ -600,7 +602,12 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     for name, experiment in EXPERIMENTS.items():
         p = which.add_parser(name, help=experiment.help, description=experiment.help)
         _add_common(
-            p, name, experiment.default_trials, experiment.algorithms, experiment.default_seed
+            p,
+            name,
+            experiment.default_trials,
+            experiment.algorithms,
+            experiment.default_seed,
+            experiment.default_algorithms,
         )
         experiment.add_arguments(p)
         p.set_defaults(run=run)

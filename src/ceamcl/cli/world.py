@@ -25,6 +25,12 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 def run(args: argparse.Namespace, console: Console) -> int:
     if args.list or args.name is None:
+        if args.output is not None:  # nothing named to write: say so instead of listing
+            raise ConfigError(
+                "world: -o/--output writes the world NAME names; expected a NAME"
+                + (" and no --list" if args.list else "")
+                + " (ceamcl world --list lists them)"
+            )
         for name, desc in describe_worlds().items():
             console.print(f"{name:16s} {desc}")
         return 0
