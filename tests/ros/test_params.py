@@ -159,3 +159,40 @@ def test_the_example_parameter_file_is_valid() -> None:
     example = Path(__file__).resolve().parents[2] / "ros" / "ceamcl_params.yaml"
     p = parse(load_yaml(example))
     assert p.algorithm == "ceamcl" and p["z_hit"] == 0.95 and p.warnings == ()
+
+
+def _built(values: dict[str, object]):  # type: ignore[no-untyped-def]
+    from ceamcl.maps.worlds import get_world
+    from ceamcl.ros.localiser import Localiser
+
+    localiser = Localiser(parse(values))
+    localiser.set_map(get_world("small-office"))
+    return localiser.filter
+
+
+def test_what_the_parameters_set_wins_over_a_presets_tuning() -> None:
+    """A preset's tuned laser settings and particle count stand where the parameters leave
+    them at Nav2's defaults; where the parameters set them, the user's values win (they were
+    overwritten by the preset's, without a word)."""
+    tuned = _built({"algorithm": "mcl-tuned"})
+    assert (tuned.sensor.config.max_beams, tuned.config.n_particles) == (30, 5000)
+    chosen = _built({"algorithm": "mcl-tuned", "max_beams": 90, "laser_temper": 0.5})
+    assert (chosen.sensor.config.max_beams, chosen.sensor.config.temper) == (90, 0.5)
+    assert _built({"algorithm": "mcl-tuned", "max_particles": 1500}).config.n_particles == 1500
+    # an algorithm's own count, set in its namespace, is not replaced by max_particles
+    assert _built({"algorithm": "mcl", "mcl.n_particles": 3000}).config.n_particles == 3000
+    kld = _built({"algorithm": "kld-amcl", "kld_amcl.max_particles": 4000})
+    assert kld.config.max_particles == 4000
+    assert _built({"algorithm": "mcl"}).config.n_particles == NAV2_DEFAULTS["max_particles"]
+
+
+def test_the_nav2_peer_takes_nav2s_laser_settings() -> None:
+    from ceamcl.peers import available
+
+    if not available():
+        pytest.skip("Nav2 AMCL wheel not installed (pip install 'ceamcl[peers]')")
+    values = {"algorithm": "nav2-amcl", "max_beams": 30, "sigma_hit": 0.1, "z_hit": 0.9}
+    beam = parse(values).config.beam
+    assert (beam.max_beams, beam.sigma_hit_m, beam.z_hit) == (30, 0.1, 0.9)
+    warned = parse({**values, "laser_temper": 0.5}).warnings
+    assert any(w.startswith("laser_temper: nav2-amcl weighs with") for w in warned)

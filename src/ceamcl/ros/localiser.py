@@ -81,6 +81,29 @@ def sensor_model(params: NodeParams, grid: OccupancyGrid) -> SensorModel:
     )
 
 
+def particle_budget(params: NodeParams) -> int | None:
+    """The particle budget Nav2's ``max_particles`` gives the filter, or ``None`` where the
+    algorithm's own count stands: the one its ``<algorithm>.n_particles`` or
+    ``.max_particles`` sets, or a tuned preset's when the parameters do not set
+    ``max_particles`` (Nav2's default 2,000 would replace the count the sweep chose)."""
+    if any(k in params.algorithm_overrides for k in ("n_particles", "max_particles")):
+        return None
+    if params.algorithm in registry.PRESETS and "max_particles" not in params.given:
+        return None
+    return int(params["max_particles"])
+
+
+def chosen_sensor_settings(params: NodeParams) -> dict[str, Any]:
+    """The laser settings the parameters set, which win over a preset's tuned ones
+    (``max_beams``, ``laser_temper``); the rest are the preset's or the model's defaults."""
+    chosen: dict[str, Any] = {}
+    if "max_beams" in params.given:
+        chosen["max_beams"] = params["max_beams"]
+    if params.laser_temper is not None:
+        chosen["temper"] = params.laser_temper
+    return chosen
+
+
 class Localiser:
     """A filter driven as Nav2 drives its particle filter: built on each new map, initialised
     globally or at a pose when asked, stepped on scans when the odometry has moved enough."""
@@ -111,8 +134,9 @@ class Localiser:
             self.rng,
             sensor=sensor_model(p, grid),
             odometry_noise=OdometryNoise(*(p[f"alpha{i}"] for i in range(1, 5))),
-            n_particles=p["max_particles"],
+            n_particles=particle_budget(p),
             config=p.config,
+            sensor_settings=chosen_sensor_settings(p),
         )
         changed = self.grid is not None
         self.grid, self.filter = grid, new_filter

@@ -37,6 +37,7 @@ from tf2_msgs.msg import TFMessage
 from visualization_msgs.msg import MarkerArray
 
 from ceamcl.errors import CeamclError
+from ceamcl.filters import registry
 from ceamcl.filters.base import PoseEstimate
 from ceamcl.ros import messages as m
 from ceamcl.ros.localiser import DEFAULT_INIT_COV, Localiser
@@ -99,7 +100,8 @@ class LocalisationNode(LifecycleNode):
         self.localiser = Localiser(params)
         self._create_interfaces(params)
         self.get_logger().info(
-            f"configured: {params.algorithm} ({params.sensor} model, seed {params.seed})"
+            f"configured: {params.algorithm} "
+            f"({registry.sensor_of(params.algorithm, params.sensor)} model, seed {params.seed})"
         )
         return TransitionCallbackReturn.SUCCESS
 

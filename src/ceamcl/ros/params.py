@@ -23,6 +23,7 @@ import yaml
 
 from ceamcl.errors import ConfigError
 from ceamcl.filters import registry
+from ceamcl.sensors.beam_model import BeamModelConfig
 
 #: Nav2 AMCL's parameters and defaults (nav2_amcl, Jazzy/Kilted), by name.
 NAV2_DEFAULTS: dict[str, Any] = {
@@ -113,6 +114,9 @@ class NodeParams:
     #: the laser model's tempering (``temper`` of the sensor configs, docs/sensor-models.md);
     #: ``None``: the model's own default (0.2 for the product, none for amcl's scoring)
     laser_temper: float | None = None
+    #: the names the parameters set (the rest took their defaults): what the user chose wins
+    #: over a preset's tuned settings (docs/ros.md)
+    given: frozenset[str] = frozenset()
 
     def __getitem__(self, name: str) -> Any:
         return self.nav2[name]
@@ -257,6 +261,23 @@ def _nav2_to_config(algorithm: str, p: dict[str, Any], config: Any) -> tuple[Any
             changes[field_name] = value
         elif p[nav2_name] != NAV2_DEFAULTS[nav2_name] and not nav2_name.startswith("update_"):
             warnings.append(f"{nav2_name}: {algorithm} has no such setting; ignored")
+    beam = getattr(config, "beam", None) if "beam" in names else None
+    if isinstance(beam, BeamModelConfig):
+        # an algorithm with a beam model of its own (the Nav2 peer): Nav2's laser settings
+        changes["beam"] = dataclasses.replace(
+            beam,
+            z_hit=p["z_hit"],
+            z_short=p["z_short"],
+            z_max=p["z_max"],
+            z_rand=p["z_rand"],
+            sigma_hit_m=p["sigma_hit"],
+            lambda_short=p["lambda_short"],
+            max_beams=p["max_beams"],
+        )
+        if p["laser_likelihood_max_dist"] != NAV2_DEFAULTS["laser_likelihood_max_dist"]:
+            warnings.append(
+                f"laser_likelihood_max_dist: {algorithm} has no likelihood field; ignored"
+            )
     skip = getattr(config, "beam_skip", None) if "beam_skip" in names else None
     if skip is not None:
         # CEAMCL's own beam skipping (on while one species tracks) takes Nav2's distance and
@@ -369,6 +390,17 @@ def parse(values: Mapping[str, Any]) -> NodeParams:
     for name in NOT_IMPLEMENTED:
         if nav2[name] != NAV2_DEFAULTS[name]:
             warnings.append(f"{name}: not implemented by this node; ignored")
+    if laser_temper is not None and algorithm in registry.OWN_SENSOR:
+        warnings.append(
+            f"laser_temper: {algorithm} weighs with {registry.OWN_SENSOR[algorithm]}; ignored"
+        )
     return NodeParams(
-        nav2, algorithm, seed, config, tuple(warnings), overrides, laser_temper=laser_temper
+        nav2,
+        algorithm,
+        seed,
+        config,
+        tuple(warnings),
+        overrides,
+        laser_temper=laser_temper,
+        given=frozenset(values),
     )
