@@ -175,6 +175,9 @@ def test_evaluate_log_says_nav2_amcl_is_not_comparable_in_global_localisation(
     rows = {line.split("|")[1].strip(): line for line in text.splitlines() if line.startswith("| ")}
     assert rows["nav2-amcl"].split("|")[3].strip() == "not comparable"
     assert rows["mcl"].split("|")[3].strip().endswith("%")
+    # the wheel hides its particle count: its max_particles is printed as a bound
+    assert rows["nav2-amcl"].split("|")[11].strip() == "<= 2000"
+    assert rows["mcl"].split("|")[11].strip() == "5000"
     assert "nav2-amcl: global localisation not comparable" in text
     with (out / "evaluate.csv").open() as fh:
         marked = {r["algorithm"]: r["localises_globally"] for r in csv.DictReader(fh)}

@@ -240,7 +240,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
                         fmt(row["heading_rmse_rad"], 3, "-"),
                     )
                 ),
-                fmt(row["mean_particles"], 0, "-"),
+                registry.particles_cell(row["algorithm"], fmt(row["mean_particles"], 0, "-")),
                 fmt(row["median_step_ms"], 1, "-"),
             )
             for row in ev.table
@@ -292,7 +292,7 @@ def run_tracking(
                 fmt(r.ape_max_m, 3),
                 fmt(r.ape_rmse_outside_doubtful_m, 3),
                 fmt(r.heading_rmse_rad, 3),
-                fmt(r.mean_particles, 0),
+                registry.particles_cell(r.algorithm, fmt(r.mean_particles, 0)),
                 fmt(r.median_update_ms, 1),
             ]
             for r in tr.results

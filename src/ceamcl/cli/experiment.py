@@ -161,7 +161,7 @@ def table1_rich(result: Table1Result) -> Group:
                 registry.global_cell(s.algorithm, pct(s.success_rate)),
                 follows(pct(s.kept_all_rate)),
                 follows(fmt(s.final_error_mean_m, 2, "-")),
-                fmt(s.mean_particles, 0, "-"),
+                registry.particles_cell(s.algorithm, fmt(s.mean_particles, 0, "-")),
                 fmt(s.median_step_ms, 1, "-"),
             )
         )

@@ -173,7 +173,7 @@ def kidnapped_markdown(result: KidnapResult, meta: dict[str, Any]) -> str:
             registry.global_cell(s.algorithm, pct(s.localised_before_rate)),
             pct(s.recovery_rate),
             f"{fmt(s.mean_recovery_s, 1, '-')} / {fmt(s.median_recovery_s, 1, '-')}",
-            f"{s.mean_particles:.0f}",
+            registry.particles_cell(s.algorithm, f"{s.mean_particles:.0f}"),
             f"{s.mean_step_ms:.1f}",
             *precision_cells(s.precision),
         ]

@@ -8,7 +8,13 @@ from typing import TYPE_CHECKING
 
 from ceamcl.experiments.common import fmt, write_csv, write_text
 from ceamcl.experiments.metrics import HEADING_TOL_RAD, HOLD_STEPS, POSITION_TOL_M
-from ceamcl.filters.registry import describe_sensor, global_cell, global_notes, localises_globally
+from ceamcl.filters.registry import (
+    describe_sensor,
+    global_cell,
+    global_notes,
+    localises_globally,
+    particles_cell,
+)
 from ceamcl.replay import truth_source
 
 if TYPE_CHECKING:
@@ -151,6 +157,8 @@ def evaluation_markdown(
         cells = [
             global_cell(algo, fmt(row[key], d, "-"), "-")
             if key in _GLOBAL
+            else particles_cell(algo, fmt(row[key], d, "-"))
+            if key == "mean_particles"
             else fmt(row[key], d, "-")
             for key, d in digits.items()
         ]

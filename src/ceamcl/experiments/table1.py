@@ -207,7 +207,7 @@ def table1_markdown(result: Table1Result, meta: dict[str, Any]) -> str:
                 "-" if paper is None else pct(paper[2]),
                 measured(pct(s.kept_all_rate)),
                 measured(f"{s.final_error_mean_m:.2f} / {s.final_error_median_m:.2f}"),
-                f"{s.mean_particles:.0f}",
+                registry.particles_cell(s.algorithm, f"{s.mean_particles:.0f}"),
                 f"{s.mean_step_ms:.1f} / {s.median_step_ms:.1f}",
                 *precision_cells(s.precision, s.algorithm),
             ]

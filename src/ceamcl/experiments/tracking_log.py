@@ -40,6 +40,7 @@ from ceamcl.filters.registry import (
     check_sensor,
     describe_sensor,
     get,
+    particles_cell,
     with_config,
 )
 from ceamcl.io.recorded import RecordedLog
@@ -312,7 +313,7 @@ def tracking_markdown(
             f"{fmt(r.ape_rmse_m, 3)} | {fmt(r.ape_median_m, 3)} | {fmt(r.ape_max_m, 3)} | "
             f"{fmt(r.ape_rmse_outside_doubtful_m, 3)} | {fmt(r.heading_rmse_rad, 3)} | "
             f"{pct(r.within_2sigma)} | "
-            f"{fmt(r.mean_particles, 0)} | "
+            f"{particles_cell(r.algorithm, fmt(r.mean_particles, 0))} | "
             f"{fmt(r.median_update_ms, 1)} |"
         )
     for algo, why in tracking.skipped.items():

@@ -145,6 +145,15 @@ NO_GLOBAL_LOCALISATION: dict[str, str] = {
 }
 #: What a table prints for such a figure.
 NOT_COMPARABLE = "not comparable"
+#: Algorithms that hide their particle count: what is recorded is their upper bound
+#: (``max_particles``), and tables print it as one.
+HIDDEN_PARTICLE_COUNT = frozenset({"nav2-amcl"})
+
+
+def particles_cell(algorithm: str, cell: str) -> str:
+    """A table cell holding a particle count: ``cell``, or ``"<= cell"`` for an algorithm
+    whose count is hidden (its ``max_particles`` stands in for it)."""
+    return f"<= {cell}" if algorithm in HIDDEN_PARTICLE_COUNT and cell != "-" else cell
 
 
 def localises_globally(algorithm: str) -> bool:
@@ -228,6 +237,7 @@ def with_config(algorithm: str, **changes: Any) -> Any:
 __all__ = [
     "ALGORITHMS",
     "DEFAULT_SENSOR",
+    "HIDDEN_PARTICLE_COUNT",
     "NOT_COMPARABLE",
     "NO_GLOBAL_LOCALISATION",
     "OWN_SENSOR",
@@ -242,6 +252,7 @@ __all__ = [
     "make_filter",
     "make_sensor",
     "names",
+    "particles_cell",
     "resolve",
     "sensor_of",
     "unavailable_reason",
