@@ -18,7 +18,7 @@ from ceamcl.filters.base import LocalisationFilter, PoseEstimate
 from ceamcl.filters.policies import Context, on_motion
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryNoise, increment_between
-from ceamcl.ros.params import NodeParams
+from ceamcl.ros.params import NodeParams, beam_settings
 from ceamcl.ros.transforms import Pose2
 from ceamcl.sensors.base import SensorModel
 from ceamcl.sensors.beam_model import BeamModel, BeamModelConfig
@@ -57,16 +57,7 @@ def sensor_model(params: NodeParams, grid: OccupancyGrid) -> SensorModel:
     if params.sensor == "beam":
         return BeamModel(
             grid,
-            BeamModelConfig(
-                z_hit=p["z_hit"],
-                z_short=p["z_short"],
-                z_max=p["z_max"],
-                z_rand=p["z_rand"],
-                sigma_hit_m=p["sigma_hit"],
-                lambda_short=p["lambda_short"],
-                max_beams=p["max_beams"],
-                temper=params.laser_temper,
-            ),
+            BeamModelConfig(**beam_settings(p), temper=params.laser_temper),
         )
     return LikelihoodFieldModel(
         grid,

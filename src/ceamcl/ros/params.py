@@ -239,6 +239,20 @@ def _check_ranges(p: dict[str, Any]) -> list[str]:
     return errors
 
 
+def beam_settings(p: Mapping[str, Any]) -> dict[str, Any]:
+    """Nav2's beam-model parameters as :class:`BeamModelConfig` fields (our model's, and the
+    Nav2 peer's own)."""
+    return {
+        "z_hit": p["z_hit"],
+        "z_short": p["z_short"],
+        "z_max": p["z_max"],
+        "z_rand": p["z_rand"],
+        "sigma_hit_m": p["sigma_hit"],
+        "lambda_short": p["lambda_short"],
+        "max_beams": p["max_beams"],
+    }
+
+
 def _nav2_to_config(algorithm: str, p: dict[str, Any], config: Any) -> tuple[Any, list[str]]:
     """Nav2's particle-filter parameters carried into the algorithm's config where it has the
     same knob; a warning for each one set away from its default that this algorithm ignores."""
@@ -264,16 +278,7 @@ def _nav2_to_config(algorithm: str, p: dict[str, Any], config: Any) -> tuple[Any
     beam = getattr(config, "beam", None) if "beam" in names else None
     if isinstance(beam, BeamModelConfig):
         # an algorithm with a beam model of its own (the Nav2 peer): Nav2's laser settings
-        changes["beam"] = dataclasses.replace(
-            beam,
-            z_hit=p["z_hit"],
-            z_short=p["z_short"],
-            z_max=p["z_max"],
-            z_rand=p["z_rand"],
-            sigma_hit_m=p["sigma_hit"],
-            lambda_short=p["lambda_short"],
-            max_beams=p["max_beams"],
-        )
+        changes["beam"] = dataclasses.replace(beam, **beam_settings(p))
         if p["laser_likelihood_max_dist"] != NAV2_DEFAULTS["laser_likelihood_max_dist"]:
             warnings.append(
                 f"laser_likelihood_max_dist: {algorithm} has no likelihood field; ignored"
