@@ -447,6 +447,7 @@ def test_every_option_with_a_default_shows_it_in_its_help() -> None:
         (["experiment", "tune", "--particle-counts", "1.7"], "argument --particle-counts"),
         (["play", "LOG", "--delay", "inf"], "argument --delay"),
         (["demo", "--particles", "7"], "particles: ceamcl sizes its own sample"),
+        (["experiment", "table1", "--mcap", "d/r.mcap"], "mcap: expected a file name"),
         (["soak", "--particles", "7", "--steps", "5"], "particles: ceamcl sizes its own sample"),
     ],
 )

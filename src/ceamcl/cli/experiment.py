@@ -708,15 +708,19 @@ def run(args: argparse.Namespace, console: Console) -> int:
 
 
 def _output_options(args: argparse.Namespace) -> OutputOptions:
-    """The visual outputs asked for; ``--mcap FILE`` keeps only FILE's name, for a file in
-    each algorithm's ``OUT/runs/ALGORITHM/`` folder."""
+    """The visual outputs asked for; ``--mcap NAME`` is a file name, written in each
+    algorithm's ``OUT/runs/ALGORITHM/`` folder (a path with folders is refused: its folders
+    would be dropped without a word)."""
     options = OutputOptions.from_args({**vars(args), "mcap": None})
     if args.mcap is None:
         return options
-    name = Path(args.mcap).name
-    if not name or name in (".", ".."):
-        raise ConfigError(f"mcap: expected a file name, got {args.mcap!r}")
-    return replace(options, mcap=Path(name))
+    path = Path(args.mcap)
+    if path.name in ("", ".", "..") or path.parent != Path("."):
+        raise ConfigError(
+            f"mcap: expected a file name (each algorithm's is written to OUT/runs/ALGORITHM/), "
+            f"got {args.mcap!r}"
+        )
+    return replace(options, mcap=path)
 
 
 def _write_run_outputs(
