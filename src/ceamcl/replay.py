@@ -228,6 +228,13 @@ class UpdatePace:
         return f"update when moved {self.min_d:g} m or turned {self.min_a:g} rad"
 
 
+def check_pace(min_d: float | None, min_a: float | None, *, every_scan: bool) -> None:
+    """Refuse thresholds together with ``every_scan`` (which updates at every scan); callable
+    before a log is read (``ceamcl run`` and ``evaluate-log`` check their options with it)."""
+    if every_scan and (min_d is not None or min_a is not None):
+        raise ConfigError("update-min-d/-a: not with --every-scan, which updates at every scan")
+
+
 def choose_pace(
     prepared: PreparedLog,
     min_d: float | None = None,
@@ -239,9 +246,8 @@ def choose_pace(
     given) on a log with the robot's own odometry (raw logs, bags), and on any log where a
     threshold is given. A corrected log with synthetic odometry is a sparse subset of key scans
     already (one every 0.1-1 m): it steps at every scan unless a threshold is given."""
+    check_pace(min_d, min_a, every_scan=every_scan)
     if every_scan:
-        if min_d is not None or min_a is not None:
-            raise ConfigError("update-min-d/-a: not with --every-scan, which updates at every scan")
         return None
     if min_d is None and min_a is None and prepared.odometry != "recorded":
         return None

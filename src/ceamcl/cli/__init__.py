@@ -47,10 +47,10 @@ class DefaultsFormatter(argparse.HelpFormatter):
         if (
             not action.option_strings
             or action.nargs == 0  # flags: their default is the flag's absence
+            # identity, not equality: a default of 0 is shown, not taken for False
             or default is None
             or default is False
-            or default
-            is argparse.SUPPRESS  # identity: a default of 0 is shown, not taken for False
+            or default is argparse.SUPPRESS
             or "default" in text
             or text == argparse.SUPPRESS
             or isinstance(action, argparse._HelpAction | argparse._VersionAction)

@@ -60,7 +60,11 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "--resolution", type=positive_float, default=0.05, help="cell side of a built map [m]"
     )
     p.add_argument(
-        "--starts", type=positive_int, default=DEFAULT_STARTS, metavar="K", help="start points"
+        "--starts",
+        type=positive_int,
+        default=None,
+        metavar="K",
+        help=f"start points of the windowed protocol (default: {DEFAULT_STARTS})",
     )
     p.add_argument(
         "--algorithms",
@@ -143,7 +147,7 @@ def _check_mode(args: argparse.Namespace) -> None:
     """Options of one mode refused in the other, before any work (each would be ignored)."""
     if args.tracking:
         windowed = {
-            "starts": args.starts != DEFAULT_STARTS,
+            "starts": args.starts is not None,
             "window-m": args.window_m is not None,
             "window-s": args.window_s is not None,
             "scans": args.scans is not None,
@@ -171,7 +175,8 @@ def run(args: argparse.Namespace, console: Console) -> int:
     algos, skipped = registry.resolve(wanted)
     if not algos:
         raise ConfigError("algorithms: none of the chosen algorithms can run here")
-    runs = len(algos) if args.tracking else args.starts * len(algos)
+    starts = DEFAULT_STARTS if args.starts is None else args.starts
+    runs = len(algos) if args.tracking else starts * len(algos)
     budget.require("--starts x algorithms", runs, RUN_BYTES, "runs")
     prepared, grid, map_source, pace = open_inputs(args)
     doubt = truth_doubt(prepared, grid)
@@ -192,7 +197,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
             prepared,
             grid,
             algos,
-            starts=args.starts,
+            starts=starts,
             scans=args.scans,
             window_s=args.window_s,
             window_m=args.window_m,
@@ -228,17 +233,17 @@ def run(args: argparse.Namespace, console: Console) -> int:
         rows = [
             (
                 row["algorithm"],
-                registry.global_cell(row["algorithm"], pct(row["success_rate"])),
-                *(
-                    registry.global_cell(row["algorithm"], cell, "-")
-                    for cell in (
+                *registry.global_cells(
+                    row["algorithm"],
+                    (
+                        pct(row["success_rate"]),
                         str(row["confidently_wrong"]),
                         fmt(row["time_to_converge_s"], 1, "-"),
                         fmt(row["distance_to_converge_m"], 1, "-"),
                         fmt(row["position_rmse_m"], 3, "-"),
                         fmt(row["position_rmse_from_first_m"], 3, "-"),
                         fmt(row["heading_rmse_rad"], 3, "-"),
-                    )
+                    ),
                 ),
                 registry.particles_cell(row["algorithm"], fmt(row["mean_particles"], 0, "-")),
                 fmt(row["median_step_ms"], 1, "-"),

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, replace
 from functools import partial
 from pathlib import Path
@@ -105,9 +105,14 @@ def precision_row(p: PrecisionSummary, algorithm: str | None = None) -> tuple[st
         f"{fmt(p.nearest_position_error_mean_m, 2, '-')}, "
         f"{fmt(p.nearest_heading_error_mean_rad, 2, '-')}",
     )
-    if algorithm is not None and not registry.localises_globally(algorithm):
-        measured = (registry.NOT_COMPARABLE, *("-" for _ in measured[1:]))
+    if algorithm is not None:
+        measured = tuple(registry.global_cells(algorithm, measured))
     return (*measured, compact_count(p.likelihood_evaluations, "not counted"))
+
+
+def _notes(algorithms: Iterable[str]) -> list[Text]:
+    """Beneath a table: why an algorithm's global-localisation figures are not comparable."""
+    return [Text(note) for note in registry.global_notes(algorithms)]
 
 
 def precision_table(
@@ -173,7 +178,7 @@ def table1_rich(result: Table1Result) -> Group:
             ("algorithm",),
             [((s.algorithm,), s.precision) for s in result.summaries],
         ),
-        *(Text(note) for note in registry.global_notes(s.algorithm for s in result.summaries)),
+        *_notes(s.algorithm for s in result.summaries),
     )
 
 
@@ -207,7 +212,7 @@ def marked_rich(result: MarkedResult) -> Group:
     return Group(
         right,
         precision_table(f"At the goal on {name}", ("algorithm", "route"), per_route),
-        *(Text(note) for note in registry.global_notes(result.shares)),
+        *_notes(result.shares),
     )
 
 
@@ -235,7 +240,7 @@ def kidnapped_rich(result: KidnapResult) -> Group:
             # Nav2 peer by the wheel's random particles), a comparable figure
             global_localisation=False,
         ),
-        *(Text(note) for note in registry.global_notes(s.algorithm for s in result.summaries)),
+        *_notes(s.algorithm for s in result.summaries),
     )
 
 

@@ -36,6 +36,7 @@ from ceamcl.replay import (
     DEFAULT_UPDATE_MIN_D,
     PreparedLog,
     UpdatePace,
+    check_pace,
     choose_pace,
     obtain_map,
     prepare_log,
@@ -213,8 +214,7 @@ def open_inputs(
 def check_log_arguments(args: argparse.Namespace) -> None:
     """Refuse, before the log is read, the combinations of ``run`` and ``evaluate-log`` options
     one of which would be ignored or refused only after the work of reading it."""
-    if args.every_scan and (args.update_min_d is not None or args.update_min_a is not None):
-        raise ConfigError("update-min-d/-a: not with --every-scan, which updates at every scan")
+    check_pace(args.update_min_d, args.update_min_a, every_scan=args.every_scan)
     if args.truth_from is not None and args.truth != "auto":
         raise ConfigError(
             f"truth: --truth {args.truth} has no effect with --truth-from, whose corrected log "

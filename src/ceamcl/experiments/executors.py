@@ -112,6 +112,16 @@ def _end_workers(pool: ProcessPoolExecutor) -> None:
     pool.shutdown(wait=True, cancel_futures=True)
 
 
+def _scheduler(spec: str) -> tuple[str, str]:
+    """``(host, port)`` of a ``dask://HOST:PORT`` spec; a :class:`ConfigError` otherwise."""
+    host, sep, port = spec[len("dask://") :].rpartition(":")
+    if not sep or not host or not port.isdigit():
+        raise ConfigError(
+            f"executor: expected dask://HOST:PORT (e.g. dask://10.0.0.5:8786), got {spec!r}"
+        )
+    return host, port
+
+
 def check_executor(spec: str, workers: int | None = None) -> None:
     """Refuse an executor spec :func:`open_executor` would refuse (its form, not whether a
     Dask scheduler answers), and ``workers`` where the spec takes none, before any work."""
@@ -120,11 +130,7 @@ def check_executor(spec: str, workers: int | None = None) -> None:
             _check_workers(workers)
         return
     if spec.startswith("dask://"):
-        host, sep, port = spec[len("dask://") :].rpartition(":")
-        if not sep or not host or not port.isdigit():
-            raise ConfigError(
-                f"executor: expected dask://HOST:PORT (e.g. dask://10.0.0.5:8786), got {spec!r}"
-            )
+        _scheduler(spec)
         if workers is not None:
             raise ConfigError(
                 "workers: a Dask scheduler's workers are its own (start them with dask-worker); "
@@ -144,8 +150,6 @@ def open_executor(spec: str = "local", workers: int | None = None) -> Iterator[E
     """
     check_executor(spec, workers)
     if spec == "serial":
-        if workers is not None:
-            _check_workers(workers)
         with SerialExecutor() as ex:
             yield ex
         return
@@ -180,12 +184,7 @@ def open_executor(spec: str = "local", workers: int | None = None) -> Iterator[E
                 client.close()
                 cluster.close()
             return
-        address = spec[len("dask://") :]
-        host, sep, port = address.rpartition(":")
-        if not sep or not host or not port.isdigit():
-            raise ConfigError(
-                f"executor: expected dask://HOST:PORT (e.g. dask://10.0.0.5:8786), got {spec!r}"
-            )
+        host, port = _scheduler(spec)
         try:
             client = distributed.Client(f"tcp://{host}:{port}", timeout="10s")
         except OSError as exc:
@@ -197,9 +196,6 @@ def open_executor(spec: str = "local", workers: int | None = None) -> Iterator[E
         finally:
             client.close()
         return
-    raise ConfigError(
-        f"executor: unknown executor {spec!r}; expected one of {', '.join(EXECUTOR_SPECS)}"
-    )
 
 
 def _describe(item: object) -> str:

@@ -11,6 +11,7 @@ from ceamcl.experiments.metrics import HEADING_TOL_RAD, HOLD_STEPS, POSITION_TOL
 from ceamcl.filters.registry import (
     describe_sensor,
     global_cell,
+    global_cells,
     global_notes,
     localises_globally,
     particles_cell,
@@ -162,8 +163,9 @@ def evaluation_markdown(
             else fmt(row[key], d, "-")
             for key, d in digits.items()
         ]
-        success = global_cell(algo, f"{100 * row['success_rate']:.0f}%")
-        wrong = global_cell(algo, str(row["confidently_wrong"]), "-")
+        success, wrong = global_cells(
+            algo, (f"{100 * row['success_rate']:.0f}%", str(row["confidently_wrong"]))
+        )
         lines.append(
             f"| {algo} | {row['runs']} | {success} | {wrong} | " + " | ".join(cells) + " |"
         )

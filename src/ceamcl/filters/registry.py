@@ -169,6 +169,16 @@ def global_cell(algorithm: str, cell: str, instead: str = NOT_COMPARABLE) -> str
     return cell if localises_globally(algorithm) else instead
 
 
+def global_cells(algorithm: str, cells: Iterable[str]) -> list[str]:
+    """A run of table cells measuring global localisation, the first its headline (a success
+    rate, a weight): as they are, or :data:`NOT_COMPARABLE` then "-" for an algorithm
+    without a global localisation of its own."""
+    cells = list(cells)
+    if localises_globally(algorithm):
+        return cells
+    return [NOT_COMPARABLE, *("-" for _ in cells[1:])]
+
+
 def global_notes(algorithms: Iterable[str]) -> list[str]:
     """One line per algorithm of ``algorithms`` whose global-localisation figures a table
     marks :data:`NOT_COMPARABLE`, saying why."""
@@ -247,6 +257,7 @@ __all__ = [
     "describe_sensor",
     "get",
     "global_cell",
+    "global_cells",
     "global_notes",
     "localises_globally",
     "make_filter",
