@@ -1,4 +1,9 @@
-"""``ceamcl play LOG``: publish a recorded log as ROS 2 topics (docs/ros.md)."""
+"""``ceamcl play LOG``: publish a recorded log as ROS 2 topics (docs/ros.md).
+
+The log is read and its truth and odometry decided as ``ceamcl run`` decides them (the same
+reading options, ``--truth``, ``--truth-from``, ``--laser-mount``, ``--repair-times`` and the
+same synthetic odometry for a seed), so a node fed by ``play`` sees what ``run``'s filter sees.
+"""
 
 from __future__ import annotations
 
@@ -9,11 +14,11 @@ from rich.console import Console
 from ceamcl.cli.common import (
     make_progress,
     non_negative_float,
-    non_negative_int,
     positive_float,
 )
 from ceamcl.cli.node import import_ros
-from ceamcl.errors import CeamclError
+from ceamcl.cli.run import add_log_arguments, add_truth_arguments, log_path, open_kwargs
+from ceamcl.errors import CeamclError, ConfigError
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -23,21 +28,33 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         help="publish a log (CARMEN, ROS bag) as ROS 2 topics: map, scan, TF, ground truth",
         description="Publish LOG as ROS 2 topics for `ceamcl node` (or Nav2's amcl), RViz or "
         "Foxglove: map (latched), scan, /tf odom -> base, /tf_static base -> laser and "
-        "ground_truth where the log knows it. Needs the [ros] extra.",
+        "ground_truth where the log knows it. The log, its truth and its odometry are read and "
+        "decided as `ceamcl run` decides them (same options, same synthetic odometry for a "
+        "seed). Needs the [ros] extra.",
     )
-    p.add_argument("log", help="CARMEN .log/.clf (plain or gzip), ROS 1 .bag or ROS 2 bag folder")
-    p.add_argument("--map", default=None, help="ROS map YAML (default: built from the log's poses)")
-    p.add_argument("--rate", type=positive_float, default=1.0, help="speed-up over real time")
+    add_log_arguments(p, frames=False)
+    add_truth_arguments(p, seed_help="seed of the synthetic odometry (as `ceamcl run`'s)")
     p.add_argument(
         "--synthetic-odometry",
         action="store_true",
-        help="the log's poses become the ground truth and odometry is drawn from them with "
-        "ROS amcl's default noise (for SLAM-corrected logs, whose odometry is the truth)",
+        help="the same as --truth yes: the log's poses are the ground truth and the odometry is "
+        "drawn from them (--truth auto does so for a log whose content says it is corrected)",
     )
-    p.add_argument("--seed", type=non_negative_int, default=0, help="seed of that odometry")
-    p.add_argument("--max-range", type=positive_float, default=None, help="metres")
-    p.add_argument("--base-frame", default="base_footprint", help="the robot's TF frame")
-    p.add_argument("--odom-frame", default="odom", help="the odometry's TF frame")
+    p.add_argument("--map", default=None, help="ROS map YAML (default: built from the log's poses)")
+    p.add_argument(
+        "--resolution", type=positive_float, default=0.05, help="cell side of a built map [m]"
+    )
+    p.add_argument("--rate", type=positive_float, default=1.0, help="speed-up over real time")
+    p.add_argument(
+        "--base-frame",
+        default="base_footprint",
+        help="the robot's TF frame: published, and read from a bag's /tf odometry (Nav2's name)",
+    )
+    p.add_argument(
+        "--odom-frame",
+        default="odom",
+        help="the odometry's TF frame: published, and read from a bag's /tf odometry",
+    )
     p.add_argument("--map-frame", default="map", help="the map's frame (/map's header)")
     p.add_argument("--laser-frame", default="laser", help="the scans' frame")
     p.add_argument(
@@ -56,29 +73,52 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.set_defaults(run=run, handles_ctrl_c=True)  # Ctrl-C ends the playback: exit 0
 
 
-def run(args: argparse.Namespace, console: Console) -> int:
-    import numpy as np
-
-    from ceamcl.io.logs import open_log, poses_look_corrected
-    from ceamcl.motion.odometry import OdometryNoise
-
-    ros_play = import_ros("play", "play")
-    log = open_log(args.log, max_range_m=args.max_range)
-    if len(log) == 0:
-        raise CeamclError(f"{args.log}: no scan to play")
+def truth_mode(args: argparse.Namespace) -> str:
+    """``--truth``, with ``--synthetic-odometry`` as ``--truth yes``; conflicts refused."""
+    if args.truth_from is not None and (args.truth != "auto" or args.synthetic_odometry):
+        given = "--synthetic-odometry" if args.synthetic_odometry else f"--truth {args.truth}"
+        raise ConfigError(
+            f"truth: {given} has no effect with --truth-from, whose corrected log is the truth; "
+            "expected one of them"
+        )
     if args.synthetic_odometry:
-        log = log.with_synthetic_odometry(OdometryNoise(), np.random.default_rng(args.seed))
-    truth = log.true_poses
-    if truth is None and poses_look_corrected(log)[0]:
-        truth = log.poses
-    if args.map is not None:
-        from ceamcl.maps.ros_io import load_map
+        if args.truth == "no":
+            raise ConfigError(
+                "truth: --synthetic-odometry draws odometry from the poses as ground truth, "
+                "--truth no says they are not; expected one of them"
+            )
+        return "yes"
+    return str(args.truth)
 
-        grid = load_map(args.map)
-    else:
-        from ceamcl.mapping import map_from_log
 
-        grid, _ = map_from_log(log)
+def run(args: argparse.Namespace, console: Console) -> int:
+    from ceamcl.checks import physical_warnings
+    from ceamcl.replay import obtain_map, prepare_log
+
+    mode = truth_mode(args)
+    path = log_path(args)
+    ros_play = import_ros("play", "play")
+    kwargs = open_kwargs(args)
+    prepared = prepare_log(
+        path,
+        seed=args.seed,
+        truth=mode,  # type: ignore[arg-type]
+        repair_times=args.repair_times,
+        truth_from=args.truth_from,
+        laser_mount=args.laser_mount,
+        **kwargs,
+    )
+    log = prepared.log
+    if len(log) == 0:
+        raise CeamclError(f"{path}: no scan to play")
+    truth = log.true_poses if prepared.has_truth else None
+    grid, map_source = obtain_map(
+        prepared.map_log, args.map, args.resolution, own=prepared.truth_log is None
+    )
+    physical_warnings(log, grid, args.map or f"the map built from {prepared.map_log.path}")
+    if not args.quiet:
+        console.print(f"truth: {prepared.truth_reason}; odometry: {prepared.odometry}")
+        console.print(f"map: {map_source}")
     frames = ros_play.Frames(args.map_frame, args.odom_frame, args.base_frame, args.laser_frame)
     progress = make_progress(f"[bold]play[/] {log.name}", console, quiet=args.quiet)
     with progress:

@@ -56,8 +56,10 @@ def log_path(args: argparse.Namespace) -> str:
     return str(given[0])
 
 
-def add_log_arguments(p: argparse.ArgumentParser) -> None:
-    """Options shared by the commands that read a log (run, map-from-log, evaluate-log)."""
+def add_log_arguments(p: argparse.ArgumentParser, *, frames: bool = True) -> None:
+    """Options shared by the commands that read a log (run, map-from-log, evaluate-log, play).
+    ``frames=False``: the caller defines ``--odom-frame`` and ``--base-frame`` itself (``play``
+    publishes the frames it reads)."""
     p.add_argument(
         "log",
         metavar="LOG",
@@ -95,8 +97,9 @@ def add_log_arguments(p: argparse.ArgumentParser) -> None:
         default=None,
         help="bag: nav_msgs/Odometry topic (default: the only one; else the odom->base TF)",
     )
-    p.add_argument("--odom-frame", default="odom", help="bag: TF parent frame of the odometry")
-    p.add_argument("--base-frame", default="base_link", help="bag: TF child frame (robot base)")
+    if frames:
+        p.add_argument("--odom-frame", default="odom", help="bag: TF parent frame of the odometry")
+        p.add_argument("--base-frame", default="base_link", help="bag: TF child frame (robot base)")
 
 
 def add_sensor_argument(p: argparse.ArgumentParser) -> None:
@@ -124,7 +127,9 @@ def print_sensor_note(console: Console, sensor: str, algorithms: Sequence[str]) 
         console.print(Text(f"note: {BEAM_STATE_NOTE}", style="yellow"))
 
 
-def add_truth_arguments(p: argparse.ArgumentParser) -> None:
+def add_truth_arguments(
+    p: argparse.ArgumentParser, seed_help: str = "seed of the filter and of synthetic odometry"
+) -> None:
     p.add_argument(
         "--truth",
         choices=("auto", "yes", "no"),
@@ -160,7 +165,7 @@ def add_truth_arguments(p: argparse.ArgumentParser) -> None:
         "--seed",
         type=non_negative_int,
         default=0,
-        help="seed of the filter and of synthetic odometry",
+        help=seed_help,
     )
 
 

@@ -131,7 +131,7 @@ def play(
                 )
             tf_pub.publish(TFMessage(transforms=transforms))
             scan_pub.publish(scan_msg(log, k, frames.laser, stamp))
-            if truth is not None:
+            if truth is not None and np.all(np.isfinite(truth[k])):  # NaN: not paired
                 truth_pub.publish(
                     PoseStamped(
                         header=Header(stamp=m.time_msg(stamp), frame_id=frames.map),
