@@ -257,7 +257,7 @@ def test_experiment_console_one_run_units_and_width(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """One run is "1 run"; the table shows its units and fits 100 columns, with no nan."""
-    argv = ["experiment", "table1", "--trials", "1", "--algorithms", "mcl", "--starts", "0"]
+    argv = ["experiment", "table1", "--trials", "1", "--algorithms", "mcl", "--start-routes", "0"]
     argv += ["--max-time", "1", "--executor", "serial", "--out", str(tmp_path / "t")]
     assert main(argv) == 0
     text = capsys.readouterr().out
@@ -442,7 +442,8 @@ def test_every_option_with_a_default_shows_it_in_its_help() -> None:
         (["evaluate-log", "LOG", "--tracking", "--hold-m", "3"], "hold-m: --hold-m"),
         (["evaluate-log", "LOG", "--tracking", "--particles", "10**11"], "over the memory budget"),
         (["experiment", "state", "--executor", "bogus"], "executor: unknown executor"),
-        (["experiment", "state", "--starts", "0"], "starts: the state experiment's"),
+        (["experiment", "state", "--start-routes", "0"], "start-routes: the state"),
+        (["experiment", "table1", "--starts", "5"], "--start-routes I,J"),
         (["experiment", "tune", "--max-beams", "inf"], "argument --max-beams"),
         (["experiment", "tune", "--particle-counts", "1.7"], "argument --particle-counts"),
         (["play", "LOG", "--delay", "inf"], "argument --delay"),

@@ -102,7 +102,7 @@ def _read_csv(path: Path) -> list[dict[str, str]]:
         return list(csv.DictReader(fh))
 
 
-_SMOKE = ["--trials", "1", "--starts", "0", "--executor", "serial", "--quiet"]
+_SMOKE = ["--trials", "1", "--start-routes", "0", "--executor", "serial", "--quiet"]
 
 
 def test_table1_smoke(tmp_path: Path) -> None:

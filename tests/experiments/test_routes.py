@@ -115,7 +115,7 @@ def test_missing_route_file_and_map(tmp_path: Path) -> None:
 def test_select_starts() -> None:
     course = paper_course().select([2, 0])
     assert [r.name for r in course.routes] == ["room2", "room0"]
-    with pytest.raises(ConfigError, match="starts"):
+    with pytest.raises(ConfigError, match="start-routes: route 4 out of range"):
         paper_course().select([4])
 
 

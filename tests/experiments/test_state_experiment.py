@@ -177,7 +177,7 @@ def _read_csv(path: Path) -> list[dict[str, str]]:
 def test_state_smoke(tmp_path: Path) -> None:
     out = tmp_path / "s"
     args = ["experiment", "state", "--trials", "1", "--executor", "serial", "--quiet"]
-    args += ["--algorithms", "ceamcl,mcl", "--max-time", "2", "--starts", "0"]
+    args += ["--algorithms", "ceamcl,mcl", "--max-time", "2", "--start-routes", "0"]
     assert main([*args, "--world", "symmetric-hall", "--out", str(out)]) == 0
     rows = _read_csv(out / "state.csv")
     assert list(rows[0]) == ["algorithm", "state", "precision", "recall", "support"]

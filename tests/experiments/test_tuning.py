@@ -165,7 +165,7 @@ def test_make_filter_applies_sensor_settings_to_either_model() -> None:
 
 def test_cli_tune(tmp_path: Path) -> None:
     out = tmp_path / "tune"
-    args = ["experiment", "tune", "--trials", "1", "--starts", "0", "--executor", "serial"]
+    args = ["experiment", "tune", "--trials", "1", "--start-routes", "0", "--executor", "serial"]
     args += ["--quiet", "--algorithms", "mcl", "--max-beams", "30", "--tempers", "0.1"]
     args += ["--particle-counts", "100", "--init-test-poses", "0", "--max-time", "2"]
     assert main([*args, "--out", str(out)]) == 0
@@ -227,7 +227,7 @@ def test_make_filter_applies_a_presets_sensor_settings_to_either_model(sensor: s
 
 def test_table1_runs_a_preset(tmp_path: Path) -> None:
     out = tmp_path / "t1"
-    args = ["experiment", "table1", "--trials", "1", "--starts", "0", "--executor", "serial"]
+    args = ["experiment", "table1", "--trials", "1", "--start-routes", "0", "--executor", "serial"]
     args += ["--quiet", "--algorithms", "mcl-tuned", "--max-time", "2"]
     assert main([*args, "--out", str(out)]) == 0
     with (out / "table1.csv").open() as fh:

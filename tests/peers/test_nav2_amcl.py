@@ -271,7 +271,7 @@ def test_global_localisation_rows_say_not_comparable(
 
     monkeypatch.setenv("COLUMNS", "200")  # the console's cells unwrapped
     out = tmp_path / "t1"
-    args = ["experiment", "table1", "--trials", "1", "--starts", "0", "--executor", "serial"]
+    args = ["experiment", "table1", "--trials", "1", "--start-routes", "0", "--executor", "serial"]
     args += ["--algorithms", "ceamcl,nav2-amcl", "--max-time", "3", "--out", str(out)]
     assert main(args) == 0
     printed = " ".join(capsys.readouterr().out.split())
@@ -294,7 +294,7 @@ def test_marked_hall_rows_say_not_comparable(tmp_path: Path) -> None:
     from ceamcl.cli import main
 
     out = tmp_path / "m"
-    args = ["experiment", "marked", "--trials", "1", "--starts", "0", "--executor", "serial"]
+    args = ["experiment", "marked", "--trials", "1", "--start-routes", "0", "--executor", "serial"]
     args += ["--algorithms", "mcl,nav2-amcl", "--max-time", "2", "--quiet", "--out", str(out)]
     assert main(args) == 0
     text = (out / "marked.md").read_text()

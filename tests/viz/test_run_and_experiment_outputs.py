@@ -160,7 +160,16 @@ def test_experiment_writes_the_first_trial_of_each_algorithm(
 ) -> None:
     monkeypatch.chdir(tmp_path)
     out = tmp_path / "exp"
-    argv = ["experiment", "table1", "--trials", "1", "--starts", "0", "--algorithms", "ceamcl"]
+    argv = [
+        "experiment",
+        "table1",
+        "--trials",
+        "1",
+        "--start-routes",
+        "0",
+        "--algorithms",
+        "ceamcl",
+    ]
     # one worker process: the trial runs in another process, the re-run in this one
     argv += ["--max-time", "5", "--gif", "--mcap", "r.mcap", "--workers", "1"]
     assert main([*argv, "--out", str(out), "--quiet"]) == 0

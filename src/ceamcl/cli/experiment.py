@@ -555,12 +555,15 @@ def _add_common(
         help="YAML route file with a ROS map (docs/experiments.md): run on your own building",
     )
     p.add_argument(
-        "--starts",
+        "--start-routes",
+        dest="starts",
         type=_indices,
         default=None,
         metavar="I,J",
-        help="only these start routes (0-based; default all)",
+        help="only these start routes, by number (0-based; default all)",
     )
+    # evaluate-log's --starts is a count of start points; here the routes are chosen by number
+    p.add_argument("--starts", dest="starts_count", default=None, help=argparse.SUPPRESS)
     p.add_argument(
         "--seed",
         type=non_negative_int,
@@ -627,11 +630,16 @@ def _settings(args: argparse.Namespace, console: Console) -> ExperimentSettings:
                 f"algorithms: expected one or more algorithm names, got {args.algorithms!r} "
                 "(leave --algorithms out to run all)"
             )
+    if args.starts_count is not None:
+        raise ConfigError(
+            f"starts: --starts {args.starts_count} is evaluate-log's count of start points; an "
+            "experiment's start routes are chosen by number with --start-routes I,J (0-based)"
+        )
     if args.experiment == "state" and args.world is None and args.routes is None:
         if args.starts is not None:  # each built-in scenario numbers its own routes
             raise ConfigError(
-                "starts: the state experiment's three scenarios each have their own routes; "
-                "choose one with --world or --routes to pick its starts"
+                "start-routes: the state experiment's three scenarios each have their own "
+                "routes; choose one with --world or --routes to pick its start routes"
             )
     course = resolve_course(args.experiment, args.world, args.routes).select(args.starts)
     skipped: dict[str, str] = {}

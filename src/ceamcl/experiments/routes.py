@@ -136,7 +136,7 @@ class Course:
         bad = [i for i in indices if not 0 <= i < len(self.routes)]
         if bad:
             raise ConfigError(
-                f"starts: route index {bad[0]} out of range; this course has routes "
+                f"start-routes: route {bad[0]} out of range; this course has routes "
                 f"0..{len(self.routes) - 1}"
             )
         return Course(
