@@ -8,9 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import ceamcl.io.truth as truth_module
 from ceamcl.errors import InputWarning, LogFormatError
 from ceamcl.io.recorded import RecordedLog
-from ceamcl.io.truth import pair_truth, suggest_mount
+from ceamcl.io.truth import pair_truth, printed_decimals, suggest_mount
 from ceamcl.replay import prepare_log
 from ceamcl.sensors.scan import laser_poses
 
@@ -59,6 +60,33 @@ def test_pairs_by_ranges_across_a_clock_offset_and_printing_differences() -> Non
     truth = p.truth_at_raw_scans()
     assert np.isnan(truth[[0, 2, 5]]).all()
     assert truth[3].tolist() == corrected.poses[1].tolist()
+
+
+def test_a_log_of_millimetres_pairs_with_its_corrected_log_of_centimetres(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A corrected log written with fewer digits than its raw log (the raw laser's
+    millimetres, the SLAM tool's centimetres) still pairs: ranges compare at the coarser."""
+    rng = np.random.default_rng(1)
+    mm = [list(np.round(rng.uniform(0.5, 10, 40), 3)) for _ in range(8)]
+    raw = make_log(mm, [50.0 + 0.1 * k for k in range(8)], "raw")
+    kept = [0, 2, 5, 7]
+    cm = [[float(f"{v:.2f}") for v in mm[k]] for k in kept]
+    corrected = make_log(cm, [0.1 * k for k in kept], "corrected")
+    assert (printed_decimals(raw), printed_decimals(corrected)) == (3, 2)
+    assert pair_truth(raw, corrected).raw_index.tolist() == kept
+    # compared at millimetres whatever the logs print (as before), nothing paired
+    monkeypatch.setattr(truth_module, "printed_decimals", lambda log, limit=3: limit)
+    with pytest.raises(LogFormatError, match="none of its 4 scans has the ranges"):
+        pair_truth(raw, corrected)
+
+
+def test_printed_decimals_reads_float32_readings_by_their_digits() -> None:
+    cm = np.round(np.random.default_rng(2).uniform(0.5, 10, 50), 2)
+    as_float32 = make_log([list(cm.astype(np.float32).astype(np.float64))], [0.0], "bag")
+    assert printed_decimals(as_float32) == 2
+    noisy = make_log([list(np.random.default_rng(3).uniform(0.5, 10, 50))], [0.0], "bag")
+    assert printed_decimals(noisy) == 3  # the limit: no fewer digits describe them
 
 
 def test_the_truth_is_the_raw_robots_pose_where_the_lasers_sit_apart() -> None:

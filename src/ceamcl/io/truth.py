@@ -4,8 +4,10 @@ counterpart (``ceamcl run|evaluate-log RAW --truth-from CORRECTED``).
 A raw log holds every scan with the robot's own (drifting) odometry; the corrected log of the
 same run keeps a subset of those scans with SLAM-corrected poses. A corrected scan and its raw
 twin have the *same ranges* (the files print them differently, so they are compared as numbers,
-rounded to ``decimals`` digits), and their timestamps agree up to a clock offset (the raw log's
-IPC timestamps are the wall clock, the corrected log's are the logger's, which starts at 0).
+rounded to ``decimals`` digits, or to the fewer digits one of the two logs prints: a raw log of
+millimetres pairs with a corrected log written in centimetres, :func:`printed_decimals`), and
+their timestamps agree up to a clock offset (the raw log's IPC timestamps are the wall clock,
+the corrected log's are the logger's, which starts at 0).
 
 Pairing, in order:
 
@@ -132,13 +134,36 @@ class TruthPairing:
         )
 
 
+def printed_decimals(log: RecordedLog, limit: int = DEFAULT_DECIMALS, sample: int = 20_000) -> int:
+    """The fewest decimal digits (at most ``limit``) that every finite range of the log's first
+    ``sample`` readings has: 2 for a log that prints centimetres (``1.23``, ``7.3``), ``limit``
+    for one of float32 readings (a bag's)."""
+    r = np.asarray(log.ranges_flat[:sample], dtype=np.float64)
+    r = np.abs(r[np.isfinite(r)])
+    for k in range(limit):
+        scaled = r * 10.0**k
+        # a float parsed from k printed digits is k digits within rounding (float32 included)
+        if np.all(np.abs(scaled - np.round(scaled)) <= 1e-6 * np.maximum(scaled, 1.0)):
+            return k
+    return limit
+
+
 def scan_keys(log: RecordedLog, decimals: int = DEFAULT_DECIMALS) -> list[bytes]:
     """One hashable key per scan: its beam count and its ranges rounded to ``decimals``.
 
-    Ranges that are not finite (NaN, inf) keep a key of their own per kind."""
+    Ranges are rounded as ``printf("%.{decimals}f")`` rounds them, from their exact binary
+    value: a tie in the scaled product (``1.245 * 100`` is 124.5 in floating point, 124 by
+    NumPy's rounding, while the double 1.245 lies above the tie and prints as ``1.25``) is
+    rounded again by Python's correctly rounded ``round``. Ranges that are not finite (NaN,
+    inf) keep a key of their own per kind."""
     scale = 10.0**decimals
     r = np.asarray(log.ranges_flat, dtype=np.float64)
-    rounded = np.where(np.isfinite(r), np.round(r * scale), np.where(np.isnan(r), -1.0, -2.0))
+    scaled = r * scale
+    rounded = np.round(scaled)
+    tie = np.isfinite(scaled) & (np.abs(np.abs(scaled - np.floor(scaled)) - 0.5) < 1e-6)
+    for i in np.flatnonzero(tie):
+        rounded[i] = round(round(float(r[i]), decimals) * scale)
+    rounded = np.where(np.isfinite(r), rounded, np.where(np.isnan(r), -1.0, -2.0))
     ints = rounded.astype(np.int64)
     counts = np.diff(log.offsets)
     return [
@@ -160,11 +185,13 @@ def pair_truth(
     decimals: int = DEFAULT_DECIMALS,
     time_tol_s: float = DEFAULT_TIME_TOL_S,
 ) -> TruthPairing:
-    """Pair the scans of ``raw`` with those of ``truth`` (module docstring).
+    """Pair the scans of ``raw`` with those of ``truth`` (module docstring), their ranges
+    compared at ``decimals`` digits or at the fewer digits either log prints.
 
     Raises:
         LogFormatError: no scan of ``truth`` has a twin in ``raw`` (not logs of the same run).
     """
+    decimals = min(printed_decimals(raw, decimals), printed_decimals(truth, decimals))
     raw_keys = scan_keys(raw, decimals)
     truth_keys = scan_keys(truth, decimals)
     where: dict[bytes, list[int]] = defaultdict(list)
