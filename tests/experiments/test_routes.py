@@ -129,3 +129,20 @@ def test_kidnapped_course_jumps_while_odometry_stands_still() -> None:
     assert np.hypot(*(log.true_poses[k, :2] - log.true_poses[k - 1, :2])) > 2.0
     assert np.array_equal(log.odometry[k], log.odometry[k - 1])
     assert np.allclose(log.true_poses[k], sc.kidnap.pose)
+
+
+def test_a_chosen_route_keeps_its_seed() -> None:
+    """``--start-routes 1`` runs room 1 as it runs among all four routes (its number is its
+    seed key), and a route given twice is refused."""
+    from ceamcl.experiments.trials import Trial, simulate_trial_log
+
+    full, one = paper_course(), paper_course().select([1])
+    assert one.number(0) == 1 and full.number(1) == 1
+    a = Trial("table1", "mcl", full, 1, 0, 7, max_time_s=2.0)
+    b = Trial("table1", "mcl", one, 0, 0, 7, max_time_s=2.0)
+    assert a.route == b.route == "room1" and b.route_number == 1
+    la, lb = simulate_trial_log(a), simulate_trial_log(b)
+    np.testing.assert_array_equal(la.odometry, lb.odometry)
+    np.testing.assert_array_equal(la.true_poses, lb.true_poses)
+    with pytest.raises(ConfigError, match="start-routes: route 2 given twice"):
+        paper_course().select([2, 0, 2])

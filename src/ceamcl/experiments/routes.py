@@ -107,6 +107,9 @@ class Course:
     world: str | None = None
     map_path: str | None = None
     config: SimulationConfig = field(default_factory=SimulationConfig)
+    #: Each route's number in the whole course (empty: 0, 1, ...): its trials' seed key, so a
+    #: route chosen with ``--start-routes`` runs as it does among all of them.
+    numbers: tuple[int, ...] = ()
 
     def grid(self) -> OccupancyGrid:
         return load_grid(self.world, self.map_path)
@@ -129,8 +132,13 @@ class Course:
             kidnap=r.kidnap,
         )
 
+    def number(self, index: int) -> int:
+        """The number of route ``index`` in the whole course (the seed key of its trials)."""
+        return self.numbers[index] if self.numbers else index
+
     def select(self, indices: list[int] | None) -> Course:
-        """The same course with only the routes at ``indices`` (all when ``None``)."""
+        """The same course with only the routes at ``indices`` (all when ``None``); each keeps
+        its number, so its trials draw what they draw among all the routes."""
         if indices is None:
             return self
         bad = [i for i in indices if not 0 <= i < len(self.routes)]
@@ -139,6 +147,9 @@ class Course:
                 f"start-routes: route {bad[0]} out of range; this course has routes "
                 f"0..{len(self.routes) - 1}"
             )
+        twice = sorted({i for i in indices if indices.count(i) > 1})
+        if twice:
+            raise ConfigError(f"start-routes: route {twice[0]} given twice; expected each once")
         return Course(
             self.name,
             tuple(self.routes[i] for i in indices),
@@ -146,6 +157,7 @@ class Course:
             self.world,
             self.map_path,
             self.config,
+            tuple(self.number(i) for i in indices),
         )
 
 

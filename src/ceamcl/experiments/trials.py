@@ -1,9 +1,10 @@
 """One trial: simulate a route from a seed, run one algorithm over it, record what is measured.
 
 :func:`run_trial` is the top-level, picklable function every executor runs. Its generators
-come from ``SeedSequence(seed, spawn_key=(route_index, repetition))``: the simulated log
-depends on the seed, the route and the repetition, never on the algorithm, so every
-algorithm of an experiment sees the same logs, and no executor can change a number.
+come from ``SeedSequence(seed, spawn_key=(route number, repetition))``, the route's number in
+the whole course (a route chosen with ``--start-routes`` keeps it): the simulated log depends
+on the seed, the route and the repetition, never on the algorithm or on the other routes run,
+so every algorithm of an experiment sees the same logs, and no executor can change a number.
 """
 
 from __future__ import annotations
@@ -55,6 +56,11 @@ class Trial:
         return self.course.routes[self.route_index].name
 
     @property
+    def route_number(self) -> int:
+        """The route's number in the whole course: the seed key (``--start-routes`` keeps it)."""
+        return self.course.number(self.route_index)
+
+    @property
     def name(self) -> str:
         delta = "" if self.delta_per_m2 is None else f" delta={self.delta_per_m2:g}"
         return (
@@ -94,15 +100,16 @@ class TrialRecord:
         return position_error(self.estimates, self.truth)
 
 
-def trial_generators(seed: int, route_index: int, repetition: int) -> list[np.random.Generator]:
-    """The simulator's and the filter's generators of one trial (algorithm-independent)."""
-    ss = np.random.SeedSequence(seed, spawn_key=(route_index, repetition))
+def trial_generators(seed: int, route_number: int, repetition: int) -> list[np.random.Generator]:
+    """The simulator's and the filter's generators of one trial (algorithm-independent);
+    ``route_number``: the route's number in the whole course (:attr:`Trial.route_number`)."""
+    ss = np.random.SeedSequence(seed, spawn_key=(route_number, repetition))
     return [np.random.default_rng(s) for s in ss.spawn(2)]
 
 
 def simulate_trial_log(trial: Trial) -> SimulatedLog:
     """The simulated log of a trial (the same for every algorithm)."""
-    sim_rng, _ = trial_generators(trial.seed, trial.route_index, trial.repetition)
+    sim_rng, _ = trial_generators(trial.seed, trial.route_number, trial.repetition)
     log = trial.course.scenario(trial.route_index).simulate(sim_rng, trial.course.grid())
     if trial.max_time_s is not None:
         n = int(np.searchsorted(log.times, log.times[0] + trial.max_time_s, side="right"))
@@ -133,7 +140,7 @@ def localise_trial(
     log = simulate_trial_log(trial)
     if on_start is not None:
         on_start(len(log))
-    _, filter_rng = trial_generators(trial.seed, trial.route_index, trial.repetition)
+    _, filter_rng = trial_generators(trial.seed, trial.route_number, trial.repetition)
     grid = trial.course.grid()
     config = trial.config
     if trial.delta_per_m2 is not None:
