@@ -116,11 +116,14 @@ def prepare_log(
     robot's under that mount, :mod:`ceamcl.io.truth`).
     """
     log = check_times(open_log(path, **open_kwargs), repair=repair_times)
+    # whether the poses are corrected is read from the log as written: a mount the user gives
+    # (a laser pose apart from the robot's) must not make a corrected log look raw, which
+    # would hand its true poses to the filter as odometry
+    looks, why = poses_look_corrected(log)
     if laser_mount is not None:
         log = with_laser_mount(log, laser_mount)
     if truth_from is not None:
         return _truth_from(log, truth_from, seed, repair_times, open_kwargs)
-    looks, why = poses_look_corrected(log)
     if truth == "auto":
         use_truth, reason = looks, f"{why} (--truth auto)"
     else:

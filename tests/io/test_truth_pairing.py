@@ -306,3 +306,16 @@ def test_the_shared_raw_logs_suggest_their_lasers_mount(
     x, y = p.suggested_mount
     assert x_range[0] < x < x_range[1] and abs(y) < 0.02
     assert "--laser-mount sets it" in p.summary()
+
+
+def test_a_mount_given_does_not_make_a_corrected_log_look_raw() -> None:
+    """``--laser-mount`` on a SLAM-corrected log: its poses are still the truth and the filter
+    reads odometry drawn from them. The mount was applied before the log was judged, so the
+    laser pose apart from the robot's read as raw odometry and the truth became the odometry."""
+    path = DATA / "carmen" / "fhw-corrected.log.gz"
+    if not path.is_file():
+        pytest.skip(f"real log {path} is absent (the shared data folder is not mounted)")
+    prepared = prepare_log(path, laser_mount=(0.1, 0.0, 0.0))
+    assert prepared.has_truth and prepared.odometry == "synthetic"
+    assert not np.array_equal(prepared.log.odometry, prepared.log.true_poses)
+    np.testing.assert_array_equal(prepared.log.laser_mount[0], [0.1, 0.0, 0.0])
