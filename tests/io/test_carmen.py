@@ -145,6 +145,18 @@ def test_flaser_without_hostname_or_timestamp_tail(tmp_path: Path) -> None:
     np.testing.assert_allclose(log.times, [7.5, 8.5])
 
 
+def test_scans_with_and_without_timestamps_are_refused_naming_the_first_without(
+    tmp_path: Path,
+) -> None:
+    """A log numbers its scans when none has a timestamp; numbering only some would mix
+    indices with seconds (the untimed scan 1 came 99 s before the timed scan 0)."""
+    timed = [flaser(180, 1.0, (1, 2, 0), 100.5), flaser(180, 1.0, (1, 2, 0), 0.0)]
+    untimed = [line.rsplit(" ", 3)[0] for line in timed]  # timestamp, host, logger time cut
+    with pytest.raises(LogFormatError, match=r"run\.log:2: 1 scans .* a timestamp and 1 none"):
+        read_carmen(write(tmp_path, [timed[0], untimed[1]]))
+    np.testing.assert_array_equal(read_carmen(write(tmp_path, untimed)).times, [0.0, 1.0])
+
+
 def test_robotlaser_gives_mount_and_max_range(tmp_path: Path) -> None:
     line = (
         "ROBOTLASER1 0 -1.5 3.0 0.5 20.0 0.01 0 7 1 2 3 4 5 6 25 0 "
@@ -195,6 +207,19 @@ def test_gzip_is_read_transparently(tmp_path: Path) -> None:
             r"run\.log:2: ROBOTLASER1: expected laser pose",
         ),
         ("FLASER -2 1 2", r"run\.log:2: FLASER: beam count: expected a non-negative count"),
+        (
+            "FLASER 2 1 1 nan nan 0 0 0 0 1 h 1",
+            r"run\.log:2: FLASER: laser pose x y theta: expected three finite numbers",
+        ),
+        (
+            "FLASER 2 1 1 0 0 0 1e200 0 0 1 h 1",
+            r"run\.log:2: FLASER: robot pose .*: expected \|x\|, \|y\| <= 1e\+07 m",
+        ),
+        ("ODOM 1 inf 0 0 0 0 1 h 1", r"run\.log:2: ODOM: x y theta: expected three finite"),
+        (
+            "ROBOTLASER1 0 -1.5 nan 0.5 20.0 0.01 0 2 1 2 0 0 0 0 0 0 0 0 0 0 0 0 1 h 1",
+            r"run\.log:2: ROBOTLASER1: fov: expected a finite number, got nan",
+        ),
     ],
 )
 def test_malformed_line_names_file_and_line(tmp_path: Path, line: str, message: str) -> None:

@@ -57,7 +57,15 @@ def _true_pose(t: float) -> tuple[float, float, float]:
     return 0.5 * t, 0.1 * t, 0.2 * t
 
 
-def write_bag(path: Path, ros1: bool, *, odom: str = "topic", scan_topic: str = "/scan") -> Path:
+def write_bag(
+    path: Path,
+    ros1: bool,
+    *,
+    odom: str = "topic",
+    scan_topic: str = "/scan",
+    bad_x: float | None = None,
+) -> Path:
+    """A small bag; ``bad_x``: the x of the sixth odometry message (a broken pose)."""
     ts = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
     if "tf2_msgs/msg/TFMessage" not in ts.types:  # the Noetic store lacks it
         ts.register(
@@ -88,6 +96,8 @@ def write_bag(path: Path, ros1: bool, *, odom: str = "topic", scan_topic: str = 
         for i in range(11):  # odometry at 10 Hz over 1 s
             t = 0.1 * i
             x, y, yaw = _true_pose(t)
+            if bad_x is not None and i == 5:
+                x = bad_x
             if c_odom is not None:
                 msg = m["Odometry"](
                     header=_header(m, t, "odom", ros1),
@@ -177,3 +187,21 @@ def test_missing_tf_pair_lists_transforms(tmp_path: Path) -> None:
     bag = write_bag(tmp_path / "run.bag", True, odom="tf")
     with pytest.raises(LogFormatError, match=r"odom -> base_footprint.*odom -> base_link"):
         read_bag(bag, base_frame="base_footprint")
+
+
+@pytest.mark.parametrize(
+    ("odom", "bad_x", "says"),
+    [
+        ("topic", math.nan, r"/odom: odometry message 5 .*: expected a finite position"),
+        ("tf", math.inf, r"/tf odom -> base_link: odometry message 5 .*: expected a finite"),
+        ("topic", 1e200, r"/odom: odometry message 5 .*: expected \|x\|, \|y\| <= 1e\+07 m"),
+    ],
+)
+def test_a_broken_odometry_pose_is_named(
+    tmp_path: Path, odom: str, bad_x: float, says: str
+) -> None:
+    """A NaN or absurd pose in the odometry is an error naming the bag, the source and the
+    message (it ended in a traceback when the map was built from it)."""
+    bag = write_bag(tmp_path / "b", False, odom=odom, bad_x=bad_x)
+    with pytest.raises(LogFormatError, match=says):
+        open_log(bag)

@@ -71,7 +71,7 @@ from ceamcl import budget
 from ceamcl.errors import ConfigError, LogFormatError
 from ceamcl.io import streams
 from ceamcl.io.odometry_sign import MOVE_M, check_sign, forward_steps, signed_poses
-from ceamcl.io.recorded import RecordedLog, interpolate_poses
+from ceamcl.io.recorded import RecordedLog, check_pose_values, interpolate_poses
 from ceamcl.pose import relative_poses
 
 __all__ = [
@@ -228,7 +228,14 @@ class _Line:
 
     def pose(self, what: str) -> tuple[float, float, float]:
         v = self.numbers(3, what)
+        check_pose_values(v, what, self.error)
         return float(v[0]), float(v[1]), float(v[2])
+
+    def finite(self, what: str) -> float:
+        value = self.number(what)
+        if not math.isfinite(value):
+            raise self.error(f"{what}: expected a finite number, got {value}")
+        return value
 
     def timestamp(self) -> float:
         """The IPC timestamp if the line has one (host and logger time may follow)."""
@@ -271,9 +278,9 @@ def _parse_old_laser(ln: _Line) -> CarmenLaser:
 
 def _parse_new_laser(ln: _Line, kind: str, laser_id: int) -> CarmenLaser:
     ln.count("laser type")
-    start = ln.number("start_angle")
-    fov = ln.number("fov")
-    res = ln.number("angular_resolution")
+    start = ln.finite("start_angle")
+    fov = ln.finite("fov")
+    res = ln.finite("angular_resolution")
     max_range = ln.number("maximum_range")
     ln.number("accuracy")
     ln.count("remission_mode")
@@ -305,7 +312,11 @@ def _parse_new_laser(ln: _Line, kind: str, laser_id: int) -> CarmenLaser:
 
 
 def _parse_odom(ln: _Line) -> CarmenOdometry:
-    x, y, theta, tv, rv, accel = (float(a) for a in ln.numbers(6, "x y theta tv rv accel"))
+    v = ln.numbers(6, "x y theta tv rv accel")
+    check_pose_values(v, "x y theta", ln.error)
+    if not np.isfinite(v[3]):
+        raise ln.error(f"tv: expected a finite number, got {v[3]}")
+    x, y, theta, tv, rv, accel = (float(a) for a in v)
     return CarmenOdometry(x, y, theta, tv, rv, accel, timestamp=ln.timestamp(), line=ln.lineno)
 
 
@@ -495,13 +506,22 @@ def read_carmen(
         )
     n = len(stream)
     times = np.asarray(stream.times, dtype=np.float64)
-    timed = not np.isnan(times).any()
+    untimed = np.isnan(times)
+    timed = not untimed.any()
+    if not timed and not untimed.all():
+        # numbering only some scans would mix their indices with the others' seconds
+        k = int(np.argmax(untimed))
+        raise LogFormatError(
+            f"{p}:{stream.lines[k]}: {len(untimed) - int(untimed.sum())} scans of laser {laser} "
+            f"have a timestamp and {int(untimed.sum())} none, this one the first: expected a "
+            "timestamp after the robot pose on every scan line, or on none"
+        )
     o = np.asarray(odom, dtype=np.float64).reshape(-1, 5)
     # odometry that lost its sign (ceamcl.io.odometry_sign), told by the ODOM lines' velocity
     sign = check_sign(o[:, 0], o[:, 1:4], o[:, 4]) if timed and odometry_sign == "auto" else None
     unsigned = sign is not None and sign.unsigned
     if not timed:
-        # Lines without a timestamp: number the scans instead.
+        # No scan line has a timestamp: number the scans instead.
         times = np.where(np.isnan(times), np.arange(n, dtype=np.float64), times)
 
     reversed_increments = 0

@@ -18,6 +18,8 @@ odometry. One ``numpy.random.Generator`` draws all of it.
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Protocol
@@ -210,3 +212,22 @@ def interpolate_poses(times: ArrayLike, poses: ArrayLike, at: ArrayLike) -> NDAr
     return np.column_stack(
         [np.interp(q, t, p[:, 0]), np.interp(q, t, p[:, 1]), wrap(np.interp(q, t, heading))]
     )
+
+
+#: Poses beyond these are not of a building (and overflow the motion model's squares): a
+#: position further than 10,000 km from the origin, a heading of more than 10^6 rad (a log's
+#: headings may run on unwrapped, a few hundred turns at most).
+POSE_LIMIT_M = 1e7
+HEADING_LIMIT_RAD = 1e6
+
+
+def check_pose_values(v: NDArray[np.float64], what: str, error: Callable[[str], Exception]) -> None:
+    """Refuse a pose ``(x, y, theta)`` that is not finite or lies beyond the limits above."""
+    x, y, theta = (float(a) for a in v[:3])
+    if not all(math.isfinite(a) for a in (x, y, theta)):
+        raise error(f"{what}: expected three finite numbers, got {x} {y} {theta}")
+    if max(abs(x), abs(y)) > POSE_LIMIT_M or abs(theta) > HEADING_LIMIT_RAD:
+        raise error(
+            f"{what}: expected |x|, |y| <= {POSE_LIMIT_M:g} m and |theta| <= "
+            f"{HEADING_LIMIT_RAD:g} rad, got {x:g} {y:g} {theta:g}"
+        )

@@ -29,7 +29,12 @@ from ceamcl import budget
 from ceamcl.errors import CeamclError, LogFormatError
 from ceamcl.io import streams
 from ceamcl.io.quaternion import quaternion_yaw
-from ceamcl.io.recorded import RecordedLog, interpolate_poses
+from ceamcl.io.recorded import (
+    POSE_LIMIT_M,
+    RecordedLog,
+    check_pose_values,
+    interpolate_poses,
+)
 
 __all__ = ["LASER_SCAN", "ODOMETRY", "TF", "read_bag"]
 
@@ -207,9 +212,35 @@ def _read(
     t = np.asarray(times, dtype=np.float64)
     o = np.asarray(odo, dtype=np.float64)
     yaw = quaternion_yaw(o[:, 3], o[:, 4], o[:, 5], o[:, 6])
+    source = odom_conns[0].topic if odom_conns else f"/tf {odom_frame} -> {base_frame}"
+    bad = np.flatnonzero(~np.isfinite(o).all(axis=1) | ~np.isfinite(yaw))
+    if bad.size:
+        k = int(bad[0])
+        raise LogFormatError(
+            f"{p}: {source}: odometry message {k} (t={o[k, 0]:.3f} s): expected a finite "
+            f"position and orientation, got x={o[k, 1]}, y={o[k, 2]}, quaternion {o[k, 3:7]}"
+        )
+    far = np.flatnonzero(np.abs(o[:, 1:3]).max(axis=1) > POSE_LIMIT_M)
+    if far.size:
+        k = int(far[0])
+        check_pose_values(
+            np.array([o[k, 1], o[k, 2], yaw[k]]),
+            f"odometry message {k} (t={o[k, 0]:.3f} s)",
+            lambda what: LogFormatError(f"{p}: {source}: {what}"),
+        )
+    for (parent, child), link in links.items():
+        if not np.all(np.isfinite(link)):
+            raise LogFormatError(
+                f"{p}: /tf {parent} -> {child}: expected a finite laser mount, got {link}"
+            )
     poses = interpolate_poses(o[:, 0], np.column_stack([o[:, 1], o[:, 2], yaw]), t)
     m = np.asarray(meta, dtype=np.float64)
     for k in range(n):
+        if not (np.isfinite(m[k, 0]) and np.isfinite(m[k, 1])):
+            raise LogFormatError(
+                f"{p}: scan {k}: expected finite angle_min and angle_increment, got "
+                f"angle_min={m[k, 0]}, angle_increment={m[k, 1]}"
+            )
         if not (m[k, 3] > 0 and 0 <= m[k, 2] < m[k, 3]):
             raise LogFormatError(
                 f"{p}: scan {k}: expected 0 <= range_min < range_max, got "
