@@ -129,6 +129,16 @@ def test_save_creates_parent_folders_and_overwrites(tmp_path: Path) -> None:
     assert sorted(p.name for p in target.parent.iterdir()) == ["map.pgm", "map.yaml"]
 
 
+@pytest.mark.parametrize(
+    ("name", "fmt"), [("hall.png", "pgm"), ("hall.pgm", "png"), ("m.JPG", "pgm")]
+)
+def test_an_image_name_for_the_yaml_is_refused(tmp_path: Path, name: str, fmt: str) -> None:
+    """``-o hall.png`` wrote the YAML into ``hall.png`` and the image into ``hall.pgm``."""
+    with pytest.raises(MapFormatError, match=r"expected a YAML file name such as 'map\.yaml'"):
+        save_map(sample_grid(), tmp_path / name, fmt)
+    assert not list(tmp_path.iterdir())
+
+
 @pytest.mark.skipif(os.name != "posix", reason="POSIX permissions")
 def test_saved_files_respect_umask(tmp_path: Path) -> None:
     old = os.umask(0o022)

@@ -319,6 +319,12 @@ def _pixels_to_cells(
 
 
 # ---------------------------------------------------------------------------------- saving
+#: Names that say "image": the YAML written under one would pass for a broken image.
+IMAGE_SUFFIXES = frozenset(
+    {".pgm", ".png", ".jpg", ".jpeg", ".bmp", ".gif", ".tif", ".tiff", ".ppm"}
+)
+
+
 def save_map(
     grid: OccupancyGrid, yaml_path: str | os.PathLike[str], image_format: str = "pgm"
 ) -> Path:
@@ -350,7 +356,7 @@ def save_map(
             f"image_format: expected one of {', '.join(IMAGE_FORMATS)}, got {image_format!r}"
         )
     yaml_file = Path(yaml_path)
-    if not yaml_file.name or yaml_file.suffix.lower() == f".{fmt}":
+    if not yaml_file.name or yaml_file.suffix.lower() in IMAGE_SUFFIXES:
         raise MapFormatError(
             f"{yaml_file}: expected a YAML file name such as 'map.yaml' (the image is written "
             f"beside it as '<name>.{fmt}')"
