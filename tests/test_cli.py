@@ -55,6 +55,20 @@ def test_demo_writes_summary(demo_dir: Path) -> None:
     assert 0.0 <= summary["final_state_confidence"] <= 1.0 and summary["final_state_reason"]
 
 
+def test_a_run_into_a_used_folder_leaves_no_file_of_the_earlier_run(tmp_path: Path) -> None:
+    """A CEAMCL run's species.csv/png and run.gif stayed beside a later MCL run's summary."""
+    out = tmp_path / "D"
+    out.mkdir()
+    for name in ("species.csv", "species.png", "run.gif", "report.html"):
+        (out / name).write_text("an earlier run's")
+    (out / "notes.txt").write_text("the user's")
+    argv = ["demo", "--algorithm", "mcl", "--seed", "3", "--out", str(out), "--quiet"]
+    assert main([*argv, "--no-animation"]) == 0
+    names = {p.name for p in out.iterdir()}
+    assert "summary.json" in names and "notes.txt" in names
+    assert not names & {"species.csv", "species.png", "run.gif", "report.html"}
+
+
 def test_demo_writes_tum_trajectories(demo_dir: Path) -> None:
     steps = json.loads((demo_dir / "summary.json").read_text())["steps"]
     for name in ("trajectory.tum", "groundtruth.tum"):

@@ -190,6 +190,34 @@ def write_outputs(
     return written
 
 
+#: Every file :func:`write_run_files` may write into a run's folder. Those a run does not
+#: write are removed from it first, so a folder holds one run's files only (a CEAMCL run's
+#: ``species.csv`` beside a later MCL run's ``summary.json`` would read as MCL's).
+RUN_FILES = (
+    "trajectory.tum",
+    "groundtruth.tum",
+    "diagnostics.csv",
+    "run.png",
+    "species.csv",
+    "species.png",
+    "summary.json",
+    "run.gif",
+    "run.mp4",
+    "report.html",
+)
+
+
+def clear_run_files(out: Path) -> list[Path]:
+    """Remove the files of an earlier run (:data:`RUN_FILES`, nothing else) from ``out``."""
+    gone = []
+    for name in RUN_FILES:
+        path = out / name
+        if path.is_file() or path.is_symlink():
+            path.unlink()
+            gone.append(path)
+    return gone
+
+
 def write_run_files(
     result: RunResult,
     grid: OccupancyGrid,
@@ -205,13 +233,15 @@ def write_run_files(
 
     With ``out_dir``: ``trajectory.tum``, ``groundtruth.tum`` (where the run has a truth),
     ``diagnostics.csv``, ``run.png``, ``species.csv`` and ``species.png`` (filters with
-    species) and ``summary.json``. ``outputs`` (:class:`OutputOptions`) adds the visual
+    species) and ``summary.json``, after removing an earlier run's files from ``out_dir``
+    (:data:`RUN_FILES`). ``outputs`` (:class:`OutputOptions`) adds the visual
     outputs (without ``out_dir`` only the MCAP file, a path of its own); ``log`` gives the MCAP
     file its scans, ``on_frame(i, total)`` reports the animation's progress. Returns the
     visual outputs written.
     """
     out = None if out_dir is None else Path(out_dir)
     if out is not None:
+        clear_run_files(out)
         # matplotlib (~0.7 s to import) only when a figure is drawn: the CLI imports this
         # module to parse its options.
         from ceamcl.viz.plots import plot_run, plot_species
