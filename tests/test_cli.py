@@ -461,6 +461,8 @@ def test_every_option_with_a_default_shows_it_in_its_help() -> None:
         (["experiment", "tune", "--max-beams", "inf"], "argument --max-beams"),
         (["experiment", "tune", "--particle-counts", "1.7"], "argument --particle-counts"),
         (["play", "LOG", "--delay", "inf"], "argument --delay"),
+        # only node and play hand what follows --ros-args to ROS; run dropped it without a word
+        (["run", "LOG", "--ros-args", "--seed", "7"], "unrecognized arguments: --ros-args"),
         (["demo", "--particles", "7"], "particles: ceamcl sizes its own sample"),
         (["experiment", "table1", "--mcap", "d/r.mcap"], "mcap: expected a file name"),
         (["soak", "--particles", "7", "--steps", "5"], "particles: ceamcl sizes its own sample"),

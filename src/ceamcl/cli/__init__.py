@@ -124,14 +124,21 @@ _default_showwarning = warnings.showwarning
 CONSOLE_COLUMNS = 100
 
 
+#: The commands that start ROS 2 and pass what follows ``--ros-args`` to it.
+ROS_COMMANDS = ("node", "play")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run one command. Bad input: one line on stderr, exit 2. Ctrl-C: one line, exit 130;
     SIGTERM: one line, exit 143. Either way an output folder the command created is removed
     again."""
     parser = build_parser()
     words = list(sys.argv[1:] if argv is None else argv)
-    # ROS's own arguments (``ceamcl node --ros-args -p name:=value``) pass through untouched
-    cut = words.index("--ros-args") if "--ros-args" in words else len(words)
+    # ROS's own arguments (``ceamcl node --ros-args -p name:=value``) pass through untouched,
+    # for the commands that start ROS; any other command refuses them as unknown arguments
+    command = next((w for w in words if not w.startswith("-")), None)
+    takes_ros = command in ROS_COMMANDS and "--ros-args" in words
+    cut = words.index("--ros-args") if takes_ros else len(words)
     args = parser.parse_args(words[:cut])
     args.ros_args = words[cut:]
     console = Console(stderr=False)
