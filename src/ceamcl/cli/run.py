@@ -44,6 +44,8 @@ from ceamcl.replay import (
 )
 
 DEFAULT_ALGORITHM = "ceamcl"
+#: The states of the console's share row, in its order (the shares add up to 100 %).
+STATE_ORDER = ("LOCALISED", "AMBIGUOUS", "LOST", "INITIALISING")
 
 
 def log_path(args: argparse.Namespace) -> str:
@@ -312,8 +314,8 @@ def run_table(title: str, summary: Mapping[str, Any]) -> Table:
                 f"{s['final_state_reason']}",
             ),
             (
-                "steps LOCALISED / AMBIGUOUS / LOST",
-                " / ".join(f"{100 * shares[k]:.0f} %" for k in ("LOCALISED", "AMBIGUOUS", "LOST")),
+                "steps LOCALISED / AMBIGUOUS / LOST / INITIALISING",
+                " / ".join(f"{100 * shares.get(k, 0.0):.0f} %" for k in STATE_ORDER),
             ),
         ]
     restarts = str(s["restarts"])
