@@ -231,6 +231,9 @@ def test_malformed_line_names_file_and_line(tmp_path: Path, line: str, message: 
 def test_no_scans_and_missing_file(tmp_path: Path) -> None:
     with pytest.raises(LogFormatError, match=r"no scan of laser 1.*ODOM x1"):
         read_carmen(write(tmp_path, ["ODOM 0 0 0 0 0 0 0 h 0"]))
+    # a file of something else says what its lines are, not "nothing"
+    with pytest.raises(LogFormatError, match=r"holds: 2 lines of other kinds \(such as 'step,t'"):
+        read_carmen(write(tmp_path, ["step,t", "1,2"], name="diagnostics.csv"))
     with pytest.raises(LogFormatError, match="not found"):
         read_carmen(tmp_path / "absent.log")
 

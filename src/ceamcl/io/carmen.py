@@ -499,7 +499,12 @@ def read_carmen(
 
     stream = with_pose if len(with_pose) else raw
     if not len(stream):
-        found = ", ".join(f"{k} x{v}" for k, v in sorted(counts.items())) or "nothing"
+        found = ", ".join(f"{k} x{v}" for k, v in sorted(counts.items()))
+        if skipped:
+            other = ", ".join(f"{k[:20]!r}" for k, _ in skipped.most_common(3))
+            n_other = sum(skipped.values())
+            found += f"{', ' if found else ''}{n_other} lines of other kinds (such as {other})"
+        found = found or "nothing"
         raise LogFormatError(
             f"{p}: no scan of laser {laser} (FLASER/RLASER/ROBOTLASER{laser}/RAWLASER{laser}); "
             f"the log holds: {found}"
