@@ -88,6 +88,6 @@ def load_yaml_file(
     except UnicodeDecodeError as exc:
         raise error(
             f"{path}: not UTF-8 text (byte {data[exc.start]:#04x} at offset {exc.start}); "
-            f"expected a YAML {what}"
+            f"expected a {what} in UTF-8 text"
         ) from None
     return load_yaml_text(text, str(path), error)

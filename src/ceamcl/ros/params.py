@@ -153,8 +153,11 @@ def load_yaml(path: str | Path, node_name: str = "amcl") -> dict[str, Any]:
         doc = yaml.safe_load(p.read_text(encoding="utf-8"))
     except OSError as exc:
         raise ConfigError(f"{p}: cannot read the parameter file ({exc.strerror})") from None
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"{p}: not a YAML file ({exc})") from None
+    except yaml.YAMLError as exc:  # one line: where, and what the parser found
+        mark = getattr(exc, "problem_mark", None)
+        line = f" (line {mark.line + 1})" if mark is not None else ""
+        problem = getattr(exc, "problem", None) or " ".join(str(exc).split())
+        raise ConfigError(f"{p}: not a YAML file{line}: {problem}") from None
     if not isinstance(doc, Mapping):
         raise ConfigError(f"{p}: expected a mapping of node names to ros__parameters")
     out: dict[str, Any] = {}
