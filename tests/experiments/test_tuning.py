@@ -173,11 +173,21 @@ def test_cli_tune(tmp_path: Path) -> None:
         rows = list(csv.DictReader(fh))
     assert [(r["algorithm"], r["max_beams"], r["temper"]) for r in rows] == [("mcl", "30", "0.1")]
     # Each finished configuration is kept; the same sweep again resumes instead of re-running.
-    partial = out / "tuning-partial-seed10000-trials1.csv"
+    (partial,) = out.glob("tuning-partial-seed10000-trials1-*.csv")
     assert len(read_tuning_csv(partial)) == 1
     assert main([*args, "--tempers", "0.1,0.03", "--out", str(out)]) == 0
     assert [r.temper for r in read_tuning_csv(partial)] == [0.1, 0.03]
     assert len(read_tuning_csv(out / "tuning.csv")) == 2
+    # another protocol (another route, no cut-off) does not take those rows for its own
+    other = [a for a in args if a not in ("--max-time", "2")]
+    other[other.index("--start-routes") + 1] = "1"
+    assert main([*other, "--max-time", "3", "--out", str(out)]) == 0
+    assert len(list(out.glob("tuning-partial-*.csv"))) == 2
+    (row,) = read_tuning_csv(out / "tuning.csv")
+    assert (
+        row.runs == 1
+        and row.likelihood_evaluations != read_tuning_csv(partial)[0].likelihood_evaluations
+    )
     assert main(["experiment", "tune", "--algorithms", "ceamcl", "--out", str(out)]) == 2
     # headings from the scan: a second configuration where there are test poses
     guided = ["--init-test-poses", "1000", "--init-headings", "uniform,scan"]

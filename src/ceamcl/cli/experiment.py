@@ -410,7 +410,8 @@ def _run_tuning(
     settings: ExperimentSettings, args: argparse.Namespace, progress: ProgressCallback
 ) -> tuning.TuningResult:
     """The sweep, each finished configuration appended to OUT/tuning-partial-*.csv; a sweep
-    run again with the same --out, --seed and --trials goes on where it stopped."""
+    run again with the same --out and protocol (course, routes, --seed, --trials, --max-time:
+    :func:`ceamcl.experiments.tuning.protocol_key`) goes on where it stopped."""
     partial = tuning.partial_path(args.out, settings)
     done = tuning.read_tuning_csv(partial) if partial.exists() else []
     result = tuning.run_tuning(
@@ -424,11 +425,16 @@ def _run_tuning(
 
 
 def _tuning_runs(settings: ExperimentSettings, args: argparse.Namespace) -> int:
-    """Runs of the sweep: configurations x routes x trials."""
+    """Runs of the sweep: configurations x routes x trials, without the configurations a
+    resumed sweep has already run."""
     cands = tuning.candidates(
         [a for a in settings.algorithms if a in tuning.BASELINES], _tuning_grid(args)
     )
-    return len(cands) * len(settings.course.routes) * settings.trials
+    per = len(settings.course.routes) * settings.trials
+    partial = tuning.partial_path(args.out, settings)
+    done = tuning.read_tuning_csv(partial) if partial.exists() else []
+    finished = {r.candidate for r in done if r.runs == per}  # resumed, not run again
+    return sum(c not in finished for c in cands) * per
 
 
 #: The experiments, in the order ``--help`` lists them. Adding one: its module under

@@ -23,6 +23,8 @@ Library use::
 from __future__ import annotations
 
 import csv
+import hashlib
+import json
 import math
 import os
 from collections.abc import Callable, Iterable, Sequence
@@ -367,9 +369,27 @@ def write_tuning(
     ]
 
 
+def protocol_key(settings: ExperimentSettings) -> str:
+    """A short digest of what a sweep's rows depend on besides the configuration: the course
+    (map, routes with their numbers, simulator settings), the seed, the trials and the cut-off.
+    Rows of another protocol are never taken for this one's."""
+    c = settings.course
+    what = {
+        "course": [c.name, c.world, c.map_path, repr(c.config), c.transforms.tolist()],
+        "routes": [[c.number(i), repr(r)] for i, r in enumerate(c.routes)],
+        "seed": settings.seed,
+        "trials": settings.trials,
+        "max_time_s": settings.max_time_s,
+    }
+    return hashlib.sha256(json.dumps(what, sort_keys=True).encode()).hexdigest()[:12]
+
+
 def partial_path(out: str | os.PathLike[str], settings: ExperimentSettings) -> Path:
-    """Where the CLI keeps the rows of a sweep in progress (resumed when run again)."""
-    return Path(out) / f"tuning-partial-seed{settings.seed}-trials{settings.trials}.csv"
+    """Where the CLI keeps the rows of a sweep in progress (resumed when run again with the
+    same protocol, :func:`protocol_key`)."""
+    return Path(out) / (
+        f"tuning-partial-seed{settings.seed}-trials{settings.trials}-{protocol_key(settings)}.csv"
+    )
 
 
 def append_row(path: Path, row: TuningRow) -> None:
