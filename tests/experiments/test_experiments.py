@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import csv
+import math
 from pathlib import Path
 
 import numpy as np
@@ -216,3 +217,22 @@ def test_an_experiment_without_runs_to_draw_refuses_the_visual_flags(
     err = capsys.readouterr().err
     assert f"the {experiment} experiment writes tables" in err and len(err.splitlines()) == 1
     assert not out.exists()
+
+
+def test_csv_cells_keep_epoch_times_and_counts_exact(tmp_path: Path) -> None:
+    """A log's epoch start time kept 6 digits (9.76053e+08, to 1,000 s) and a count held in a
+    float column (NaN for the Nav2 peer) was written 1.52346e+06."""
+    from ceamcl.experiments.common import write_csv
+
+    rows = [
+        {"start_time_s": 976052857.337, "evaluations": 1523456.0, "x": 0.1, "gone": math.nan},
+        {"start_time_s": 1.5, "evaluations": math.nan, "x": 1e-9, "gone": None},
+    ]
+    back = _read_csv(write_csv(tmp_path / "t.csv", rows))
+    assert back[0] == {
+        "start_time_s": "976052857.337",
+        "evaluations": "1523456",
+        "x": "0.1",
+        "gone": "",
+    }
+    assert back[1] == {"start_time_s": "1.5", "evaluations": "", "x": "1e-09", "gone": ""}

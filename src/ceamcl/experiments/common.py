@@ -265,7 +265,7 @@ def write_text(path: Path, text: str) -> Path:
 
 
 def write_csv(path: Path, rows: Sequence[Mapping[str, Any]]) -> Path:
-    """Rows as CSV (columns in first-seen order; floats with 6 significant digits)."""
+    """Rows as CSV (columns in first-seen order; cells as :func:`_cell` writes them)."""
     fields: list[str] = []
     for row in rows:
         for key in row:
@@ -281,11 +281,23 @@ def write_csv(path: Path, rows: Sequence[Mapping[str, Any]]) -> Path:
     return path
 
 
+#: Significant digits of a CSV cell: a log's epoch times (10^9 s) keep their milliseconds.
+CSV_DIGITS = 12
+
+
 def _cell(value: Any) -> Any:
+    """A CSV cell: empty for ``None`` and non-finite numbers; a whole number as one (a count
+    held in a float, because another row's is NaN, is written ``1523456``, not ``1.52346e+06``);
+    other floats to :data:`CSV_DIGITS` significant digits."""
     if value is None:
         return ""
-    if isinstance(value, float):
-        return "" if not np.isfinite(value) else f"{value:.6g}"
+    if isinstance(value, float | np.floating):
+        v = float(value)
+        if not np.isfinite(v):
+            return ""
+        if v.is_integer() and abs(v) < 10**CSV_DIGITS:
+            return str(int(v))
+        return f"{v:.{CSV_DIGITS}g}"
     return value
 
 
