@@ -38,7 +38,9 @@ def test_bench_quick_writes_both_files(tmp_path: Path, capsys: pytest.CaptureFix
         "init_s",
         "step_ms",
     ]
-    assert data["targets"][2]["pass"] is None  # 1M test poses are not run in a quick bench
+    # a quick run is no target (its N = 1,000 once passed for the N = 5,000 target)
+    assert all(t["pass"] is None for t in data["targets"])
+    assert data["targets"][2]["value"] is None  # 1M test poses are not run in a quick bench
     md = (out / "bench.md").read_text()
     assert "## Targets" in md and "ns/pb" in md and data["machine"]["cpu"] in md
     assert "wrote" in capsys.readouterr().out
