@@ -236,3 +236,15 @@ def test_csv_cells_keep_epoch_times_and_counts_exact(tmp_path: Path) -> None:
         "gone": "",
     }
     assert back[1] == {"start_time_s": "1.5", "evaluations": "", "x": "1e-09", "gone": ""}
+
+
+def test_the_console_and_the_markdown_show_the_same_weights() -> None:
+    """The console printed the weight at the truth where table1.md printed the true images'
+    (27 % against 100 % for the same runs); both show images / truth / spurious now."""
+    from ceamcl.cli.experiment import PRECISION_COLUMNS, precision_row
+    from ceamcl.experiments.common import PRECISION_HEADER, precision_cells
+    from ceamcl.experiments.metrics import PrecisionSummary
+
+    p = PrecisionSummary(1.0, 0.0, 0.266, 0.0, 0.1, 0.1, 0.02, 2.6e5, 1e5)
+    assert precision_row(p)[0] == precision_cells(p)[0] == "100% / 27% / 0%"
+    assert "truth" in PRECISION_COLUMNS[0] and "at truth" in PRECISION_HEADER[0]

@@ -92,15 +92,19 @@ class Experiment:
 # ---------------------------------------------------------------- the tables printed
 #: The precision side's columns of the console tables (:func:`precision_row`); the weights
 #: are shares at the goal, the nearest hypothesis' error its position and heading error.
-PRECISION_COLUMNS = ("at truth", "spurious", "conf. wrong", "nearest [m, rad]", "evals/run")
+PRECISION_COLUMNS = (
+    "weight images / truth / spurious",
+    "conf. wrong",
+    "nearest [m, rad]",
+    "evals/run",
+)
 
 
 def precision_row(p: PrecisionSummary, algorithm: str | None = None) -> tuple[str, ...]:
     """One row of :data:`PRECISION_COLUMNS`; with ``algorithm``, for an algorithm without a
     global localisation of its own the first figure reads "not comparable", the rest "-"."""
     measured: tuple[str, ...] = (
-        pct(p.truth_weight),
-        pct(p.spurious_weight),
+        f"{pct(p.true_image_weight)} / {pct(p.truth_weight)} / {pct(p.spurious_weight)}",
         pct(p.confidently_wrong_rate),
         f"{fmt(p.nearest_position_error_mean_m, 2, '-')}, "
         f"{fmt(p.nearest_heading_error_mean_rad, 2, '-')}",

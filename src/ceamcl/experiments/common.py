@@ -379,7 +379,7 @@ def compact_count(value: float | None, missing: str = "-") -> str:
 
 #: The precision side's columns of the Markdown tables (:func:`precision_cells`).
 PRECISION_HEADER = (
-    "weight true images / spurious",
+    "weight true images / at truth / spurious",
     "confidently wrong",
     "nearest hypothesis error (m) mean / median, (rad) mean",
     "likelihood evaluations per run",
@@ -391,7 +391,7 @@ def precision_cells(p: PrecisionSummary, algorithm: str | None = None) -> list[s
     measure global localisation read "-" for one that has none of its own (its success
     column says "not comparable": :func:`ceamcl.filters.registry.global_cell`)."""
     measured = [
-        f"{pct(p.true_image_weight)} / {pct(p.spurious_weight)}",
+        f"{pct(p.true_image_weight)} / {pct(p.truth_weight)} / {pct(p.spurious_weight)}",
         pct(p.confidently_wrong_rate),
         f"{fmt(p.nearest_position_error_mean_m, never='-')} / "
         f"{fmt(p.nearest_position_error_median_m, never='-')}, "
@@ -405,7 +405,8 @@ def precision_cells(p: PrecisionSummary, algorithm: str | None = None) -> list[s
 PRECISION_DEFINITIONS = (
     "Precision side (docs/experiments.md), at the goal: the *true images* are the hypotheses "
     "within the tolerances of the truth or one of its symmetric images, the others are "
-    "*spurious*; the columns give their shares of the weight (mean over runs). *Confidently "
+    "*spurious*; the columns give their shares of the weight (mean over runs), and *at truth* "
+    "the part of the true images' that covers the truth itself. *Confidently "
     f"wrong*: the estimate misses the truth while one hypothesis holds >= {CONFIDENT_SHARE:.0%} "
     "of the weight (share of runs). *Nearest hypothesis*: the one nearest the truth. "
     "*Likelihood evaluations*: poses scored against a scan over the run, the global "

@@ -115,7 +115,6 @@ def marked_markdown(result: MarkedResult, meta: dict[str, Any]) -> str:
             c,
             str(result.runs[alg][c]),
             registry.global_cell(alg, pct(result.shares[alg][c])),
-            registry.global_cell(alg, pct(result.precision[alg][c].truth_weight), "-"),
             *precision_cells(result.precision[alg][c], alg),
         ]
         for alg in result.shares
@@ -138,7 +137,6 @@ def marked_markdown(result: MarkedResult, meta: dict[str, Any]) -> str:
                     "route",
                     "runs",
                     "final estimate right",
-                    "weight at the truth",
                     *PRECISION_HEADER,
                 ],
                 detail,
@@ -147,7 +145,7 @@ def marked_markdown(result: MarkedResult, meta: dict[str, Any]) -> str:
             "",
             "The hall's four images stay the true image set on marked-hall (the box is seen "
             "from room 3 only; elsewhere the images look alike), so weight at a wrong room's "
-            "image is not spurious here. *Weight at the truth* is the share held by the "
+            "image is not spurious here. The weight *at truth* is the share held by the "
             "hypotheses within the tolerances of the truth itself: what the mark decides.",
             "",
             *(f"{note}.\n" for note in registry.global_notes(result.shares)),
