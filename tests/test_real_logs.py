@@ -101,6 +101,23 @@ def test_ceamcl_localises_globally_on_intel(intel: tuple[object, object]) -> Non
     assert sum(found) >= 2, found
 
 
+def test_a_windows_mean_particles_leave_the_initialisation_out(
+    intel: tuple[object, object],
+) -> None:
+    """The mean sample size of an evaluate-log run is over the scans after the global
+    initialisation, as its step time is (the test poses' population at the first scan lifted
+    it by a fifth on short windows)."""
+    from ceamcl.experiments.evaluate_log import LogTrial, run_log_trial
+
+    prepared, grid = intel
+    window = prepared.log.window(0, 40)  # type: ignore[attr-defined]
+    out = run_log_trial(LogTrial("w", "ceamcl", 0, grid, window, 0))  # type: ignore[arg-type]
+    f = _build("ceamcl", grid, _filter_rng(0, 0, "ceamcl"))  # type: ignore[arg-type]
+    sizes = [d.n_particles for d in run_filter(f, window).diagnostics]
+    assert sizes[0] > max(sizes[1:])  # the initial population is the largest
+    assert out.mean_particles == pytest.approx(np.mean(sizes[1:]))
+
+
 def test_map_from_log_cli_writes_a_map_that_loads_back(tmp_path: Path) -> None:
     path = log_path("fhw")
     out = tmp_path / "fhw.yaml"

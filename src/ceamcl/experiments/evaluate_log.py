@@ -129,7 +129,10 @@ def run_log_trial(trial: LogTrial) -> LogTrialResult:
         heading_rmse_rad=score.heading_rmse_rad,
         final_position_error_m=final_error(pos),
         final_heading_error_rad=final_error(head),
-        mean_particles=float(np.mean([d.n_particles for d in result.diagnostics])),
+        # after the initialisation (step 0, its test poses' population), as the step time
+        mean_particles=float(
+            np.mean([d.n_particles for d in result.diagnostics[1:] or result.diagnostics])
+        ),
         mean_step_ms=float(result.step_ms.mean()),
         initialisation_ms=float(result.diagnostics[0].step_ms),
         updates=result.updates,
