@@ -92,6 +92,17 @@ simulation:
             "symmetry.centre",
         ),
         ("map: hall.yaml\nroute: []\n", "route"),
+        (  # the tables group runs by name: two routes of one name were pooled
+            "map: hall.yaml\nroutes:\n  - name: a\n    start: [3.75, 3.75, 0]\n"
+            "    waypoints: [[3, 3]]\n  - name: a\n    start: [3.75, 3.75, 0]\n"
+            "    waypoints: [[3, 3]]\n",
+            r"routes\[1\]\.name: 'a' is routes\[0\]'s name too",
+        ),
+        (
+            "map: hall.yaml\nroutes:\n  - name: all\n    start: [3.75, 3.75, 0]\n"
+            "    waypoints: [[3, 3]]\n",
+            r"routes\[0\]\.name: 'all' names the tables' row over every route",
+        ),
     ],
 )
 def test_bad_route_files_name_the_field(tmp_path: Path, body: str, field: str) -> None:

@@ -37,11 +37,12 @@ from ceamcl.experiments.metrics import (
     PrecisionSummary,
     precision_summary,
 )
+from ceamcl.experiments.routes import RESERVED_ROUTE_NAME
 from ceamcl.experiments.trials import TrialRecord
 from ceamcl.filters import registry
 from ceamcl.io.results import ensure_output_dir
 
-ALL_ROUTES = "all"
+ALL_ROUTES = RESERVED_ROUTE_NAME
 
 
 @dataclass

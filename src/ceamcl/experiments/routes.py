@@ -93,6 +93,10 @@ def apply_transforms(
     return out
 
 
+#: A route name the tables keep for their row over every route (``marked``'s "all").
+RESERVED_ROUTE_NAME = "all"
+
+
 @dataclass(frozen=True, eq=False)
 class Course:
     """A map (built-in ``world`` or a ROS ``map_path``), routes, images and simulator settings.
@@ -279,6 +283,7 @@ def load_route_file(path: str | os.PathLike[str]) -> Course:
     if not isinstance(raw_routes, list) or not raw_routes:
         raise r.fail("routes", "expected a non-empty list of routes")
     routes = []
+    named: dict[str, int] = {}
     for i, raw in enumerate(raw_routes):
         where = f"routes[{i}]"
         item = r.mapping(raw, where)
@@ -288,6 +293,16 @@ def load_route_file(path: str | os.PathLike[str]) -> Course:
         name = item.get("name", f"route{i}")
         if not isinstance(name, str):
             raise r.fail(f"{where}.name", f"expected a string, got {name!r}")
+        # tables group runs by route name: two routes of one name would be pooled, and
+        # "all" is the tables' row over every route
+        if name in named:
+            raise r.fail(
+                f"{where}.name",
+                f"{name!r} is routes[{named[name]}]'s name too; expected a name of its own",
+            )
+        if name == RESERVED_ROUTE_NAME:
+            raise r.fail(f"{where}.name", f"{name!r} names the tables' row over every route")
+        named[name] = i
         start = r.numbers(item.get("start"), f"{where}.start", (3,))
         r.check_free(grid, start, f"{where}.start")
         wps = r.waypoints(item.get("waypoints"), f"{where}.waypoints")
