@@ -460,6 +460,11 @@ def test_every_option_with_a_default_shows_it_in_its_help() -> None:
         (["experiment", "table1", "--starts", "5"], "--start-routes I,J"),
         (["experiment", "tune", "--max-beams", "inf"], "argument --max-beams"),
         (["experiment", "tune", "--particle-counts", "1.7"], "argument --particle-counts"),
+        # an empty list ran the defaults; a value given twice ran once and was counted twice
+        (["experiment", "delta", "--deltas", ","], "--deltas: expected one or more values"),
+        (["experiment", "delta", "--deltas", "20,80,80"], "80 given twice"),
+        (["experiment", "tune", "--max-beams", "30,30"], "30 given twice"),
+        (["experiment", "tune", "--tempers", ","], "--tempers: expected one or more values"),
         (["play", "LOG", "--delay", "inf"], "argument --delay"),
         # only node and play hand what follows --ros-args to ROS; run dropped it without a word
         (["run", "LOG", "--ros-args", "--seed", "7"], "unrecognized arguments: --ros-args"),

@@ -276,7 +276,7 @@ def _state_real_logs(args: argparse.Namespace) -> bool:
 def _delta_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--deltas",
-        type=_floats,
+        type=_distinct_floats,
         default=None,
         metavar="D1,D2",
         help="resources per m² to compare (default 20,40,80,160)",
@@ -338,9 +338,20 @@ def _counts(minimum: int) -> Callable[[str], list[int]]:
                     f"expected comma-separated whole numbers >= {minimum}, got {t!r} in {text!r}"
                 )
             values.append(int(v))
-        return values
+        return _once(values, text)
 
     return parse
+
+
+def _once(values: list[Any], text: str) -> list[Any]:
+    """``values`` when there is at least one and none repeats (a value given twice ran once
+    but was counted twice; an empty list ran the defaults without a word)."""
+    if not values:
+        raise argparse.ArgumentTypeError(f"expected one or more values, got {text!r}")
+    twice = next((v for i, v in enumerate(values) if v in values[:i]), None)
+    if twice is not None:
+        raise argparse.ArgumentTypeError(f"{twice:g} given twice in {text!r}; expected each once")
+    return values
 
 
 def _tuning_arguments(p: argparse.ArgumentParser) -> None:
@@ -358,7 +369,7 @@ def _tuning_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--tempers",
-        type=_floats,
+        type=_distinct_floats,
         default=None,
         metavar="T1,T2",
         help=f"temper values, product scoring only (default {listed(g.temper)})",
@@ -528,6 +539,11 @@ def _indices(text: str) -> list[int]:
 
 def _floats(text: str) -> list[float]:
     return [positive_float(t) for t in _names(text)]
+
+
+def _distinct_floats(text: str) -> list[float]:
+    """Comma-separated positive numbers, at least one, each once (:func:`_once`)."""
+    return _once(_floats(text), text)
 
 
 def _add_common(
