@@ -462,6 +462,8 @@ def test_every_option_with_a_default_shows_it_in_its_help() -> None:
         (["experiment", "tune", "--particle-counts", "1.7"], "argument --particle-counts"),
         # an empty list ran the defaults; a value given twice ran once and was counted twice
         (["experiment", "delta", "--deltas", ","], "--deltas: expected one or more values"),
+        # refused before the trials, not after them as "the run has no kidnap"
+        (["experiment", "kidnapped", "--max-time", "10"], "max-time: expected more than the"),
         (["experiment", "delta", "--deltas", "20,80,80"], "80 given twice"),
         (["experiment", "tune", "--max-beams", "30,30"], "30 given twice"),
         (["experiment", "tune", "--tempers", ","], "--tempers: expected one or more values"),

@@ -138,6 +138,13 @@ def run_kidnapped(
         )
     if not window_s > 0:
         raise ConfigError(f"recovery-window: expected a positive time, got {window_s}")
+    kidnaps = {r.name: r.kidnap.at_s for r in settings.course.routes if r.kidnap is not None}
+    last = max(kidnaps, key=lambda name: kidnaps[name])
+    if settings.max_time_s is not None and settings.max_time_s <= kidnaps[last]:
+        raise ConfigError(
+            f"max-time: expected more than the kidnap's {kidnaps[last]:g} s (route {last!r}), "
+            f"got {settings.max_time_s:g} s: the runs would end before it"
+        )
     trials = make_trials("kidnapped", settings)
     records = run_trials(trials, settings, label="kidnapped trials", progress=progress, quiet=quiet)
     outcomes = [kidnap_outcome(r, window_s) for r in records]
