@@ -138,6 +138,9 @@ def test_evaluate_log_raw_with_truth_from(cut_logs: tuple[Path, Path], tmp_path:
     assert upd[0] == upd[1] and upd[2] == upd[3] and 0 < upd[0] < 119
     assert (out / "errors.png").is_file()
     assert "ground truth vs the map: a median" in (out / "evaluate.md").read_text()
+    # the seed is on record for a raw log too (it was only in a synthetic odometry's line)
+    assert "- seed: 0 (the filters' generators" in md
+    assert all(r.split(",")[header.index("seed")] == "0" for r in rows[1:])
 
 
 def test_evaluate_log_and_run_weigh_with_the_sensor_model_asked_for(

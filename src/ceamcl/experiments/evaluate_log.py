@@ -260,7 +260,8 @@ def evaluate_log(
     if not prepared.has_truth:
         raise ConfigError(
             f"{log.path}: the log has no ground truth to score against; evaluate-log needs a "
-            "SLAM-corrected log (pass --truth yes if its poses are corrected)"
+            "SLAM-corrected log (--truth yes if its poses are corrected), or a raw log with "
+            "--truth-from CORRECTED, the corrected log of the same run"
         )
     if starts < 1:
         raise ConfigError(f"starts: expected a positive count, got {starts}")

@@ -80,6 +80,7 @@ def write_evaluation(
             **{k: getattr(r, k) for k in _CSV_FIELDS},
             # False: the success columns measure a start that is not a global localisation
             "localises_globally": localises_globally(r.algorithm),
+            "seed": prepared.seed,  # the run's generators: filter_rng(seed, start, algorithm)
         }
         for r in ev.results
     ]
@@ -116,6 +117,7 @@ def evaluation_markdown(
         ),
         f"- ground truth: {truth_source(prepared)}",
         *([f"- {truth_note}"] if truth_note else []),
+        f"- seed: {prepared.seed} (the filters' generators, and the synthetic odometry's)",
         f"- filter updates (every algorithm): {ev.update_policy}",
         f"- sensor model: {describe_sensor(ev.sensor)}",
         f"- {len(ev.windows)} start points, windows of {ev.window} "
