@@ -132,3 +132,18 @@ def test_the_median_step_pools_every_scan_and_ignores_a_recovery_spike() -> None
     assert row["median_step_ms"] == 2.0  # the 8 scans pooled: 1, 1, 1, 2, 2, 2, 2, 2500
     assert row["mean_step_ms"] == np.mean([np.mean([1.0, 1.0, 2500.0, 1.0]), 2.0])
     assert row["mean_step_ms"] > 100 * row["median_step_ms"]
+
+
+def test_the_error_figure_keeps_every_window_to_its_end() -> None:
+    """errors.png cut every run to the shortest window; now each run counts until its own
+    end, its error held from one scored scan to the next."""
+    from ceamcl.experiments.figures import errors_over_time
+
+    short = (np.array([0.0, 1.0, 2.0]), np.array([3.0, 2.0, 1.0]))
+    long = (np.array([0.0, 2.0, 4.0, 6.0]), np.array([5.0, 4.0, 0.2, 0.1]))
+    t, err, going = errors_over_time([short, long], points=7)
+    np.testing.assert_allclose(t, [0, 1, 2, 3, 4, 5, 6])
+    np.testing.assert_array_equal(going, [2, 2, 2, 1, 1, 1, 1])
+    np.testing.assert_array_equal(err[0, :3], [3.0, 2.0, 1.0])
+    assert np.isnan(err[0, 3:]).all()
+    np.testing.assert_array_equal(err[1], [5.0, 5.0, 4.0, 4.0, 0.2, 0.2, 0.1])

@@ -142,28 +142,45 @@ def plot_kidnapped(
     return _save(fig, path)
 
 
+def errors_over_time(
+    runs: Sequence[tuple[np.ndarray, np.ndarray]], points: int = 300
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Runs ``(elapsed_s, errors)`` on one time grid from 0 to the longest run's end: each
+    run's error held from its scan until the next, NaN after its own end (windows differ in
+    length; cutting every run to the shortest hid the rest). Returns the grid and the
+    ``(runs, points)`` errors, with how many runs are still going at each point."""
+    end = max((float(t[-1]) for t, _ in runs if t.size), default=0.0)
+    grid = np.linspace(0.0, end, points) if end > 0 else np.zeros(1)
+    out = np.full((len(runs), grid.size), np.nan)
+    for k, (t, e) in enumerate(runs):
+        if t.size == 0:
+            continue
+        at = np.searchsorted(t, grid, side="right") - 1
+        inside = (at >= 0) & (grid <= t[-1])
+        out[k, inside] = e[at[inside]]
+    return grid, out, np.sum(np.isfinite(out), axis=0)
+
+
 def plot_evaluation(ev: Evaluation, out_dir: Path) -> None:
-    """``errors.png``: median and quartiles of the position error over time per algorithm;
+    """``errors.png``: median and quartiles of the position error over the time since each
+    window's start, per algorithm, over the runs whose window lasts that long;
     ``success.png``: success rate per algorithm."""
     algos = [row["algorithm"] for row in ev.table]
     fig, ax = plt.subplots(figsize=(8, 5))
     cmap = plt.get_cmap("tab10")
     for i, algo in enumerate(algos):
         rs = [r for r in ev.results if r.algorithm == algo]
-        n = min(r.position_errors.size for r in rs)
-        err = np.vstack([r.position_errors[:n] for r in rs])
-        t = np.median(np.vstack([r.elapsed_s[:n] for r in rs]), axis=0)
-        q1, med, q3 = np.percentile(err, [25, 50, 75], axis=0)
-        ax.plot(t, med, color=cmap(i), label=algo)
-        ax.fill_between(t, q1, q3, color=cmap(i), alpha=0.2)
+        t, err, going = errors_over_time([(r.elapsed_s, r.position_errors) for r in rs])
+        live = going > 0  # points where some run of this algorithm is still going
+        q1, med, q3 = np.nanpercentile(err[:, live], [25, 50, 75], axis=0)
+        ax.plot(t[live], med, color=cmap(i), label=algo)
+        ax.fill_between(t[live], q1, q3, color=cmap(i), alpha=0.2)
     ax.axhline(POSITION_TOL_M, color="k", ls=":", lw=1, label=f"{POSITION_TOL_M} m")
     ax.set_yscale("log")
-    ax.set_xlabel("time since start [s] (median over starts)")
+    ax.set_xlabel("time since the window's start [s] (runs leave as their windows end)")
     ax.set_ylabel("position error [m] (median, quartiles)")
     ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out_dir / "errors.png", dpi=110)
-    plt.close(fig)
+    _save(fig, out_dir / "errors.png")
 
     fig, ax = plt.subplots(figsize=(6, 4))
     # an algorithm without a global localisation of its own gets no bar, and says why not
@@ -180,9 +197,7 @@ def plot_evaluation(ev: Evaluation, out_dir: Path) -> None:
     ax.set_ylim(0, 100)
     ax.set_ylabel("success [%]")
     ax.set_title(f"global localisation from {len(ev.windows)} starts")
-    fig.tight_layout()
-    fig.savefig(out_dir / "success.png", dpi=110)
-    plt.close(fig)
+    _save(fig, out_dir / "success.png")
 
 
 def plot_state(
