@@ -180,7 +180,7 @@ def test_state_smoke(tmp_path: Path) -> None:
     args += ["--algorithms", "ceamcl,mcl", "--max-time", "2", "--start-routes", "0"]
     assert main([*args, "--world", "symmetric-hall", "--out", str(out)]) == 0
     rows = _read_csv(out / "state.csv")
-    assert list(rows[0]) == ["algorithm", "state", "precision", "recall", "support"]
+    assert list(rows[0]) == ["algorithm", "state", "precision", "recall", "support", "said"]
     assert [(r["algorithm"], r["state"]) for r in rows] == [
         (a, s) for a in ("ceamcl", "mcl") for s in ("LOCALISED", "AMBIGUOUS", "LOST")
     ]

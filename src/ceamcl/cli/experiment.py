@@ -249,13 +249,13 @@ def kidnapped_rich(result: KidnapResult) -> Group:
 
 
 def state_rich(result: state_experiment.StateResult) -> Table:
-    header = ("algorithm", "state", "precision", "recall", "support")
-    rows = [
-        (s.algorithm, s.state, pct(s.precision), pct(s.recall), str(s.support))
-        for s in result.scores
-    ]
+    """The table of ``state.md``, with its figures as it prints them."""
+    header = ("algorithm", "state", "precision", "recall", "support (true)", "said")
+    rows = [(s.algorithm, s.state, *state_experiment.score_cells(s)) for s in result.scores]
     return plain_table(
-        f"localisation state on {', '.join(result.courses)} (every step scored)", header, rows
+        f"localisation state on {', '.join(result.courses)} (every step after the first)",
+        header,
+        rows,
     )
 
 

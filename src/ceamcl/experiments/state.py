@@ -423,17 +423,20 @@ def score_rows(scores: Sequence[StateScore]) -> list[dict[str, Any]]:
             "precision": s.precision,
             "recall": s.recall,
             "support": s.support,
+            "said": s.said,
         }
         for s in scores
     ]
 
 
+def score_cells(s: StateScore) -> tuple[str, str, str, str]:
+    """Precision, recall, support and said as ``state.md`` and the console print them."""
+    return _pct(s.precision), _pct(s.recall), str(s.support), str(s.said)
+
+
 def _score_table(scores: Sequence[StateScore]) -> str:
     header = ["algorithm", "state", "precision", "recall", "support (true)", "said"]
-    rows = [
-        [s.algorithm, s.state, _pct(s.precision), _pct(s.recall), str(s.support), str(s.said)]
-        for s in scores
-    ]
+    rows = [[s.algorithm, s.state, *score_cells(s)] for s in scores]
     return markdown_table(header, rows)
 
 
