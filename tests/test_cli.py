@@ -470,6 +470,9 @@ def test_every_option_with_a_default_shows_it_in_its_help() -> None:
         (["play", "LOG", "--delay", "inf"], "argument --delay"),
         # only node and play hand what follows --ros-args to ROS; run dropped it without a word
         (["run", "LOG", "--ros-args", "--seed", "7"], "unrecognized arguments: --ros-args"),
+        # --resolution shapes a map built from the log; with --map it was ignored
+        (["run", "LOG", "--map", "m.yaml", "--resolution", "0.1"], "resolution: --resolution"),
+        (["evaluate-log", "LOG", "--map", "m.yaml", "--resolution", "0.1"], "its own"),
         (["demo", "--particles", "7"], "particles: ceamcl sizes its own sample"),
         (["experiment", "table1", "--mcap", "d/r.mcap"], "mcap: expected a file name"),
         (["soak", "--particles", "7", "--steps", "5"], "particles: ceamcl sizes its own sample"),

@@ -19,6 +19,7 @@ from ceamcl.cli.common import (
 from ceamcl.cli.experiment import RUN_BYTES
 from ceamcl.cli.run import (
     add_log_arguments,
+    add_map_arguments,
     add_pace_arguments,
     add_sensor_argument,
     add_truth_arguments,
@@ -53,12 +54,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "evaluate.md, errors.png and success.png.",
     )
     add_log_arguments(p)
-    p.add_argument(
-        "--map", default=None, metavar="MAP.yaml", help="ROS map (default: built from the log)"
-    )
-    p.add_argument(
-        "--resolution", type=positive_float, default=0.05, help="cell side of a built map [m]"
-    )
+    add_map_arguments(p)
     p.add_argument(
         "--starts",
         type=positive_int,

@@ -17,7 +17,14 @@ from ceamcl.cli.common import (
     positive_float,
 )
 from ceamcl.cli.node import import_ros
-from ceamcl.cli.run import add_log_arguments, add_truth_arguments, log_path, open_kwargs
+from ceamcl.cli.run import (
+    add_log_arguments,
+    add_map_arguments,
+    add_truth_arguments,
+    log_path,
+    map_resolution,
+    open_kwargs,
+)
 from ceamcl.errors import CeamclError, ConfigError
 
 
@@ -40,10 +47,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         help="the same as --truth yes: the log's poses are the ground truth and the odometry is "
         "drawn from them (--truth auto does so for a log whose content says it is corrected)",
     )
-    p.add_argument("--map", default=None, help="ROS map YAML (default: built from the log's poses)")
-    p.add_argument(
-        "--resolution", type=positive_float, default=0.05, help="cell side of a built map [m]"
-    )
+    add_map_arguments(p)
     p.add_argument("--rate", type=positive_float, default=1.0, help="speed-up over real time")
     p.add_argument(
         "--base-frame",
@@ -96,6 +100,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     from ceamcl.replay import obtain_map, prepare_log
 
     mode = truth_mode(args)
+    resolution = map_resolution(args)
     path = log_path(args)
     ros_play = import_ros("play", "play")
     kwargs = open_kwargs(args)
@@ -113,7 +118,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
         raise CeamclError(f"{path}: no scan to play")
     truth = log.true_poses if prepared.has_truth else None
     grid, map_source = obtain_map(
-        prepared.map_log, args.map, args.resolution, own=prepared.truth_log is None
+        prepared.map_log, args.map, resolution, own=prepared.truth_log is None
     )
     physical_warnings(log, grid, args.map or f"the map built from {prepared.map_log.path}")
     if not args.quiet:

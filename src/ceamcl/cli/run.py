@@ -104,6 +104,36 @@ def add_log_arguments(p: argparse.ArgumentParser, *, frames: bool = True) -> Non
         p.add_argument("--base-frame", default="base_link", help="bag: TF child frame (robot base)")
 
 
+#: Cell side of a map built from the log when ``--resolution`` is not given.
+DEFAULT_RESOLUTION_M = 0.05
+
+
+def add_map_arguments(p: argparse.ArgumentParser) -> None:
+    """``--map`` and ``--resolution`` (of a map built from the log; refused with ``--map``,
+    whose cells are the file's: :func:`map_resolution`)."""
+    p.add_argument(
+        "--map", default=None, metavar="MAP.yaml", help="ROS map (default: built from the log)"
+    )
+    p.add_argument(
+        "--resolution",
+        type=positive_float,
+        default=None,
+        help=f"cell side of a map built from the log [m] (default {DEFAULT_RESOLUTION_M}; "
+        "not with --map, whose cells are the file's)",
+    )
+
+
+def map_resolution(args: argparse.Namespace) -> float:
+    """The cell side of the map built from the log; ``--resolution`` with ``--map`` refused
+    (it was ignored without a word)."""
+    if args.resolution is not None and args.map is not None:
+        raise ConfigError(
+            f"resolution: --resolution {args.resolution:g} sets the cells of a map built from the "
+            f"log; {args.map}'s cells are its own; expected one of them"
+        )
+    return DEFAULT_RESOLUTION_M if args.resolution is None else float(args.resolution)
+
+
 def add_sensor_argument(p: argparse.ArgumentParser) -> None:
     """The laser's sensor model, as Nav2's ``laser_model_type`` chooses it."""
     p.add_argument(
@@ -202,6 +232,7 @@ def open_inputs(
     odometry decided, the map (and a sentence saying which), physical-sense warnings given,
     and the update pace."""
     check_log_arguments(args)
+    resolution = map_resolution(args)
     prepared = prepare_log(
         log_path(args),
         seed=args.seed,
@@ -212,7 +243,7 @@ def open_inputs(
         **open_kwargs(args),
     )
     grid, map_source = obtain_map(
-        prepared.map_log, args.map, args.resolution, own=prepared.truth_log is None
+        prepared.map_log, args.map, resolution, own=prepared.truth_log is None
     )
     physical_warnings(prepared.log, grid, args.map or f"the map built from {prepared.map_log.path}")
     return prepared, grid, map_source, pace_of(args, prepared)
@@ -353,12 +384,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "the pose. Without --map the map is built from the log itself.",
     )
     add_log_arguments(p)
-    p.add_argument(
-        "--map", default=None, metavar="MAP.yaml", help="ROS map (default: built from the log)"
-    )
-    p.add_argument(
-        "--resolution", type=positive_float, default=0.05, help="cell side of a built map [m]"
-    )
+    add_map_arguments(p)
     p.add_argument(
         "--algorithm", choices=registry.names(), default=DEFAULT_ALGORITHM, help="filter to run"
     )
