@@ -51,6 +51,20 @@ def test_bad_numbers_are_argparse_errors(
     assert "expected a positive" in capsys.readouterr().err
 
 
+def test_fps_and_stride_for_an_output_not_written_are_refused() -> None:
+    """They were ignored without a word; --stride also sets the MCAP file's particle frames."""
+    with pytest.raises(ConfigError, match="fps: --fps sets the frame rate"):
+        OutputOptions.from_args(_parse("--no-animation", "--fps", "20"))
+    with pytest.raises(ConfigError, match="fps: --fps"):
+        OutputOptions.from_args(_parse("--no-animation", "--mcap", "a.mcap", "--fps", "20"))
+    with pytest.raises(ConfigError, match="stride: --stride sets how often"):
+        OutputOptions.from_args(_parse("--stride", "2", animation_default=False))
+    only_mcap = OutputOptions.from_args(
+        _parse("--no-animation", "--mcap", "a.mcap", "--stride", "2")
+    )
+    assert only_mcap.stride == 2 and only_mcap.snapshot_every == 2
+
+
 def test_mp4_without_ffmpeg_fails_before_any_work(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr("ceamcl.viz.animation.shutil.which", lambda name: None)
     with pytest.raises(ConfigError, match="ffmpeg"):

@@ -83,14 +83,27 @@ class OutputOptions:
                 return getattr(args, name, default)
 
         mcap = get("mcap", None)
+        fps, stride = get("fps", None), get("stride", None)
         options = cls(
             gif=bool(get("gif", True)),
             mp4=bool(get("mp4", False)),
-            fps=float(get("fps", DEFAULT_FPS)),
-            stride=int(get("stride", DEFAULT_STRIDE)),
+            fps=DEFAULT_FPS if fps is None else float(fps),
+            stride=DEFAULT_STRIDE if stride is None else int(stride),
             report=bool(get("report", False)),
             mcap=None if mcap is None else Path(mcap),
         )
+        # given for an output that is not written, they were ignored without a word
+        drawn = options.gif or options.mp4 or options.report
+        if fps is not None and not drawn:
+            raise ConfigError(
+                "fps: --fps sets the frame rate of run.gif, run.mp4 and the report's replay; "
+                "expected it with --gif, --mp4 or --report"
+            )
+        if stride is not None and not options.any:
+            raise ConfigError(
+                "stride: --stride sets how often a run is drawn; expected it with --gif, --mp4, "
+                "--report or --mcap"
+            )
         if options.mcap is not None:
             out = get("out", None)
             _check_mcap_target(options.mcap, None if out is None else Path(out))

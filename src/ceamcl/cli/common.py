@@ -246,13 +246,13 @@ def add_output_arguments(
     group.add_argument(
         "--fps",
         type=positive_float,
-        default=DEFAULT_FPS,
+        default=None,
         help=f"frames per second of the animation and the replay (default {DEFAULT_FPS:g})",
     )
     group.add_argument(
         "--stride",
         type=positive_int,
-        default=DEFAULT_STRIDE,
+        default=None,
         help=f"one animation frame every N filter steps (default {DEFAULT_STRIDE})",
     )
     group.add_argument(
