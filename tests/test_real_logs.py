@@ -126,6 +126,12 @@ def test_map_from_log_cli_writes_a_map_that_loads_back(tmp_path: Path) -> None:
 
     expected, _ = map_from_log(open_log(path), MappingConfig(resolution_m=0.1))
     assert load_map(out) == expected
+    # with a laser mount, the map `ceamcl run --laser-mount` builds and localises in
+    mounted = tmp_path / "fhw-mounted.yaml"
+    argv = ["map-from-log", str(path), "--laser-mount", "0.1,0,0", "-o", str(mounted), "--quiet"]
+    assert main(argv) == 0
+    runs_map, _ = obtain_map(prepare_log(path, laser_mount=(0.1, 0.0, 0.0)).map_log, None)
+    assert load_map(mounted) == runs_map
 
 
 def test_run_cli_writes_every_output(tmp_path: Path) -> None:

@@ -6,11 +6,12 @@ import argparse
 
 from rich.console import Console
 
-from ceamcl.cli.common import positive_float, positive_int
+from ceamcl.cli.common import laser_mount, positive_float, positive_int
 from ceamcl.cli.run import add_log_arguments, log_path, open_kwargs
 from ceamcl.io.logs import open_log
 from ceamcl.mapping import MappingConfig, map_from_log
 from ceamcl.maps.ros_io import save_map
+from ceamcl.replay import with_laser_mount
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -41,6 +42,14 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         help="how far a no-return reading clears free space",
     )
     p.add_argument("--beam-stride", type=positive_int, default=1, help="use every N-th beam")
+    p.add_argument(
+        "--laser-mount",
+        type=laser_mount,
+        default=None,
+        metavar="X,Y,YAW",
+        help="the laser's pose on the robot (m, m, rad) at every scan, in place of the log's, as "
+        "`ceamcl run --laser-mount` builds its map",
+    )
     p.add_argument("-o", "--output", required=True, metavar="MAP.yaml", help="map YAML to write")
     p.add_argument("--format", choices=("pgm", "png"), default="pgm", help="image format")
     p.add_argument("--quiet", action="store_true")
@@ -49,6 +58,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 def run(args: argparse.Namespace, console: Console) -> int:
     log = open_log(log_path(args), **open_kwargs(args))
+    if args.laser_mount is not None:
+        log = with_laser_mount(log, args.laser_mount)
     cfg = MappingConfig(
         resolution_m=args.resolution,
         max_range_m=args.usable_range,
