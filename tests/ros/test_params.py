@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import pytest
@@ -196,3 +197,22 @@ def test_the_nav2_peer_takes_nav2s_laser_settings() -> None:
     assert (beam.max_beams, beam.sigma_hit_m, beam.z_hit) == (30, 0.1, 0.9)
     warned = parse({**values, "laser_temper": 0.5}).warnings
     assert any(w.startswith("laser_temper: nav2-amcl weighs with") for w in warned)
+
+
+def test_nav2_defaults_do_not_undo_what_a_preset_or_recovery_is_for() -> None:
+    """kld-amcl-recovery in the node ran with recovery off: Nav2's default recovery rates
+    (0.0) replaced its own, and the presets' KLD quantile became Nav2's pf_z. Nav2's defaults
+    still reach plain kld-amcl (the drop-in), and what the parameters set reaches every one."""
+    from ceamcl.filters import registry
+
+    recovery = parse({"algorithm": "kld-amcl-recovery"}).config
+    # its own settings but the update thresholds, which the node's motion gate applies
+    gated = dataclasses.replace(registry.get("kld-amcl-recovery").default(), update_min_d=0.0)
+    assert recovery == dataclasses.replace(gated, update_min_a=0.0)
+    assert recovery.recovery and 0 < recovery.alpha_slow < recovery.alpha_fast
+    for name in ("kld-amcl-recovery", "kld-amcl-tuned"):
+        assert parse({"algorithm": name}).config.kld_z == registry.get(name).default().kld_z
+    set_ = parse({"algorithm": "kld-amcl-recovery", "recovery_alpha_slow": 0.002, "pf_z": 0.5})
+    assert (set_.config.alpha_slow, set_.config.kld_z) == (0.002, 0.5)
+    plain = parse({"algorithm": "kld-amcl"}).config
+    assert (plain.alpha_slow, plain.kld_z) == (0.0, NAV2_DEFAULTS["pf_z"])

@@ -256,9 +256,18 @@ def beam_settings(p: Mapping[str, Any]) -> dict[str, Any]:
     }
 
 
-def _nav2_to_config(algorithm: str, p: dict[str, Any], config: Any) -> tuple[Any, list[str]]:
+#: Algorithms whose own settings are tuned (the presets) or are what they are for
+#: (``kld-amcl-recovery``'s recovery rates): Nav2's *defaults* do not replace them, only the
+#: parameters the user sets (Nav2's 0.0 recovery rates turned kld-amcl-recovery's recovery off).
+KEEPS_OWN_SETTINGS: frozenset[str] = frozenset({*registry.PRESETS, "kld-amcl-recovery"})
+
+
+def _nav2_to_config(
+    algorithm: str, p: dict[str, Any], config: Any, given: frozenset[str] = frozenset()
+) -> tuple[Any, list[str]]:
     """Nav2's particle-filter parameters carried into the algorithm's config where it has the
-    same knob; a warning for each one set away from its default that this algorithm ignores."""
+    same knob (for :data:`KEEPS_OWN_SETTINGS`, only those in ``given``); a warning for each
+    one set away from its default that this algorithm ignores."""
     names = {f.name for f in dataclasses.fields(config)}
     mapping = {
         "min_particles": ("min_particles", p["min_particles"]),
@@ -273,8 +282,11 @@ def _nav2_to_config(algorithm: str, p: dict[str, Any], config: Any) -> tuple[Any
     }
     changes: dict[str, Any] = {}
     warnings: list[str] = []
+    keeps_own = algorithm in KEEPS_OWN_SETTINGS
     for nav2_name, (field_name, value) in mapping.items():
         if field_name in names:
+            if keeps_own and nav2_name not in given and not nav2_name.startswith("update_"):
+                continue
             changes[field_name] = value
         elif p[nav2_name] != NAV2_DEFAULTS[nav2_name] and not nav2_name.startswith("update_"):
             warnings.append(f"{nav2_name}: {algorithm} has no such setting; ignored")
@@ -385,7 +397,7 @@ def parse(values: Mapping[str, Any]) -> NodeParams:
     if errors:
         raise ConfigError("; ".join(errors))
 
-    config, warnings = _nav2_to_config(algorithm, nav2, default_config)
+    config, warnings = _nav2_to_config(algorithm, nav2, default_config, frozenset(values))
     try:
         config = dataclasses.replace(config, **overrides)
     except (TypeError, ValueError) as exc:
