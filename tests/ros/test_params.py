@@ -216,3 +216,22 @@ def test_nav2_defaults_do_not_undo_what_a_preset_or_recovery_is_for() -> None:
     assert (set_.config.alpha_slow, set_.config.kld_z) == (0.002, 0.5)
     plain = parse({"algorithm": "kld-amcl"}).config
     assert (plain.alpha_slow, plain.kld_z) == (0.0, NAV2_DEFAULTS["pf_z"])
+
+
+@pytest.mark.parametrize(
+    ("values", "says"),
+    [
+        ({"z_hit": 0.0}, "likelihood-field model: z_hit must be > 0"),
+        ({"laser_likelihood_max_dist": 0.0}, "laser_likelihood_max_dist: expected > 0"),
+        ({"laser_model_type": "beam", "lambda_short": 0.0}, "beam model: lambda_short"),
+        ({"laser_min_range": 5.0, "laser_max_range": 2.0}, "expected min < max"),
+        ({"algorithm": "nav2-amcl", "z_hit": 0.0}, "beam model: z_hit must be > 0"),
+    ],
+)
+def test_laser_settings_the_model_refuses_fail_configure(
+    values: dict[str, object], says: str
+) -> None:
+    """They passed configure and failed when the map came: an active node that logged a
+    traceback and never localised."""
+    with pytest.raises(ConfigError, match=says):
+        parse(values)

@@ -18,11 +18,11 @@ from ceamcl.filters.base import LocalisationFilter, PoseEstimate
 from ceamcl.filters.policies import Context, on_motion
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryNoise, increment_between
-from ceamcl.ros.params import NodeParams, beam_settings
+from ceamcl.ros.params import NodeParams, laser_config
 from ceamcl.ros.transforms import Pose2
 from ceamcl.sensors.base import SensorModel
 from ceamcl.sensors.beam_model import BeamModel, BeamModelConfig
-from ceamcl.sensors.likelihood_field import LikelihoodFieldConfig, LikelihoodFieldModel
+from ceamcl.sensors.likelihood_field import LikelihoodFieldModel
 from ceamcl.sensors.scan import LaserScan
 
 #: Nav2's covariance for an initial pose set without one (its init_cov defaults).
@@ -53,23 +53,10 @@ class MotionGate:
 
 def sensor_model(params: NodeParams, grid: OccupancyGrid) -> SensorModel:
     """The laser model Nav2's parameters ask for, built on ``grid``."""
-    p = params.nav2
-    if params.sensor == "beam":
-        return BeamModel(
-            grid,
-            BeamModelConfig(**beam_settings(p), temper=params.laser_temper),
-        )
-    return LikelihoodFieldModel(
-        grid,
-        LikelihoodFieldConfig(
-            z_hit=p["z_hit"],
-            z_rand=p["z_rand"],
-            sigma_hit_m=p["sigma_hit"],
-            max_occ_dist_m=p["laser_likelihood_max_dist"],
-            max_beams=p["max_beams"],
-            temper=params.laser_temper,
-        ),
-    )
+    config = laser_config(params.nav2, params.sensor, params.laser_temper)
+    if isinstance(config, BeamModelConfig):
+        return BeamModel(grid, config)
+    return LikelihoodFieldModel(grid, config)
 
 
 def particle_budget(params: NodeParams) -> int | None:

@@ -24,6 +24,7 @@ import yaml
 from ceamcl.errors import ConfigError
 from ceamcl.filters import registry
 from ceamcl.sensors.beam_model import BeamModelConfig
+from ceamcl.sensors.likelihood_field import LikelihoodFieldConfig
 
 #: Nav2 AMCL's parameters and defaults (nav2_amcl, Jazzy/Kilted), by name.
 NAV2_DEFAULTS: dict[str, Any] = {
@@ -242,6 +243,47 @@ def _check_ranges(p: dict[str, Any]) -> list[str]:
     return errors
 
 
+def laser_config(
+    p: Mapping[str, Any], sensor: str, laser_temper: float | None
+) -> BeamModelConfig | LikelihoodFieldConfig:
+    """The laser model's config Nav2's parameters ask for (``sensor``: "beam" or
+    "likelihood-field"); the config checks its values (ValueError)."""
+    if sensor == "beam":
+        return BeamModelConfig(**beam_settings(p), temper=laser_temper)
+    return LikelihoodFieldConfig(
+        z_hit=p["z_hit"],
+        z_rand=p["z_rand"],
+        sigma_hit_m=p["sigma_hit"],
+        max_occ_dist_m=p["laser_likelihood_max_dist"],
+        max_beams=p["max_beams"],
+        temper=laser_temper,
+    )
+
+
+#: The laser configs' field names, as Nav2 names the parameters (for error messages).
+_NAV2_NAMES = {"sigma_hit_m": "sigma_hit", "max_occ_dist_m": "laser_likelihood_max_dist"}
+
+
+def _check_laser(p: Mapping[str, Any], sensor: str, laser_temper: float | None) -> list[str]:
+    """What the laser model would refuse once a map arrives, said at configure: a node that
+    configured and then failed on its map stayed active and never localised."""
+    errors = []
+    lo, hi = p["laser_min_range"], p["laser_max_range"]
+    if lo > 0 and hi > 0 and not lo < hi:
+        errors.append(
+            f"laser_min_range/laser_max_range: expected min < max where both are set, got "
+            f"{lo:g} and {hi:g}"
+        )
+    try:
+        laser_config(p, sensor, laser_temper)
+    except ValueError as exc:
+        text = str(exc)
+        for ours, nav2 in _NAV2_NAMES.items():
+            text = text.replace(ours, nav2)
+        errors.append(f"{sensor} model: {text}")
+    return errors
+
+
 def beam_settings(p: Mapping[str, Any]) -> dict[str, Any]:
     """Nav2's beam-model parameters as :class:`BeamModelConfig` fields (our model's, and the
     Nav2 peer's own)."""
@@ -394,6 +436,11 @@ def parse(values: Mapping[str, Any]) -> NodeParams:
             f"{spec.config_type.__name__}>)",
         )
     errors.extend(_check_ranges(nav2))
+    if not errors:  # the Nav2 peer weighs with the wheel's beam model, on Nav2's beam settings
+        model = (
+            "beam" if algorithm in registry.OWN_SENSOR else LASER_MODELS[nav2["laser_model_type"]]
+        )
+        errors.extend(_check_laser(nav2, model, laser_temper))
     if errors:
         raise ConfigError("; ".join(errors))
 
