@@ -204,6 +204,32 @@ def test_non_finite_odometry_is_refused_with_a_clear_error(algorithm: str) -> No
     assert_all_finite(f)
 
 
+@pytest.mark.parametrize("algorithm", algorithms_expected_to("refuse NaN odometry"))
+def test_an_overflowing_increment_is_refused_before_any_state_changes(algorithm: str) -> None:
+    """1e160 m passed the finiteness check and overflowed the motion model; KLD-AMCL had
+    already added it to its odometry, so every later step overflowed too."""
+    grid = box_grid()
+    f = small_filter(algorithm, grid, np.random.default_rng(17), small_sensor("beam", grid))
+    f.initialise_global(GOOD)
+    with pytest.raises(CeamclError, match=r"odometry increment: expected \|rot1\|"):
+        f.step(OdometryIncrement(0.0, 1e160, 0.0), GOOD)
+    f.step(OdometryIncrement(0.0, 0.1, 0.0), GOOD)  # the filter goes on
+    assert_all_finite(f)
+
+
+@pytest.mark.parametrize("algorithm", ["mcl", "gmcl"])
+def test_particles_scattered_kilometres_apart_still_cluster(algorithm: str) -> None:
+    """After a 5 km odometry jump (finite, accepted) hypotheses(), state() and particles()
+    raised 'points spread too far for the cell size' at every later query."""
+    grid = box_grid()
+    f = small_filter(algorithm, grid, np.random.default_rng(3), small_sensor("beam", grid))
+    f.initialise_pose([1.0, 1.0, 0.0], np.diag([0.01, 0.01, 0.01]))
+    f.step(OdometryIncrement(0.0, 0.1, 0.0), GOOD)
+    f.step(OdometryIncrement(0.0, 5000.0, 0.0), GOOD)
+    assert f.hypotheses() and f.state() is not None and f.particles() is not None
+    assert_all_finite(f)
+
+
 def test_resampling_and_normalisation_never_produce_nan() -> None:
     rng = np.random.default_rng(0)
     for w in (

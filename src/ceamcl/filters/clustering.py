@@ -16,23 +16,31 @@ from ceamcl.filters.base import Hypothesis
 from ceamcl.pose import pose_covariance, pose_mean
 
 _EIGHT = np.ones((3, 3), dtype=bool)
+#: The largest bounding box :func:`cluster_labels` labels as a dense grid (50 MB of booleans).
+DENSE_CELLS = 50_000_000
 
 
 def cluster_labels(xy: ArrayLike, cell_m: float) -> tuple[NDArray[np.int64], int]:
     """Label points ``(N, 2)`` by the 8-connected region of ``cell_m`` cells they fall in.
 
     Returns ``(labels, count)``, labels in ``0..count-1``. Works in a bounding box of the
-    points, so the cost depends on their spread, not on the map.
+    points, so the cost depends on their spread, not on the map; points spread over more than
+    :data:`DENSE_CELLS` cells (particles scattered kilometres apart by an absurd odometry jump
+    or initial covariance) are labelled over their occupied cells only
+    (:func:`pose_cluster_labels` with one heading cell).
     """
     p = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
     if p.shape[0] == 0:
         return np.zeros(0, dtype=np.int64), 0
+    if not np.isfinite(p).all():
+        raise ValueError("cluster_labels: a point is not finite")
     cells = np.floor(p / cell_m).astype(np.int64)
     lo = cells.min(axis=0)
     cells -= lo
     shape = tuple(int(v) + 1 for v in cells.max(axis=0))
-    if shape[0] * shape[1] > 50_000_000:
-        raise ValueError("cluster_labels: points spread too far for the cell size")
+    if shape[0] * shape[1] > DENSE_CELLS:
+        flat = np.column_stack([p, np.zeros(p.shape[0])])
+        return pose_cluster_labels(flat, cell_m, 2.0 * np.pi)
     occ = np.zeros(shape, dtype=bool)
     occ[cells[:, 0], cells[:, 1]] = True
     lab, count = ndimage.label(occ, structure=_EIGHT)

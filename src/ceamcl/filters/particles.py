@@ -260,14 +260,25 @@ def _scored(
 
 
 # ---------------------------------------------------------------------- prediction
+#: The largest odometry increment a filter takes, in metres and radians: between two poses of
+#: a log (at most 10^7 m from the origin, ceamcl.io.recorded.POSE_LIMIT_M) no step is longer;
+#: a larger one (1e160) overflowed the motion model's squares after a filter had taken it.
+INCREMENT_LIMIT = 1e8
+
+
 def check_increment(increment: OdometryIncrement) -> None:
-    """Refuse an odometry increment with a NaN or infinite component (it would turn every
-    particle into NaN)."""
+    """Refuse, before any state changes, an odometry increment with a NaN or infinite
+    component (it would turn every particle into NaN) or one beyond :data:`INCREMENT_LIMIT`."""
     values = (increment.rot1, increment.trans, increment.rot2)
     if not all(math.isfinite(v) for v in values):
         raise LogFormatError(
             f"odometry increment: expected finite rot1, trans, rot2, got {values} "
             f"(is an odometry pose NaN or infinite?)"
+        )
+    if max(abs(v) for v in values) > INCREMENT_LIMIT:
+        raise LogFormatError(
+            f"odometry increment: expected |rot1|, |trans|, |rot2| <= {INCREMENT_LIMIT:g}, got "
+            f"{values} (an odometry pose far outside any building?)"
         )
 
 
