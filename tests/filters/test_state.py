@@ -252,6 +252,42 @@ def test_the_map_judges_nothing_in_a_scan_without_beams_or_readings() -> None:
     assert np.isnan(explained_share(grid, truth, blind))
 
 
+def test_a_laser_that_returns_nothing_confirms_nothing() -> None:
+    """An empty scan fits every pose (fitness 1): a filter whose laser went dead read
+    LOCALISED with confidence 1.00 'fits the scan' for ever. The update says nothing
+    confirmed it, and a run of such updates is LOST, as a run the map does not explain."""
+    from ceamcl.filters.state import MapAgreement
+
+    grid, scan, truth = _office_scan()
+    blind = LaserScan(**{**scan.__dict__, "ranges": np.full_like(scan.ranges, np.nan)})
+    localised = read_hypotheses([hyp(1.0, 1.0)])
+    at = [Hypothesis(truth, TIGHT, 100, 1.0, 1.0, 0)]
+    agreement = MapAgreement(grid)
+    n = DEFAULT_THRESHOLDS.explained_updates
+    for step in range(1, n):
+        s = agreement.apply(localised, step, blind, at)
+        assert s.state is State.LOCALISED and "nothing confirmed it" in s.reason
+    s = agreement.apply(localised, n, blind, at)
+    assert s.state is State.LOST and "no reading of the scan ends" in s.reason
+    assert s.confidence == 1.0
+    # a scan that ends on walls again ends the run
+    assert agreement.apply(localised, n + 1, scan, at).state is State.LOCALISED
+    # no scan at all (an update without one) breaks the run, as before
+    agreement.reset()
+    for step in range(1, n + 2):
+        s = agreement.apply(localised, step, None, at)
+    assert s.state is State.LOCALISED
+
+
+def test_weight_spread_thin_is_lost_for_that_reason() -> None:
+    """It read 'no hypothesis that holds weight fits the scan (best fitness 0.93 < 0.55)'
+    when every hypothesis fitted and none held 5 % of the weight."""
+    thin = [hyp(1.0 / 40, 0.93, x=float(i)) for i in range(40)]
+    s = read_hypotheses(thin)
+    assert s.state is State.LOST and "no hypothesis holds 5% of the weight" in s.reason
+    assert "fitness" not in s.reason
+
+
 def test_map_agreement_share_at_reuses_a_read_and_counts_nothing() -> None:
     """``share_at`` (CEAMCL's last confident pose, docs/ceamcl.md departure 14): the share the
     read of that update measured at that pose, else computed, and the run of updates stays as

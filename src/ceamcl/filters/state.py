@@ -282,8 +282,17 @@ def read_hypotheses(
             f"the leading hypothesis ({weights[heaviest]:.0%} of the weight) does not fit the "
             f"scan ({why}); a lighter one ({weights[candidates[0]]:.0%}) does",
         )
+    if not candidates and not holds.any():
+        return LocalisationState(
+            State.LOST,
+            _clip01(1.0 - float(weights.max()) / t.weight_min),
+            0,
+            (),
+            f"no hypothesis holds {t.weight_min:.0%} of the weight (the heaviest "
+            f"{float(weights.max()):.1%}, over {len(hypotheses)}): the filter has no place yet",
+        )
     if not candidates:
-        best = float(fit[holds].max()) if holds.any() else float(fit.max())
+        best = float(fit[holds].max())
         return LocalisationState(
             State.LOST,
             _clip01(1.0 - best / t.fit_min),
@@ -375,7 +384,9 @@ class MapAgreement:
             running = self._step is not None and step == self._step + 1
             self._before = self._streak if running else 0
             self._step = step
-        below = share < t.explained_below  # NaN: False
+        # no reading of the scan ends (a dead laser, open space): nothing vouches for the pose,
+        # and such updates run on like unexplained ones; without a scan the run breaks
+        below = share < t.explained_below or (scan is not None and math.isnan(share))
         self._streak = self._before + 1 if below else 0
         self._share = share
         self._pose = p.copy()
@@ -414,7 +425,21 @@ class MapAgreement:
         streak, share = self.observe(step, scan, np.asarray(hypotheses[lead].pose))
         t = self.thresholds
         if state.state is State.LOST or streak < t.explained_updates:
+            if scan is not None and math.isnan(share):  # an empty scan fits every pose
+                why = f"{state.reason}; but no reading of this scan ends: nothing confirmed it"
+                return replace(state, map_explained=share, reason=why)
             return replace(state, map_explained=share)
+        if math.isnan(share):
+            return LocalisationState(
+                State.LOST,
+                1.0,
+                0,
+                (),
+                f"no reading of the scan ends on anything the map could hold, for {streak} "
+                "updates running (a laser that returns nothing, or open space): nothing "
+                "confirms the pose, whatever its fitness (an empty scan fits every pose)",
+                share,
+            )
         return LocalisationState(
             State.LOST,
             _clip01(1.0 - share / t.explained_below),
