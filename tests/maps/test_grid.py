@@ -183,3 +183,21 @@ def test_equality_and_validation() -> None:
         OccupancyGrid(data, 0.0)
     with pytest.raises(MapFormatError):
         OccupancyGrid(data, 0.1, (0.0, float("nan"), 0.0))
+
+
+@pytest.mark.parametrize(
+    ("values", "says"),
+    [
+        ([[0, 254], [0, 0]], "got 254 at row 0, column 1"),  # a map_server image's grey levels
+        ([[0, 101]], "got 101"),
+        ([[-5, 0]], "got -5"),
+        ([[0.5, 0.0]], "expected whole numbers"),
+    ],
+)
+def test_cell_values_outside_minus_one_to_100_are_refused(
+    values: list[list[float]], says: str
+) -> None:
+    """They were cast to int8 without a word: 255 became unknown, 200 became -56, 101 counted
+    as occupied."""
+    with pytest.raises(MapFormatError, match=says):
+        OccupancyGrid(np.array(values), 0.05)

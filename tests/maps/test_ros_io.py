@@ -115,7 +115,7 @@ def test_round_trip_awkward_floats(tmp_path: Path) -> None:
 
 
 def test_save_classifies_intermediate_values_like_the_grid(tmp_path: Path) -> None:
-    grid = OccupancyGrid(np.array([[10, 19, 20, 50], [64, 65, 99, 127]], dtype=np.int8), 0.1)
+    grid = OccupancyGrid(np.array([[10, 19, 20, 50], [64, 65, 99, 100]], dtype=np.int8), 0.1)
     loaded = load_map(save_map(grid, tmp_path / "m.yaml"))
     np.testing.assert_array_equal(loaded.data, [[0, 0, -1, -1], [-1, 100, 100, 100]])
 

@@ -38,3 +38,16 @@ def test_state_status_levels_and_values(state: State, level: str) -> None:
     (status,) = state_status(judged, "ceamcl", "amcl", 12.5).status
     assert {kv.key: kv.value for kv in status.values}["map_explained"] == "0.8765"
     assert msg.header.stamp.sec == 12 and msg.header.stamp.nanosec == 500_000_000
+
+
+def test_a_map_message_with_values_outside_the_range_reads_them_as_unknown() -> None:
+    """Nav2's amcl reads 0 free, 100 occupied, anything else unknown; the grid refuses
+    values outside -1..100, so the node maps them to unknown instead of failing on the map."""
+    from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
+
+    from ceamcl.ros.messages import grid_from_msg
+
+    msg = OccupancyGridMsg()
+    msg.info.width, msg.info.height, msg.info.resolution = 3, 1, 0.05
+    msg.data = [0, 127, -100]
+    assert grid_from_msg(msg).data.tolist() == [[0, -1, -1]]

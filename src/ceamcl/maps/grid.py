@@ -55,6 +55,17 @@ class OccupancyGrid:
             raise MapFormatError(
                 f"origin: expected three finite numbers [x, y, yaw], got {self.origin}"
             )
+        if data.dtype.kind not in "iub":
+            raise MapFormatError(
+                f"map data: expected whole numbers -1 (unknown) or 0..100, got {data.dtype}"
+            )
+        bad = (data < -1) | (data > 100)
+        if bad.any():  # a cast to int8 wrapped them: 255 became unknown, 200 became -56
+            r, c = (int(v) for v in np.argwhere(bad)[0])
+            raise MapFormatError(
+                f"map data: expected -1 (unknown) or 0..100 (occupancy in percent), got "
+                f"{int(data[r, c])} at row {r}, column {c} ({int(bad.sum())} such cells)"
+            )
         data = np.ascontiguousarray(data, dtype=np.int8)
         data.setflags(write=False)
         object.__setattr__(self, "data", data)

@@ -96,6 +96,9 @@ def grid_from_msg(msg: OccupancyGridMsg) -> OccupancyGrid:
         raise MapFormatError(f"map: data has {len(msg.data)} cells, expected {w} x {h} = {w * h}")
     origin = pose2_from_msg(msg.info.origin)
     data = np.asarray(msg.data, dtype=np.int8).reshape(h, w)
+    # Nav2's amcl reads 0 as free, 100 as occupied and any other value as unknown; values
+    # outside the message's -1..100 are unknown here too (the grid refuses them)
+    data = np.where((data < -1) | (data > 100), np.int8(-1), data).astype(np.int8)
     return OccupancyGrid(data, float(msg.info.resolution), origin, name=msg.header.frame_id)
 
 
