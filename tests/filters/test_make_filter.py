@@ -70,3 +70,39 @@ def test_a_run_names_the_sensor_model_its_algorithm_weighs_with() -> None:
         assert describe_sensor(name) == (
             f"{name} for every algorithm but nav2-amcl (the wheel's own beam model)"
         )
+
+
+@pytest.mark.parametrize("count", [100.5, True, 0, -3, "100"])
+def test_a_particle_count_must_be_a_positive_whole_number(count: object) -> None:
+    """100.5 and True passed the check and failed later with a TypeError."""
+    with pytest.raises(ConfigError, match="particles: expected a positive whole count"):
+        make_filter("mcl", get_world("small-office"), np.random.default_rng(0), n_particles=count)  # type: ignore[arg-type]
+
+
+def test_a_numpy_whole_count_is_a_count() -> None:
+    f = make_filter(
+        "mcl", get_world("small-office"), np.random.default_rng(0), n_particles=np.int64(300)
+    )
+    assert f.config.n_particles == 300  # type: ignore[attr-defined]
+
+
+def test_ceamcl_hypotheses_are_checked_and_capped_by_max_samples() -> None:
+    """initialise_hypotheses raised bare numpy errors for an empty list or a 2-vector, and
+    300 poses gave 90,000 samples against a cap of 20,000."""
+    from ceamcl.filters.ceamcl import CEAMCL, CEAMCLConfig
+
+    grid = get_world("small-office")
+    cfg = CEAMCLConfig(max_samples=2_000)
+    f = make_filter("ceamcl", grid, np.random.default_rng(1), config=cfg)
+    assert isinstance(f, CEAMCL)
+    cov = np.diag([0.01, 0.01, 0.01])
+    for bad in ([], [1.0, 2.0], [[1.0, 2.0]]):
+        with pytest.raises(ConfigError, match=r"poses: expected one or more poses .* \(K, 3\)"):
+            f.initialise_hypotheses(bad, cov)
+    free = grid.sample_free_poses(60, np.random.default_rng(2))
+    f.initialise_hypotheses(free, cov)
+    assert f.particles().poses.shape[0] <= cfg.max_samples
+    assert len(f.hypotheses()) == 60
+    with pytest.raises(ConfigError, match="exceed max_samples 2000"):
+        f.initialise_hypotheses(grid.sample_free_poses(700, np.random.default_rng(3)), cov)
+    assert len(f.hypotheses()) == 60  # a refusal leaves the filter as it was

@@ -204,7 +204,7 @@ def make_filter(
     *,
     sensor: str | SensorModel = DEFAULT_SENSOR,
     odometry_noise: OdometryNoise | None = None,
-    n_particles: int | None = None,
+    n_particles: int | np.integer[Any] | None = None,
     config: Any = None,
     sensor_settings: Mapping[str, Any] | None = None,
 ) -> LocalisationFilter:
@@ -220,8 +220,12 @@ def make_filter(
     preset's ``max_beams`` and ``temper``), then ``sensor_settings`` given here on top.
     """
     spec = get(algorithm)
-    if n_particles is not None and n_particles < 1:
-        raise ConfigError(f"particles: expected a positive count, got {n_particles}")
+    if n_particles is not None:
+        # a whole number (numpy's too), not a bool: 100.5 passed and failed later in a reshape
+        whole = isinstance(n_particles, int | np.integer) and not isinstance(n_particles, bool)
+        if not whole or n_particles < 1:
+            raise ConfigError(f"particles: expected a positive whole count, got {n_particles!r}")
+        n_particles = int(n_particles)
     cfg = config if config is not None else spec.default()
     if type(cfg) is not spec.config_type:
         raise ConfigError(

@@ -43,6 +43,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ceamcl import angles
+from ceamcl.errors import ConfigError
 from ceamcl.filters.base import Algorithm, Hypothesis, ParticleSnapshot, PoseEstimate
 from ceamcl.filters.ceamcl.anchor import ConfidentPose, DriftEnvelope
 from ceamcl.filters.ceamcl.config import CEAMCLConfig
@@ -379,18 +380,30 @@ class CEAMCL:
 
     def initialise_hypotheses(self, poses: ArrayLike, covariance: ArrayLike) -> None:
         """Several hypotheses at once (e.g. the known symmetric images of a start pose): one
-        species of ``tracking_samples`` around each pose, with equal weights."""
-        centres = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
-        if centres.shape[0] == 0:
-            raise ValueError("poses: expected at least one pose")
+        species of ``tracking_samples`` around each pose, with equal weights; fewer a species
+        (not below ``min_species_size``) where that many would exceed ``max_samples``."""
+        cfg = self.config
+        centres = np.asarray(poses, dtype=np.float64)
+        if centres.ndim not in (1, 2) or centres.shape[-1] != 3 or centres.size == 0:
+            raise ConfigError(
+                f"poses: expected one or more poses (x, y, theta), an array of shape (K, 3), "
+                f"got shape {centres.shape}"
+            )
+        centres = centres.reshape(-1, 3)
+        k = centres.shape[0]
+        if k * cfg.min_species_size > cfg.max_samples:
+            raise ConfigError(
+                f"poses: {k} hypotheses of at least {cfg.min_species_size} samples exceed "
+                f"max_samples {cfg.max_samples}; expected at most "
+                f"{cfg.max_samples // cfg.min_species_size}"
+            )
+        each = max(cfg.min_species_size, min(cfg.tracking_samples, cfg.max_samples // k))
+        parts = [gaussian(pose, covariance, each, self.rng) for pose in centres]  # checks first
         self._read = None
         self._forget_estimates()
-        parts = []
-        for pose in centres:
-            part = gaussian(pose, covariance, self.config.tracking_samples, self.rng)
+        for part in parts:
             part.labels[:] = self._next_id
             self._next_id += 1
-            parts.append(part)
         ps = parts[0]
         for part in parts[1:]:
             ps.extend(part)
