@@ -213,3 +213,19 @@ def test_the_state_figure_joins_the_scans_that_have_a_true_pose(
     ).is_file()
     error_line = drawn[0][0]
     assert error_line.shape == (3, 2) and np.allclose(error_line[:, 1], [0.1, 0.2, 0.3])
+
+
+def test_the_announced_run_count_includes_the_real_logs() -> None:
+    """'N runs' left out the real logs' runs, which the experiment then ran too."""
+    from ceamcl.cli import build_parser
+    from ceamcl.cli.experiment import _state_courses, _state_runs
+    from ceamcl.experiments.common import ExperimentSettings
+    from ceamcl.experiments.state import present_real_logs
+
+    args = build_parser().parse_args(["experiment", "state", "--algorithms", "ceamcl,mcl"])
+    courses = _state_courses(args)
+    settings = ExperimentSettings(courses[0], ("ceamcl", "mcl"), trials=3)
+    simulated = sum(len(c.routes) for c in courses) * 3 * 2
+    assert _state_runs(settings, args) == simulated + 2 * len(present_real_logs())
+    quick = build_parser().parse_args(["experiment", "state", "--max-time", "2"])
+    assert _state_runs(settings, quick) == simulated  # a quick check scores no real log

@@ -273,6 +273,17 @@ def _state_real_logs(args: argparse.Namespace) -> bool:
     return args.world is None and args.routes is None and args.max_time is None
 
 
+def _state_runs(settings: ExperimentSettings, args: argparse.Namespace) -> int:
+    """Runs of the state experiment: the scenarios' routes x trials x algorithms, and one
+    run a real log whose files are present x algorithms (they are prepared later)."""
+    courses = _state_courses(args)
+    runs = sum(len(c.routes) for c in courses) * settings.trials * len(settings.algorithms)
+    if _state_real_logs(args):
+        present = state_experiment.present_real_logs()
+        runs += len(present) * len(settings.algorithms)
+    return runs
+
+
 def _delta_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--deltas",
@@ -519,6 +530,7 @@ EXPERIMENTS: dict[str, Experiment] = {
         default_algorithms=state_experiment.DEFAULT_ALGORITHMS,
         visuals=False,  # its runs keep their states, not their particles
         routes=lambda settings, args: sum(len(c.routes) for c in _state_courses(args)),
+        count=_state_runs,
         where=lambda args: ", ".join(c.name for c in _state_courses(args)),
     ),
 }

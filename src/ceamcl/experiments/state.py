@@ -241,6 +241,15 @@ def run_log_state_trial(trial: LogStateTrial) -> StateRun:
     )
 
 
+def present_real_logs(data_dir: Path = DATA_DIR) -> list[RealLog]:
+    """The real logs whose files are all present (:func:`real_log_trials` runs them)."""
+    return [
+        real
+        for real in REAL_LOGS
+        if all((data_dir / p).is_file() for p in (real.path, real.truth_from) if p is not None)
+    ]
+
+
 def real_log_trials(
     algorithms: Sequence[str], seed: int, data_dir: Path = DATA_DIR
 ) -> tuple[list[LogStateTrial], list[tuple[str, str]]]:
