@@ -20,7 +20,10 @@ def generate_launch_description() -> LaunchDescription:
              parameters=[{"yaml_filename": LaunchConfiguration("map")}]),
         Node(executable="ceamcl", arguments=["node"], name="amcl", output="screen",
              parameters=[params]),
+        # bond_timeout 0: the node does not answer Nav2's bond heartbeat (bond_msgs has no
+        # PyPI wheel), and with the default 4 s the manager would abort the bringup
         Node(package="nav2_lifecycle_manager", executable="lifecycle_manager",
              name="lifecycle_manager_localization",
-             parameters=[{"autostart": True, "node_names": ["map_server", "amcl"]}]),
+             parameters=[{"autostart": True, "node_names": ["map_server", "amcl"],
+                          "bond_timeout": 0.0}]),
     ])

@@ -189,3 +189,30 @@ def test_services_and_bad_messages_are_survived(driver, hall_log, tmp_path: Path
         tail = node.log()[-2000:]
         code = node.stop()
         assert code == 0, f"exit code {code} on SIGINT\n{tail}\n{node.log()[-2000:]}"
+
+
+def test_every_static_broadcasters_transform_reaches_the_node(
+    driver, hall_log, tmp_path: Path
+) -> None:
+    """A robot has several static broadcasters (robot_state_publisher, a driver's own): each
+    latches its last /tf_static message. Read with depth 1, only one of them reached a node
+    started after them, the laser mount was lost and no scan was ever used."""
+    from tf2_msgs.msg import TFMessage
+
+    from ceamcl.ros import messages as m
+    from tests.ros.harness import BASE, LATCHED, NodeProcess
+
+    scenario, log = hall_log
+    others = [driver.node.create_publisher(TFMessage, "/tf_static", LATCHED) for _ in range(2)]
+    driver.publish_mount(log.laser.pose)  # the mount first, then two other broadcasters
+    for pub, child in zip(others, ("imu_link", "camera_link"), strict=True):
+        pub.publish(TFMessage(transforms=[m.transform_msg(BASE, child, (0.1, 0.0, 0.0), 0.0)]))
+    driver.publish_map(scenario.grid())
+    driver.spin_until(lambda: False, 0.5)
+    args = ["--ros-args", "-p", f"transform_tolerance:={TOLERANCE_S}", "-p", "algorithm:=mcl"]
+    with NodeProcess(tmp_path, [*args, "-p", "max_particles:=500"]) as node:
+        driver.configure_and_activate()
+        assert wait_for_log(node, "map received", 20.0)
+        t0 = 700.0
+        assert all(driver.step(log, k, t0, TOLERANCE_S, timeout_s=10.0) for k in range(4))
+        assert "not connected" not in node.log()

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import traceback
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from typing import Any
 
 import numpy as np
@@ -24,7 +24,9 @@ import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseArray, PoseWithCovarianceStamped
 from nav_msgs.msg import OccupancyGrid as OccupancyGridMsg
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
+from rclpy.parameter import Parameter
 from rclpy.qos import (
     DurabilityPolicy,
     QoSProfile,
@@ -56,6 +58,14 @@ THROTTLE_S = 5.0
 MAX_DESCRIBED = 50
 #: Scans held while their transforms are on the way (Nav2's message filter holds 10).
 SCAN_QUEUE = 10
+#: ``/tf_static`` as tf2's static listener reads it (depth 100, transient local): each static
+#: broadcaster's latched message reaches a late reader; with depth 1 only one of them did, and
+#: a robot with a second static broadcaster lost its laser mount for good.
+STATIC_TF_QOS = QoSProfile(
+    depth=100,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
 
 
 class LocalisationNode(LifecycleNode):
@@ -68,9 +78,13 @@ class LocalisationNode(LifecycleNode):
             automatically_declare_parameters_from_overrides=True,
             **kwargs,
         )
+        # what the command line and parameter files set (declared from the overrides above);
+        # every other parameter is declared with Nav2's default, which must not count as set
+        self.given: set[str] = set(self.get_parameters_by_prefix("")) - {"use_sim_time"}
         for pname, default in {**NAV2_DEFAULTS, **OWN_DEFAULTS}.items():
             if not self.has_parameter(pname):
                 self.declare_parameter(pname, default)
+        self.add_on_set_parameters_callback(self._on_set_parameters)
         self.params: NodeParams | None = None
         self._entities: list[Any] = []
         self._reset_state()
@@ -86,10 +100,34 @@ class LocalisationNode(LifecycleNode):
         self.waiting: deque[tuple[LaserScanMsg, str]] = deque()
 
     # ------------------------------------------------------------------ lifecycle
-    def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
+    def _values(self, changed: Iterable[Parameter] = ()) -> dict[str, Any]:
         values = {name: p.value for name, p in self.get_parameters_by_prefix("").items()}
+        values.update({p.name: p.value for p in changed})
+        return values
+
+    def _on_set_parameters(self, changed: list[Parameter]) -> SetParametersResult:
+        """``ros2 param set``: refused while the node is configured (it reads its parameters
+        at configure; Nav2's amcl applies many at once, this node does not, and a set that
+        succeeded without effect, or broke the next configure, said nothing); before that,
+        checked as configure will check them, and remembered as set."""
+        names = [p.name for p in changed]
+        if self.params is not None:
+            return SetParametersResult(
+                successful=False,
+                reason=f"{', '.join(names)}: this node reads its parameters at configure; "
+                "deactivate and clean it up, set them, and configure it again",
+            )
         try:
-            params = parse(values)
+            parse(self._values(changed), self.given | set(names))
+        except CeamclError as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        self.given |= set(names)
+        return SetParametersResult(successful=True)
+
+    def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
+        values = self._values()
+        try:
+            params = parse(values, self.given)
         except CeamclError as exc:
             self.get_logger().error(f"cannot configure: {exc}")
             return TransitionCallbackReturn.FAILURE
@@ -117,6 +155,7 @@ class LocalisationNode(LifecycleNode):
 
     def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
         self.active = False
+        self.waiting.clear()  # held scans are not stepped while inactive (Nav2 drops them)
         return super().on_deactivate(state)
 
     def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
@@ -153,7 +192,10 @@ class LocalisationNode(LifecycleNode):
             # odometry is read before the next scan pushes it out of the queue
             self.create_subscription(TFMessage, "/tf", self._guard("tf", self._on_tf), 100),
             self.create_subscription(
-                TFMessage, "/tf_static", self._guard("tf_static", self._on_tf_static), latched
+                TFMessage,
+                "/tf_static",
+                self._guard("tf_static", self._on_tf_static),
+                STATIC_TF_QOS,
             ),
             self.create_subscription(
                 LaserScanMsg,
@@ -256,8 +298,12 @@ class LocalisationNode(LifecycleNode):
             )
         pose = m.pose2_from_msg(msg.pose.pose)
         cov = m.covariance_from_msg(msg.pose.covariance)
-        if np.any(np.diag(cov) <= 0) or np.any(np.linalg.eigvalsh(cov) < 0):
-            self.get_logger().warning("initialpose: covariance not positive; Nav2's default used")
+        # as Nav2 takes it: zero variances put the particles on the pose (nav2_simple_commander
+        # sends an all-zero covariance); only one that is no covariance is replaced
+        if not np.all(np.isfinite(cov)) or np.any(np.linalg.eigvalsh((cov + cov.T) / 2) < -1e-12):
+            self.get_logger().warning(
+                "initialpose: covariance not positive semi-definite; Nav2's default used"
+            )
             cov = DEFAULT_INIT_COV
         assert self.localiser is not None
         self.localiser.set_pose(pose, cov)
@@ -313,7 +359,11 @@ class LocalisationNode(LifecycleNode):
             self._drop(*self.waiting.popleft())
 
     def _retry_waiting(self) -> None:
-        """Process the held scans, oldest first, that can be now; keep the others."""
+        """Process the held scans, oldest first, that can be now; keep the others (none
+        while inactive: an odometry transform after deactivate steps no held scan)."""
+        if not self.active:
+            self.waiting.clear()
+            return
         kept: deque[tuple[LaserScanMsg, str]] = deque()
         while self.waiting:
             msg, _ = self.waiting.popleft()

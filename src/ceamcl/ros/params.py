@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -358,11 +358,15 @@ def _nav2_to_config(
     return dataclasses.replace(config, **changes), warnings
 
 
-def parse(values: Mapping[str, Any]) -> NodeParams:
-    """Check ``values`` (flat ROS parameter names) against the node's parameters.
+def parse(values: Mapping[str, Any], given: Iterable[str] | None = None) -> NodeParams:
+    """Check ``values`` (flat ROS parameter names) against the node's parameters. ``given``:
+    the names the user set (default: every name in ``values``); the node passes its
+    overrides, since it declares every other parameter with Nav2's default, and those
+    defaults must not count as set (they would replace a preset's tuning).
 
     Raises :class:`ConfigError` listing every unknown name and bad value (none is applied).
     """
+    chosen = frozenset(values if given is None else given)
     errors: list[str] = []
     algorithm = values.get("algorithm", OWN_DEFAULTS["algorithm"])
     if algorithm not in registry.names():
@@ -444,7 +448,7 @@ def parse(values: Mapping[str, Any]) -> NodeParams:
     if errors:
         raise ConfigError("; ".join(errors))
 
-    config, warnings = _nav2_to_config(algorithm, nav2, default_config, frozenset(values))
+    config, warnings = _nav2_to_config(algorithm, nav2, default_config, chosen)
     try:
         config = dataclasses.replace(config, **overrides)
     except (TypeError, ValueError) as exc:
@@ -469,5 +473,5 @@ def parse(values: Mapping[str, Any]) -> NodeParams:
         tuple(warnings),
         overrides,
         laser_temper=laser_temper,
-        given=frozenset(values),
+        given=chosen,
     )
