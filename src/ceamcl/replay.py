@@ -267,9 +267,13 @@ def make_paced_filter(
     pace: UpdatePace | None,
     **kwargs: Any,
 ) -> LocalisationFilter:
-    """:func:`ceamcl.filters.registry.make_filter`; under a ``pace`` an algorithm with update
-    thresholds of its own (KLD-AMCL) gets them at 0, so the runner's policy alone decides."""
-    if pace is not None and "config" not in kwargs and _holds_thresholds(algorithm):
+    """:func:`ceamcl.filters.registry.make_filter` for a replay, where the runner decides when
+    every algorithm updates (under ``pace``, or at every scan when it is ``None``): an
+    algorithm with update thresholds of its own (KLD-AMCL) gets them at 0. Until 2026-11-29
+    only under a pace, so at "every scan" (``--every-scan``, a corrected log's key scans) the
+    KLD-AMCL variants still skipped the scans their own 0.25 m / 0.2 rad did not reach."""
+    del pace  # the policy is the runner's either way; kept for the callers' clarity
+    if "config" not in kwargs and _holds_thresholds(algorithm):
         kwargs["config"] = with_config(algorithm, **dict.fromkeys(_OWN_THRESHOLDS, 0.0))
     return make_filter(algorithm, grid, rng, **kwargs)
 
