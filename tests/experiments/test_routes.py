@@ -103,6 +103,26 @@ simulation:
             "    waypoints: [[3, 3]]\n",
             r"routes\[0\]\.name: 'all' names the tables' row over every route",
         ),
+        (  # a kidnap's waypoints are checked as a route's (one off the map was driven to)
+            "map: hall.yaml\nroutes:\n  - start: [3.75, 3.75, 0]\n    waypoints: [[3, 3]]\n"
+            "    kidnap: {at_s: 5, pose: [3.75, 3.75, 0], waypoints: [[3, 3], [40, 3]]}\n",
+            r"routes\[0\]\.kidnap\.waypoints\[1\]",
+        ),
+        (  # infinite or NaN simulation settings divided by zero or emptied the scans
+            "map: hall.yaml\nroutes:\n  - start: [3.75, 3.75, 0]\n    waypoints: [[3, 3]]\n"
+            "simulation: {rate_hz: .inf}\n",
+            "rate_hz: expected a finite number > 0",
+        ),
+        (
+            "map: hall.yaml\nroutes:\n  - start: [3.75, 3.75, 0]\n    waypoints: [[3, 3]]\n"
+            "simulation: {range_sigma_m: .nan}\n",
+            "range_sigma_m: expected a finite number >= 0",
+        ),
+        (
+            "map: hall.yaml\nroutes:\n  - start: [3.75, 3.75, 0]\n    waypoints: [[3, 3]]\n"
+            "simulation: {speed_mps: true}\n",
+            r"simulation\.speed_mps: expected a number, got True",
+        ),
     ],
 )
 def test_bad_route_files_name_the_field(tmp_path: Path, body: str, field: str) -> None:

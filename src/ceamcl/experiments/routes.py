@@ -317,6 +317,8 @@ def load_route_file(path: str | os.PathLike[str]) -> Course:
             pose = r.numbers(kd.get("pose"), f"{where}.kidnap.pose", (3,))
             r.check_free(grid, pose, f"{where}.kidnap.pose")
             kwps = r.waypoints(kd.get("waypoints"), f"{where}.kidnap.waypoints")
+            for j, w in enumerate(kwps):
+                r.check_free(grid, w, f"{where}.kidnap.waypoints[{j}]")
             kidnap = Kidnap(float(at), pose, list(kwps))
         routes.append(Route(name, start, wps, kidnap))
 
@@ -349,6 +351,9 @@ def load_route_file(path: str | os.PathLike[str]) -> Course:
             raise r.fail(
                 f"simulation.{unknown[0]}", f"unknown field; expected some of {sorted(names)}"
             )
+        for k, v in sim.items():  # numbers only, as every other field (not "5" or true)
+            if not isinstance(v, int | float) or isinstance(v, bool):
+                raise r.fail(f"simulation.{k}", f"expected a number, got {v!r}")
         try:
             values: dict[str, Any] = {k: float(v) for k, v in sim.items()}
             config = SimulationConfig(**values)

@@ -13,6 +13,7 @@ drives the whole run, so one seed reproduces the log bit for bit.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -46,14 +47,16 @@ class SimulationConfig:
     random_reading_prob: float = 0.01
 
     def __post_init__(self) -> None:
-        if not self.rate_hz > 0:
-            raise ValueError(f"rate_hz: expected > 0, got {self.rate_hz}")
-        if not self.speed_mps > 0:
-            raise ValueError(f"speed_mps: expected > 0, got {self.speed_mps}")
-        if not self.turn_rate_rps > 0:
-            raise ValueError(f"turn_rate_rps: expected > 0, got {self.turn_rate_rps}")
-        if self.range_sigma_m < 0:
-            raise ValueError(f"range_sigma_m: expected >= 0, got {self.range_sigma_m}")
+        # finite too: an infinite rate divided by zero, an infinite speed ended every route at
+        # its start, a NaN sigma made most readings NaN
+        for name in ("rate_hz", "speed_mps", "turn_rate_rps"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"{name}: expected a finite number > 0, got {v}")
+        if not (math.isfinite(self.range_sigma_m) and self.range_sigma_m >= 0):
+            raise ValueError(
+                f"range_sigma_m: expected a finite number >= 0, got {self.range_sigma_m}"
+            )
         if not 0 <= self.random_reading_prob <= 1:
             raise ValueError(
                 f"random_reading_prob: expected in [0, 1], got {self.random_reading_prob}"
