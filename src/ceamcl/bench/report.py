@@ -11,6 +11,14 @@ from ceamcl.experiments.common import markdown_table, write_text
 from ceamcl.io.results import ensure_output_dir, write_json
 
 
+def target_verdict(t: dict[str, Any]) -> str:
+    """PASS or FAIL; without a verdict, "not measured" where there is no value and "no target
+    (quick run)" beside a value a quick run measured (it read "not measured" there too)."""
+    if t["pass"] is None:
+        return "not measured" if t["value"] is None else "no target (quick run)"
+    return "PASS" if t["pass"] else "FAIL"
+
+
 def _f(v: Any, digits: int = 1) -> str:
     """A table cell: ``-`` for None and non-finite numbers, thousands separators."""
     if v is None or (isinstance(v, float) and not math.isfinite(v)):
@@ -50,8 +58,9 @@ def render_markdown(r: dict[str, Any]) -> str:
     rows = []
     for t in r["targets"]:
         sign = ">=" if t["kind"] == "min" else "<="
-        verdict = "not measured" if t["pass"] is None else ("PASS" if t["pass"] else "FAIL")
-        rows.append([t["target"], f"{sign} {t['threshold']:g}", _f(t["value"], 2), verdict])
+        rows.append(
+            [t["target"], f"{sign} {t['threshold']:g}", _f(t["value"], 2), target_verdict(t)]
+        )
     lines.append(markdown_table(["target", "goal", "measured", ""], rows))
 
     lines += [
@@ -115,7 +124,15 @@ def render_markdown(r: dict[str, Any]) -> str:
         "",
         f"Paper run from global localisation, {step['steps']} steps: median "
         f"{step['median_ms_all']:.2f} ms at a median {step['median_particles_all']:.0f} "
-        f"particles. Steps with 700-1300 particles: {step['steps_near_1000']}"
+        f"particles. "
+        + (
+            f"None holds 700-1300, so the run was made again with delta_per_m2 "
+            f"{step['delta_per_m2_for_1000']:g} (the samples grow with delta) for the target's "
+            "~1,000: "
+            if "delta_per_m2_for_1000" in step
+            else ""
+        )
+        + f"steps with 700-1300 particles: {step['steps_near_1000']}"
         + (
             f", median {step['median_ms']:.2f} ms at {step['median_particles']:.0f} particles "
             f"and {step['median_species']:.0f} species."
@@ -173,7 +190,7 @@ def render_markdown(r: dict[str, Any]) -> str:
                 "LF ns/pb",
                 "beam ns/pb",
                 "beam table MB",
-                "peak RSS MB",
+                "peak RSS MiB",
             ],
             [
                 [
@@ -207,7 +224,9 @@ def render_markdown(r: dict[str, Any]) -> str:
     )
     lines += ["## Peak memory (resident, whole process)", ""]
     lines.append(
-        markdown_table(["after", "MB"], [[k, _f(t, 0)] for k, t in r["memory_peak_rss_mb"].items()])
+        markdown_table(
+            ["after", "MiB"], [[k, _f(t, 0)] for k, t in r["memory_peak_rss_mb"].items()]
+        )
     )
     return "\n".join(lines)
 

@@ -116,7 +116,7 @@ class _Clock:
 
 
 def peak_rss_mb() -> float:
-    """Peak resident memory of this process so far (Linux reports KiB)."""
+    """Peak resident memory of this process so far, in MiB (Linux reports KiB)."""
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
@@ -337,7 +337,7 @@ def measure_init(grid: OccupancyGrid, log: SimulatedLog, s: BenchSettings) -> di
     first = test.shape[0]
     with _Clock() as c:
         test, ll, fit, _ = with_second_round(grid, test, ll, fit, sensor, prepared, init, rng)
-    phases["second round (none by default)"] = c.wall
+    phases["second round (the best 1 % refined, as by default)"] = c.wall
     with _Clock() as c:
         generate_initial_species(grid, test, ll, fit, init)
     phases["cells, SKIZ, selection"] = c.wall
@@ -357,10 +357,12 @@ def measure_init(grid: OccupancyGrid, log: SimulatedLog, s: BenchSettings) -> di
     }
 
 
-def measure_ceamcl_step(grid: OccupancyGrid, log: SimulatedLog, s: BenchSettings) -> dict[str, Any]:
-    """CEAMCL on the paper run from global localisation; step times where the sample size is
-    700-1300 (the steady state at ~1000 particles), and over the whole run."""
-    f = registry.make_filter("ceamcl", grid, np.random.default_rng(s.seed))
+def _ceamcl_run(
+    grid: OccupancyGrid, log: SimulatedLog, s: BenchSettings, config: CEAMCLConfig | None = None
+) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.int64]]:
+    """CEAMCL on the paper run from global localisation: each step's sample size, time (ms)
+    and species count."""
+    f = registry.make_filter("ceamcl", grid, np.random.default_rng(s.seed), config=config)
     f.initialise_global(log.scan(0))
     last = len(log) if s.ceamcl_steps is None else min(len(log), s.ceamcl_steps + 1)
     n, ms, species = [], [], []
@@ -369,14 +371,28 @@ def measure_ceamcl_step(grid: OccupancyGrid, log: SimulatedLog, s: BenchSettings
         n.append(d.n_particles)
         ms.append(d.step_ms)
         species.append(len(species_of(d)))
-    n_a, ms_a, sp_a = np.array(n), np.array(ms), np.array(species)
-    near = (n_a >= 700) & (n_a <= 1300)
+    return np.array(n, dtype=np.int64), np.array(ms), np.array(species, dtype=np.int64)
+
+
+def measure_ceamcl_step(grid: OccupancyGrid, log: SimulatedLog, s: BenchSettings) -> dict[str, Any]:
+    """CEAMCL on the paper run from global localisation; step times where the sample size is
+    700-1300 (the steady state at ~1000 particles), and over the whole run. The default's own
+    sample size is far below 1,000 (about 165 in the four images' steady state), so where no
+    step comes near, the run is made again with ``delta_per_m2`` scaled to hold ~1,000 (its
+    samples grow with delta: the epsilon floor is delta x epsilon a species)."""
+    n_a, ms_a, sp_a = _ceamcl_run(grid, log, s)
     out: dict[str, Any] = {
         "steps": int(n_a.size),
         "median_ms_all": float(np.median(ms_a)),
         "median_particles_all": float(np.median(n_a)),
-        "steps_near_1000": int(near.sum()),
     }
+    near = (n_a >= 700) & (n_a <= 1300)
+    if not near.any() and n_a.size:
+        delta = CEAMCLConfig().delta_per_m2 * 1000.0 / max(float(np.median(n_a)), 1.0)
+        out["delta_per_m2_for_1000"] = round(delta, 1)
+        n_a, ms_a, sp_a = _ceamcl_run(grid, log, s, CEAMCLConfig(delta_per_m2=round(delta, 1)))
+        near = (n_a >= 700) & (n_a <= 1300)
+    out["steps_near_1000"] = int(near.sum())
     if near.any():
         out["median_ms"] = float(np.median(ms_a[near]))
         out["median_particles"] = float(np.median(n_a[near]))

@@ -12,6 +12,7 @@ from rich.console import Console
 
 from ceamcl import peers
 from ceamcl.bench import BenchSettings, real_maps, run_bench, write_report
+from ceamcl.bench.report import target_verdict
 from ceamcl.cli.common import make_progress
 from ceamcl.errors import ConfigError
 from ceamcl.io.results import ensure_output_dir
@@ -147,9 +148,8 @@ def _with_progress(
 
 def _print_targets(console: Console, targets: list[dict[str, Any]]) -> None:
     for t in targets:
-        verdict = "not measured" if t["pass"] is None else ("PASS" if t["pass"] else "FAIL")
         value = "-" if t["value"] is None else f"{t['value']:.2f}"
-        console.print(f"{verdict:>12}  {t['target']}: {value}")
+        console.print(f"{target_verdict(t):>12}  {t['target']}: {value}")
 
 
 def run(args: argparse.Namespace, console: Console) -> int:

@@ -17,7 +17,8 @@
     sees it from inside room 3: a run that ends there breaks the symmetry late.
 
 ``small-office``
-    A 10 x 8 m asymmetric floor (three rooms of different sizes, a corridor, a pillar) where
+    A 10 x 8 m asymmetric floor (four rooms of different sizes, two south and two north of a
+    corridor, with a pillar, a shelf and a cupboard) where
     global localisation has one answer; used by tests and quick examples.
 
 Rooms are numbered counter-clockwise from the south-west one: 0 SW, 1 SE, 2 NE, 3 NW.
