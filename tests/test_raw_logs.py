@@ -493,3 +493,25 @@ def test_a_far_place_that_outlives_the_rest_does_not_take_fr079s_estimate(
         assert worst < 2.0
     else:
         assert worst > 10.0
+
+
+def test_a_raw_runs_report_and_mcap_carry_the_truth_where_it_is_known(
+    cut_logs: tuple[Path, Path], tmp_path: Path
+) -> None:
+    """With --truth-from the truth is NaN at the unpaired scans: --report and --mcap ended in a
+    traceback after the whole run (NaN is no JSON) and the output folder was removed."""
+    from mcap.reader import make_reader
+
+    raw, corrected = cut_logs
+    out, mcap = tmp_path / "run", tmp_path / "run.mcap"
+    args = ["run", str(raw), "--truth-from", str(corrected), "--algorithm", "mcl"]
+    assert main([*args, "--report", "--mcap", str(mcap), "--quiet", "--out", str(out)]) == 0
+    matched = json.loads((out / "summary.json").read_text())["truth_pairing"]["matched_scans"]
+    assert "null" in (out / "report.html").read_text()  # the unpaired scans' truth
+    with mcap.open("rb") as fh:
+        summary = make_reader(fh).get_summary()
+    assert summary is not None
+    counts = {
+        c.topic: summary.statistics.channel_message_counts[i] for i, c in summary.channels.items()
+    }
+    assert counts["/ground_truth"] == matched < counts["/estimate"]

@@ -374,8 +374,15 @@ def write_mcap(
             emit("/map", times[0], grid_message(grid, times[0]))
             particles = _particle_steps(result)
             laser_pose = (0.0, 0.0, 0.0)
+            known = result.truth_known
             for k, ns in enumerate(times):
-                base = result.truth[k] if result.truth is not None else result.estimates[k]
+                # map -> base_link is the truth where the log knows it (a raw log's paired
+                # scans), else the estimate; NaN is no JSON
+                base = (
+                    result.truth[k]
+                    if result.truth is not None and known[k]
+                    else result.estimates[k]
+                )
                 scan = log.scan(k) if log is not None else None
                 if scan is not None:
                     laser_pose = scan.pose
@@ -390,7 +397,7 @@ def write_mcap(
                     },
                 )
                 emit("/estimate", ns, pose_message(result.estimates[k], ns))
-                if result.truth is not None:
+                if result.truth is not None and known[k]:
                     emit("/ground_truth", ns, pose_message(result.truth[k], ns))
                 if scan is not None:
                     emit("/scan", ns, scan_message(scan, ns))

@@ -42,6 +42,13 @@ def _round(values: Any, digits: int = 3) -> Any:
     return np.round(np.asarray(values, dtype=np.float64), digits).tolist()
 
 
+def _poses_or_null(poses: Any, digits: int = 3) -> list[list[float] | None]:
+    """Each pose rounded, ``None`` where it is not finite (no truth at that scan)."""
+    p = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
+    rows: list[list[float]] = _round(p, digits)
+    return [r if all(math.isfinite(v) for v in r) else None for r in rows]
+
+
 def _nullable(values: Any, digits: int = 3) -> list[float | None]:
     return [None if not math.isfinite(v) else round(float(v), digits) for v in values]
 
@@ -98,7 +105,8 @@ def replay_data(
             "bounds": list(grid.bounds),
         },
         "times": _round(result.times, 3),
-        "truth": None if result.truth is None else _round(result.truth, 3),
+        # a raw log's truth is known at its paired scans only: null elsewhere (NaN is no JSON)
+        "truth": None if result.truth is None else _poses_or_null(result.truth, 3),
         "estimates": _round(result.estimates, 3),
         "n": n.astype(int).tolist(),
         "resources": _nullable(r, 1) if np.any(np.isfinite(r)) else None,
