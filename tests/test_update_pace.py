@@ -133,3 +133,24 @@ def test_a_negative_threshold_is_refused() -> None:
 
     with pytest.raises(ConfigError, match="update-min-d"):
         UpdatePace(-0.1, 0.2)
+
+
+def test_a_paced_ceamcl_runs_species_and_resources_continue_across_held_scans() -> None:
+    """Under a pace every species' life was cut at each held-back scan (species.png drew dots,
+    run.png found no species alive at the end) and the resources curve was NaN there."""
+    from ceamcl.viz.animation import series
+    from ceamcl.viz.plots import species_lives
+
+    sc = office_scenario()
+    grid = sc.grid()
+    log = sc.simulate(np.random.default_rng(3), grid)
+    pace = UpdatePace(0.5, 0.4)
+    f = make_paced_filter("ceamcl", grid, np.random.default_rng(4), pace)
+    res = run_filter(f, log, update_when=pace.policy())
+    held = [k for k, d in enumerate(res.diagnostics) if not d.stepped]
+    assert held
+    lives = species_lives(res)
+    longest = max(lives, key=lambda life: int(life.steps[-1] - life.steps[0]))
+    assert any(longest.steps[0] < k < longest.steps[-1] for k in held)  # lived across them
+    _, resources = series(res)
+    assert np.isfinite(resources).all()

@@ -141,15 +141,17 @@ def replay_frames(result: RunResult, stride: int = 5) -> list[ReplayFrame]:
 
 
 def series(result: RunResult) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Per step: the total sample size and the total resources (NaN where a filter has none)."""
+    """Per step: the total sample size and the total resources (NaN where a filter has none;
+    at a scan the update pace held back, the last update's, which it left unchanged)."""
     n = np.array([d.n_particles for d in result.diagnostics], dtype=np.float64)
-    r = np.array(
-        [
-            d.record.total_resources if isinstance(d.record, CEAMCLRecord) else np.nan
-            for d in result.diagnostics
-        ],
-        dtype=np.float64,
-    )
+    r = np.full(n.size, np.nan)
+    last = np.nan
+    for k, d in enumerate(result.diagnostics):
+        if isinstance(d.record, CEAMCLRecord):
+            last = d.record.total_resources
+            r[k] = last
+        elif not d.stepped:
+            r[k] = last
     return n, r
 
 

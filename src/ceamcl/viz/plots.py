@@ -41,10 +41,14 @@ class SpeciesLife:
 
 
 def species_lives(result: RunResult) -> list[SpeciesLife]:
-    """Every species of the run (:class:`SpeciesLife`), in order of birth."""
+    """Every species of the run (:class:`SpeciesLife`), in order of birth. A scan the update
+    pace held back (``stepped`` False) changes no species and ends no life (under a pace every
+    life was cut at each such scan and drawn as dots)."""
     open_lives: dict[int, tuple[list[int], list[SpeciesRecord]]] = {}
     done: list[tuple[int, list[int], list[SpeciesRecord]]] = []
     for k, d in enumerate(result.diagnostics):
+        if not d.stepped:
+            continue
         alive = {s.species_id: s for s in species_of(d)}
         for sid in list(open_lives):
             if d.reinitialised or sid not in alive:
@@ -81,7 +85,8 @@ def plot_run(
             label="particles (final)",
             zorder=2,
         )
-    last = len(result.diagnostics) - 1
+    # the last step the filter ran (a paced run's last scan may have been held back)
+    last = max((k for k, d in enumerate(result.diagnostics) if d.stepped), default=0)
     living = [life for life in species_lives(result) if life.steps[-1] == last]
     if any(species_of(d) for d in result.diagnostics):
         # With species, the estimate (the fittest species) can hop between equally fit
