@@ -191,6 +191,9 @@ def obtain_map(
     )
 
 
+#: The verdict of a run on a log without ground truth.
+NOT_SCORED = "not scored: the log has no ground truth (see restarts and jumps)"
+
 #: Nav2 amcl's defaults: update once the robot has moved 0.25 m or turned 0.2 rad.
 DEFAULT_UPDATE_MIN_D = 0.25
 DEFAULT_UPDATE_MIN_A = 0.2
@@ -474,6 +477,8 @@ def run_summary(
                 "heading_rmse_after_convergence_rad": score.heading_rmse_rad,
             }
         )
+    else:  # the console's verdict, in the file too (docs/real-data.md lists it)
+        summary.update({"verdict": NOT_SCORED, "convergence": "not scored"})
     jumps = estimate_jumps(result.estimates, log.odometry, jumps_from)
     summary.update(
         {

@@ -318,7 +318,7 @@ def run_table(title: str, summary: Mapping[str, Any]) -> Table:
         ("odometry", s["odometry_source"]),
         ("ground truth", s["ground_truth"] or "none: no errors scored"),
     ]
-    if "verdict" in s:
+    if s.get("convergence", "not scored") != "not scored":
         rmse = s["position_rmse_after_convergence_m"], s["heading_rmse_after_convergence_rad"]
         rows += [
             ("convergence", s["convergence"]),
@@ -438,9 +438,6 @@ def run(args: argparse.Namespace, console: Console) -> int:
         console.print(
             run_table(f"ceamcl run ({args.algorithm}, seed {args.seed})", outcome.summary)
         )
-        verdict = outcome.summary.get(
-            "verdict", "not scored: the log has no ground truth (see restarts and jumps)"
-        )
-        console.print(Text(f"verdict: {verdict}"))
+        console.print(Text(f"verdict: {outcome.summary['verdict']}"))
         print_written(console, outcome.out_dir, outcome.files)
     return 0
