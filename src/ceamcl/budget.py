@@ -130,6 +130,13 @@ def current() -> Budget:
     return _current
 
 
+def install(budget: Budget) -> None:
+    """Make ``budget`` the one in force in this process from now on (a worker process takes
+    its command's budget so: :mod:`ceamcl.experiments.executors`)."""
+    global _current
+    _current = budget
+
+
 @contextmanager
 def use(budget: Budget) -> Iterator[Budget]:
     """Make ``budget`` the one in force inside the block."""

@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 
 from ceamcl.errors import ConfigError
 from ceamcl.filters import LocalisationFilter, registry
-from ceamcl.io.results import ensure_output_dir, write_json
+from ceamcl.io.results import atomic_write, ensure_output_dir, write_json
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.maps.worlds import get_world
 from ceamcl.motion.odometry import OdometryMotionModel, increment_between
@@ -377,9 +377,10 @@ def plot_soak(report: SoakReport, path: str | os.PathLike[str]) -> Path:
     ax2.set_xlabel("step")
     ax2.set_yscale("log")
     ax2.legend(loc="upper right", fontsize=8)
-    fig.tight_layout()
-    tmp = out.with_name(out.name + ".tmp.png")
-    fig.savefig(tmp, dpi=110)
-    plt.close(fig)
-    os.replace(tmp, out)
+    try:
+        fig.tight_layout()
+        with atomic_write(out, keep_suffix=True) as tmp:  # removed if interrupted
+            fig.savefig(tmp, dpi=110)
+    finally:
+        plt.close(fig)
     return out

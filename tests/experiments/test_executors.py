@@ -54,3 +54,31 @@ def test_unknown_spec_is_a_config_error(spec: str) -> None:
 def test_bad_worker_count_is_a_config_error() -> None:
     with pytest.raises(ConfigError, match="workers"), open_executor("local", workers=0):
         pass
+
+
+def _interrupt() -> None:
+    raise KeyboardInterrupt
+
+
+def test_serial_executor_stops_at_ctrl_c_instead_of_running_every_trial() -> None:
+    """The serial executor stored Ctrl-C (and SIGTERM) in the trial's future and went on with
+    every other trial; only then did the command stop."""
+    ran: list[int] = []
+    with SerialExecutor() as ex, pytest.raises(KeyboardInterrupt):
+        ex.submit(_interrupt)
+        ran.append(1)
+    assert ran == []
+
+
+def test_worker_processes_take_the_commands_memory_budget() -> None:
+    """--memory-budget was set in the command's process only: local and Dask workers used the
+    default, so CEAMCL's initialisation grid (sized by the budget) and its numbers differed."""
+    from ceamcl import budget
+
+    small = budget.Budget(300 * 1024 * 1024)
+    with budget.use(small), open_executor("local", 1) as ex:
+        seen = ex.submit(budget.current).result()
+    assert seen.memory_bytes == small.memory_bytes
+    with budget.use(budget.Budget(600 * 1024 * 1024)), pytest.raises(ConfigError, match="workers"):
+        with open_executor("local", 4):  # 4 x 256 MiB of worker processes
+            pass

@@ -248,3 +248,18 @@ def test_the_console_and_the_markdown_show_the_same_weights() -> None:
     p = PrecisionSummary(1.0, 0.0, 0.266, 0.0, 0.1, 0.1, 0.02, 2.6e5, 1e5)
     assert precision_row(p)[0] == precision_cells(p)[0] == "100% / 27% / 0%"
     assert "truth" in PRECISION_COLUMNS[0] and "at truth" in PRECISION_HEADER[0]
+
+
+def test_an_interrupted_write_leaves_the_old_file_and_no_temporary_one(tmp_path: Path) -> None:
+    """SIGTERM while a table was written left a truncated *.tmp file beside the old one."""
+    from ceamcl.experiments.common import write_csv
+
+    class Interrupting:
+        def __str__(self) -> str:
+            raise KeyboardInterrupt
+
+    path = write_csv(tmp_path / "t.csv", [{"a": 1.0}])
+    with pytest.raises(KeyboardInterrupt):
+        write_csv(path, [{"a": 2.0}, {"a": Interrupting()}])
+    assert _read_csv(path) == [{"a": "1"}]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["t.csv"]

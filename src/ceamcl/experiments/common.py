@@ -21,7 +21,7 @@ from ceamcl.experiments.metrics import CONFIDENT_SHARE, PrecisionSummary
 from ceamcl.experiments.routes import Course
 from ceamcl.experiments.trials import Trial, TrialRecord, localise_trial, run_trial
 from ceamcl.filters import registry
-from ceamcl.io.results import ensure_output_dir, write_json
+from ceamcl.io.results import atomic_write, ensure_output_dir, write_json
 from ceamcl.outputs import OutputOptions, write_outputs
 
 T = TypeVar("T")
@@ -253,14 +253,11 @@ def group_by(items: Iterable[T], key: Callable[[T], Any]) -> dict[Any, list[T]]:
 
 
 # ------------------------------------------------------------------ files
-def _atomic_path(path: Path) -> Path:
-    return path.with_name(path.name + ".tmp")
-
-
 def write_text(path: Path, text: str) -> Path:
-    tmp = _atomic_path(path)
-    tmp.write_text(text)
-    os.replace(tmp, path)
+    """``text`` to ``path`` through a temporary file, removed if interrupted
+    (:func:`ceamcl.io.results.atomic_write`)."""
+    with atomic_write(path) as tmp:
+        tmp.write_text(text)
     return path
 
 
@@ -271,13 +268,11 @@ def write_csv(path: Path, rows: Sequence[Mapping[str, Any]]) -> Path:
         for key in row:
             if key not in fields:
                 fields.append(key)
-    tmp = _atomic_path(path)
-    with tmp.open("w", newline="") as fh:
+    with atomic_write(path) as tmp, tmp.open("w", newline="") as fh:
         writer = csv.DictWriter(fh, fieldnames=fields, restval="")
         writer.writeheader()
         for row in rows:
             writer.writerow({k: _cell(v) for k, v in row.items()})
-    os.replace(tmp, path)
     return path
 
 

@@ -29,12 +29,14 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import signal
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
 from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
+from ceamcl import budget
 from ceamcl.errors import CeamclError, ConfigError
 
 T = TypeVar("T")
@@ -62,9 +64,9 @@ class SerialExecutor(Executor):
         future: Future[R] = Future()
         try:
             result = fn(*args, **kwargs)
-        except BaseException as exc:
+        except Exception as exc:  # a trial's error, read from its future as a pool's would be
             future.set_exception(exc)
-        else:
+        else:  # Ctrl-C and SIGTERM (BaseException) stop the run here, not after every trial
             future.set_result(result)
         return future
 
@@ -72,9 +74,16 @@ class SerialExecutor(Executor):
         self._shutdown = True
 
 
-def _single_threaded_worker() -> None:
+def _single_threaded_worker(memory_bytes: int | None = None) -> None:
     """Worker initialiser: one numba thread per worker process, so ``workers`` processes use
-    ``workers`` cores rather than each spreading its kernels over every core."""
+    ``workers`` cores rather than each spreading its kernels over every core; Ctrl-C ignored
+    (a terminal sends it to the whole process group: the command ends its workers itself, and
+    each printed a traceback); the command's memory budget (``--memory-budget``, which was
+    set in the command's process only, so the executors' numbers differed)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if memory_bytes is not None:
+        os.environ["CEAMCL_MEMORY_BUDGET"] = str(memory_bytes)
+        budget.install(budget.Budget(memory_bytes))
     os.environ["NUMBA_NUM_THREADS"] = "1"
     import sys
 
@@ -82,11 +91,19 @@ def _single_threaded_worker() -> None:
         sys.modules["numba"].set_num_threads(1)
 
 
+#: What a worker process holds (the interpreter, NumPy, SciPy, Numba, a map): about 185 MB
+#: measured; counted against the memory budget before any is started.
+WORKER_BYTES = 256 * 1024 * 1024
+
+
 def _check_workers(workers: int | None) -> int:
+    """The worker count: the CPU count by default; a count asked for is checked against the
+    memory budget (``--workers 64`` started 64 processes of ~185 MB unchecked)."""
     if workers is None:
         return os.cpu_count() or 1
     if workers < 1:
         raise ConfigError(f"workers: expected a positive count, got {workers}")
+    budget.require("--workers", workers, WORKER_BYTES, "worker processes")
     return workers
 
 
@@ -157,7 +174,10 @@ def open_executor(spec: str = "local", workers: int | None = None) -> Iterator[E
         n = _check_workers(workers)
         ctx = multiprocessing.get_context("spawn")
         with ProcessPoolExecutor(
-            max_workers=n, mp_context=ctx, initializer=_single_threaded_worker
+            max_workers=n,
+            mp_context=ctx,
+            initializer=_single_threaded_worker,
+            initargs=(budget.current().memory_bytes,),
         ) as pool:
             try:
                 yield pool
@@ -178,7 +198,7 @@ def open_executor(spec: str = "local", workers: int | None = None) -> Iterator[E
             )
             client = distributed.Client(cluster)
             try:
-                client.run(_single_threaded_worker)
+                client.run(_single_threaded_worker, budget.current().memory_bytes)
                 yield client.get_executor()
             finally:
                 client.close()

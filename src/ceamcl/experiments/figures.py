@@ -18,18 +18,21 @@ from matplotlib.axes import Axes
 from ceamcl.experiments.common import Curve
 from ceamcl.experiments.metrics import POSITION_TOL_M
 from ceamcl.filters import registry
+from ceamcl.io.results import atomic_write
 
 if TYPE_CHECKING:
     from ceamcl.experiments.evaluate_log import Evaluation
 
 
 def _save(fig: plt.Figure, path: str | os.PathLike[str]) -> Path:
+    """The figure to ``path`` through a temporary file, removed if interrupted."""
     out = Path(path)
-    tmp = out.with_name(out.stem + ".tmp" + out.suffix)
-    fig.tight_layout()
-    fig.savefig(tmp, dpi=110)
-    plt.close(fig)
-    os.replace(tmp, out)
+    try:
+        fig.tight_layout()
+        with atomic_write(out, keep_suffix=True) as tmp:
+            fig.savefig(tmp, dpi=110)
+    finally:
+        plt.close(fig)
     return out
 
 
