@@ -272,3 +272,33 @@ def test_sigterm_ends_an_experiment_with_its_workers_and_its_folder(tmp_path: Pa
     assert [line for line in err.splitlines() if line.strip()][-1] == "ceamcl: terminated"
     assert not out.exists(), "the terminated command left its folder behind"
     assert not leftover, "a worker outlived the command"
+
+
+@pytest.mark.parametrize(
+    ("raised", "code", "line"),
+    [
+        ("KeyboardInterrupt", 130, "ceamcl: interrupted"),
+        ("Terminated", 143, "ceamcl: terminated"),
+    ],
+)
+def test_a_signal_while_the_commands_are_imported_is_one_line(
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    raised: str,
+    code: int,
+    line: str,
+) -> None:
+    """Building the parser imports every command (about 2 s): Ctrl-C then ended the process with
+    Python's traceback, SIGTERM without a word."""
+    import ceamcl.cli as cli
+    from ceamcl.cli import interrupt
+
+    exc = KeyboardInterrupt if raised == "KeyboardInterrupt" else interrupt.Terminated
+
+    def interrupted() -> None:
+        raise exc
+
+    monkeypatch.setattr(cli, "build_parser", interrupted)
+    assert cli.main(["demo"]) == code
+    err = capsys.readouterr().err
+    assert err.strip() == line

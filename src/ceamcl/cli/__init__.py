@@ -132,7 +132,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run one command. Bad input: one line on stderr, exit 2. Ctrl-C: one line, exit 130;
     SIGTERM: one line, exit 143. Either way an output folder the command created is removed
     again."""
-    parser = build_parser()
+    # building the parser imports every command (about 2 s): a signal then ended the process
+    # with Python's traceback (Ctrl-C) or without a word (SIGTERM)
+    try:
+        with interrupt.during_setup():
+            parser = build_parser()
+    except interrupt.Terminated:
+        print("ceamcl: terminated", file=sys.stderr)
+        return 143
+    except KeyboardInterrupt:
+        print("ceamcl: interrupted", file=sys.stderr)
+        return 130
     words = list(sys.argv[1:] if argv is None else argv)
     # ROS's own arguments (``ceamcl node --ros-args -p name:=value``) pass through untouched,
     # for the commands that start ROS; any other command refuses them as unknown arguments

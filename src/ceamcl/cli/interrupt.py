@@ -46,6 +46,21 @@ def _terminate(signum: int, frame: FrameType | None) -> None:
     raise Terminated
 
 
+@contextmanager
+def during_setup() -> Iterator[None]:
+    """SIGTERM raises :class:`Terminated` inside the block (the command's set-up, before
+    :func:`guard`), as Ctrl-C raises ``KeyboardInterrupt``; the old handler is put back after.
+    Outside the main thread (a test calling ``main``) nothing changes."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    before = signal.signal(signal.SIGTERM, _terminate)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, before)
+
+
 def _retry() -> None:
     with _lock:
         if _state["active"] and _state["swallowed"]:
