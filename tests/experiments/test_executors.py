@@ -82,3 +82,15 @@ def test_worker_processes_take_the_commands_memory_budget() -> None:
     with budget.use(budget.Budget(600 * 1024 * 1024)), pytest.raises(ConfigError, match="workers"):
         with open_executor("local", 4):  # 4 x 256 MiB of worker processes
             pass
+
+
+def _die(_: int) -> int:
+    import os
+
+    os._exit(9)  # as the out-of-memory killer ends a worker
+
+
+def test_a_worker_that_dies_is_one_line_naming_what_happened() -> None:
+    """A worker killed (out of memory) gave a 23-line BrokenProcessPool traceback."""
+    with open_executor("local", 1) as ex, pytest.raises(TrialError, match="a worker process died"):
+        map_trials(ex, _die, [1, 2], label="trials", quiet=True)

@@ -32,6 +32,7 @@ import os
 import signal
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any, TypeVar
@@ -260,6 +261,14 @@ def map_trials(
                 name = _describe(items[i])
                 if isinstance(exc, CeamclError):
                     raise TrialError(f"trial {name} failed: {exc}") from exc
+                if isinstance(exc, BrokenProcessPool):
+                    # a worker died (killed, out of memory): every pending trial gets this
+                    # error, so the one named is only the first to surface
+                    raise TrialError(
+                        f"{label}: a worker process died while the trials ran (killed, or out "
+                        "of memory? --memory-budget and --workers bound what they may take); "
+                        f"the first trial to report it was {name}"
+                    ) from exc
                 exc.add_note(f"(in trial {name} of {label})")
                 raise exc
             results[i] = future.result()
