@@ -128,6 +128,15 @@ CONSOLE_COLUMNS = 100
 ROS_COMMANDS = ("node", "play")
 
 
+def _stopped(exc: KeyboardInterrupt) -> int:
+    """One line for Ctrl-C (exit 130) or SIGTERM (:class:`interrupt.Terminated`, exit 143)."""
+    if isinstance(exc, interrupt.Terminated):
+        print("ceamcl: terminated", file=sys.stderr)
+        return 143
+    print("ceamcl: interrupted", file=sys.stderr)
+    return 130
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run one command. Bad input: one line on stderr, exit 2. Ctrl-C: one line, exit 130;
     SIGTERM: one line, exit 143. Either way an output folder the command created is removed
@@ -137,12 +146,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         with interrupt.during_setup():
             parser = build_parser()
-    except interrupt.Terminated:
-        print("ceamcl: terminated", file=sys.stderr)
-        return 143
-    except KeyboardInterrupt:
-        print("ceamcl: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:  # Terminated too
+        return _stopped(exc)
     words = list(sys.argv[1:] if argv is None else argv)
     # ROS's own arguments (``ceamcl node --ros-args -p name:=value``) pass through untouched,
     # for the commands that start ROS; any other command refuses them as unknown arguments
@@ -172,12 +177,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except CeamclError as exc:
         print(f"ceamcl: error: {exc}", file=sys.stderr)
         return 2
-    except interrupt.Terminated:
-        print("ceamcl: terminated", file=sys.stderr)
-        return 143
-    except KeyboardInterrupt:
-        print("ceamcl: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:  # Terminated too
+        return _stopped(exc)
     except MemoryError:
         print(
             f"ceamcl: error: out of memory ({limits.describe()}); an input size escaped the "
