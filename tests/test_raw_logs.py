@@ -207,7 +207,7 @@ def test_ceamcl_tracks_intel_through_unmapped_clutter(seed: int) -> None:
     assert window.true_poses is not None
     pace = UpdatePace()
     cfg = with_config("ceamcl", tracking_samples=2000)
-    f = make_paced_filter("ceamcl", grid, filter_rng(seed, 0, "ceamcl"), pace, config=cfg)
+    f = make_paced_filter("ceamcl", grid, filter_rng(seed, 0, "ceamcl"), config=cfg)
     start = (perturbed_start(window.true_poses[0], seed), start_covariance())
     result = run_filter(f, window, update_when=pace.policy(), initial_pose=start)
     errors = result.position_errors
@@ -259,7 +259,7 @@ def test_ceamcl_recovers_near_the_track_after_fr079s_odometry_fault(
     first = int(np.flatnonzero(known)[0])
     pace = UpdatePace()
     cfg = with_config("ceamcl", tracking_samples=2000, look_around_m=None)
-    f = make_paced_filter("ceamcl", grid, filter_rng(seed, 0, "ceamcl"), pace, config=cfg)
+    f = make_paced_filter("ceamcl", grid, filter_rng(seed, 0, "ceamcl"), config=cfg)
     start = (perturbed_start(window.true_poses[first], seed), start_covariance())
     result = run_filter(f, window, update_when=pace.policy(), initial_pose=start)
     errors = result.position_errors
@@ -286,7 +286,7 @@ def _track_fr079(
     assert window.true_poses is not None and np.all(np.isfinite(window.true_poses[0]))
     pace = UpdatePace()
     cfg = with_config("ceamcl", tracking_samples=2000, **settings)
-    f = make_paced_filter("ceamcl", grid, filter_rng(seed, 0, "ceamcl"), pace, config=cfg)
+    f = make_paced_filter("ceamcl", grid, filter_rng(seed, 0, "ceamcl"), config=cfg)
     start = (perturbed_start(window.true_poses[0], seed), start_covariance())
     result = run_filter(f, window, update_when=pace.policy(), initial_pose=start)
     assert result.position_errors is not None
@@ -380,7 +380,7 @@ def _fr079_tracking_errors(
     assert window.true_poses is not None
     pace = UpdatePace()
     cfg = with_config("ceamcl", tracking_samples=samples, **config)
-    f = make_paced_filter("ceamcl", grid, filter_rng(seed, 0, "ceamcl"), pace, config=cfg)
+    f = make_paced_filter("ceamcl", grid, filter_rng(seed, 0, "ceamcl"), config=cfg)
     start = (perturbed_start(window.true_poses[0], seed), start_covariance())
     result = run_filter(f, window, update_when=pace.policy(), initial_pose=start)
     errors = result.position_errors

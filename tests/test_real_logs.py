@@ -227,7 +227,7 @@ def test_the_kidnap_test_reads_the_fittest_individual() -> None:
     runs = {}
     for reads in ("fittest", "mean"):
         cfg = with_config("ceamcl", recovery_reads=reads)
-        f = make_paced_filter("ceamcl", grid, _filter_rng(1, start, "ceamcl"), pace, config=cfg)
+        f = make_paced_filter("ceamcl", grid, _filter_rng(1, start, "ceamcl"), config=cfg)
         runs[reads] = run_filter(f, window, update_when=None if pace is None else pace.policy())
     fired = {
         reads: [k for k, d in enumerate(r.diagnostics) if k > 0 and d.reinitialised]

@@ -103,7 +103,7 @@ def test_every_algorithm_is_stepped_at_the_same_scans(pace: UpdatePace) -> None:
     log = sc.simulate(np.random.default_rng(3), grid)
     flags = {}
     for algo in ("mcl", "gmcl", "kld-amcl", "kld-amcl-recovery", "kld-amcl-tuned"):
-        f = make_paced_filter(algo, grid, np.random.default_rng(4), pace)
+        f = make_paced_filter(algo, grid, np.random.default_rng(4))
         res = run_filter(f, log, update_when=pace.policy())
         flags[algo] = [d.stepped for d in res.diagnostics]
         if algo.startswith("kld-amcl"):
@@ -122,7 +122,7 @@ def test_at_every_scan_kld_amcl_updates_at_every_scan_too() -> None:
     grid = sc.grid()
     log = sc.simulate(np.random.default_rng(3), grid)
     for algo in ("kld-amcl", "kld-amcl-recovery", "kld-amcl-tuned"):
-        f = make_paced_filter(algo, grid, np.random.default_rng(4), None)
+        f = make_paced_filter(algo, grid, np.random.default_rng(4))
         res = run_filter(f, log)
         updated = [d.record.updated for d in res.diagnostics[1:]]  # type: ignore[attr-defined]
         assert all(updated), f"{algo}: {updated.count(False)} of {len(updated)} scans skipped"
@@ -145,7 +145,7 @@ def test_a_paced_ceamcl_runs_species_and_resources_continue_across_held_scans() 
     grid = sc.grid()
     log = sc.simulate(np.random.default_rng(3), grid)
     pace = UpdatePace(0.5, 0.4)
-    f = make_paced_filter("ceamcl", grid, np.random.default_rng(4), pace)
+    f = make_paced_filter("ceamcl", grid, np.random.default_rng(4))
     res = run_filter(f, log, update_when=pace.policy())
     held = [k for k, d in enumerate(res.diagnostics) if not d.stepped]
     assert held
@@ -154,3 +154,14 @@ def test_a_paced_ceamcl_runs_species_and_resources_continue_across_held_scans() 
     assert any(longest.steps[0] < k < longest.steps[-1] for k in held)  # lived across them
     _, resources = series(res)
     assert np.isfinite(resources).all()
+
+
+def test_a_config_given_for_a_replay_loses_its_own_thresholds_too() -> None:
+    """A KLD-AMCL config passed in (a particle count, say) kept its 0.25 m / 0.2 rad: the
+    runner's pace decided for every algorithm but that one."""
+    from ceamcl.filters.registry import with_config
+
+    grid = office_scenario().grid()
+    cfg = with_config("kld-amcl", max_particles=500)
+    f = make_paced_filter("kld-amcl", grid, np.random.default_rng(0), config=cfg)
+    assert (f.config.update_min_d, f.config.update_min_a, f.config.max_particles) == (0.0, 0.0, 500)  # type: ignore[attr-defined]

@@ -56,7 +56,6 @@ from ceamcl.filters.registry import (
     get,
     make_filter,
     sensor_of,
-    with_config,
 )
 from ceamcl.filters.state import summarise_states
 from ceamcl.io.logs import DEFAULT_SYNTHETIC_NOISE, open_log, poses_look_corrected
@@ -267,17 +266,17 @@ def make_paced_filter(
     algorithm: str,
     grid: OccupancyGrid,
     rng: np.random.Generator,
-    pace: UpdatePace | None,
     **kwargs: Any,
 ) -> LocalisationFilter:
     """:func:`ceamcl.filters.registry.make_filter` for a replay, where the runner decides when
-    every algorithm updates (under ``pace``, or at every scan when it is ``None``): an
-    algorithm with update thresholds of its own (KLD-AMCL) gets them at 0. Until 2026-11-29
-    only under a pace, so at "every scan" (``--every-scan``, a corrected log's key scans) the
-    KLD-AMCL variants still skipped the scans their own 0.25 m / 0.2 rad did not reach."""
-    del pace  # the policy is the runner's either way; kept for the callers' clarity
-    if "config" not in kwargs and _holds_thresholds(algorithm):
-        kwargs["config"] = with_config(algorithm, **dict.fromkeys(_OWN_THRESHOLDS, 0.0))
+    every algorithm updates (under a pace, or at every scan): an algorithm with update
+    thresholds of its own (KLD-AMCL and its presets) gets them at 0, in its default config or
+    in the one given. Until 2026-11-29 only under a pace and without a config given, so at
+    "every scan" (``--every-scan``, a corrected log's key scans) the KLD-AMCL variants still
+    skipped the scans their own 0.25 m / 0.2 rad did not reach."""
+    if _holds_thresholds(algorithm):
+        config = kwargs.get("config") or get(algorithm).default()
+        kwargs["config"] = replace(config, **dict.fromkeys(_OWN_THRESHOLDS, 0.0))
     return make_filter(algorithm, grid, rng, **kwargs)
 
 
@@ -324,9 +323,7 @@ def replay_log(
     log = prepared.log
     if on_start is not None:
         on_start(len(log))
-    f = make_paced_filter(
-        algorithm, grid, filter_rng(prepared.seed, 0, algorithm), pace, sensor=sensor
-    )
+    f = make_paced_filter(algorithm, grid, filter_rng(prepared.seed, 0, algorithm), sensor=sensor)
     snapshot_every = outputs.snapshot_every if outputs is not None else 0
     result = run_filter(
         f,

@@ -78,7 +78,7 @@ def test_tracking_weighs_with_the_sensor_model_it_is_given(
     Nav2's ``laser_model_type`` chooses), on the same map, whatever the algorithm's budget."""
     assert sensor in SENSOR_MODELS
     grid = office_scenario().grid()
-    f = tracking_filter(algorithm, grid, np.random.default_rng(0), 200, None, sensor)
+    f = tracking_filter(algorithm, grid, np.random.default_rng(0), 200, sensor)
     assert type(f.sensor) is model  # type: ignore[attr-defined]
     assert f.sensor.grid is grid  # type: ignore[attr-defined]
 

@@ -281,16 +281,15 @@ def _make(
     algorithm: str,
     grid: OccupancyGrid,
     seed: int,
-    pace: UpdatePace | None,
     particles: int | None,
 ) -> LocalisationFilter:
     rng = filter_rng(seed, 0, algorithm)
     if particles is None:
-        return make_paced_filter(algorithm, grid, rng, pace)
+        return make_paced_filter(algorithm, grid, rng)
     if algorithm == "nav2-amcl":  # a fixed count: min = max, as in ``ceamcl bench``
         cfg = registry.with_config(algorithm, min_particles=particles, max_particles=particles)
-        return make_paced_filter(algorithm, grid, rng, pace, config=cfg)
-    return make_paced_filter(algorithm, grid, rng, pace, n_particles=particles)
+        return make_paced_filter(algorithm, grid, rng, config=cfg)
+    return make_paced_filter(algorithm, grid, rng, n_particles=particles)
 
 
 def _rounds(
@@ -315,7 +314,7 @@ def _rounds(
             if r == 0 and done is not None and algo in done:
                 out[algo].append(done[algo])
                 continue
-            f = _make(algo, grid, s.seed, pace, None if algo == "ceamcl" else particles)
+            f = _make(algo, grid, s.seed, None if algo == "ceamcl" else particles)
             out[algo].append(run_filter(f, log, update_when=policy, initial_pose=start))
     return out
 
@@ -345,7 +344,7 @@ def measure_raw_log(name: str, s: RealMapsSettings, tick: Progress) -> list[dict
         tick(f"{name}: tracking ({what}, {s.rounds} rounds)")
         # the peers get CEAMCL's mean sample size of this run (it is the same in every round)
         first_run = run_filter(
-            _make("ceamcl", grid, s.seed, pace, None), log, update_when=policy, initial_pose=start
+            _make("ceamcl", grid, s.seed, None), log, update_when=policy, initial_pose=start
         )
         n = max(1, round(float(np.mean([d.n_particles for d in first_run.diagnostics[1:]]))))
         algos = ["ceamcl", "mcl-tuned"] + (["nav2-amcl"] if nav2 else [])

@@ -99,7 +99,7 @@ class LogTrialResult:
 def run_log_trial(trial: LogTrial) -> LogTrialResult:
     """Run one trial (a top-level function, so any executor can run it)."""
     rng = filter_rng(trial.seed, trial.start_index, trial.algorithm)
-    f = make_paced_filter(trial.algorithm, trial.grid, rng, trial.pace, sensor=trial.sensor)
+    f = make_paced_filter(trial.algorithm, trial.grid, rng, sensor=trial.sensor)
     result = run_filter(
         f, trial.log, update_when=None if trial.pace is None else trial.pace.policy()
     )

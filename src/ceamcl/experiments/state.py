@@ -212,9 +212,7 @@ def run_log_state_trial(trial: LogStateTrial) -> StateRun:
     from ceamcl.replay import filter_rng, make_paced_filter
     from ceamcl.runner import run_filter
 
-    f = make_paced_filter(
-        trial.algorithm, trial.grid, filter_rng(trial.seed, 0, trial.algorithm), trial.pace
-    )
+    f = make_paced_filter(trial.algorithm, trial.grid, filter_rng(trial.seed, 0, trial.algorithm))
     result = run_filter(
         f, trial.log, update_when=None if trial.pace is None else trial.pace.policy()
     )

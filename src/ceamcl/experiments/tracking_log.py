@@ -80,17 +80,16 @@ def tracking_filter(
     grid: OccupancyGrid,
     rng: np.random.Generator,
     particles: int,
-    pace: UpdatePace | None,
     sensor: str = DEFAULT_SENSOR,
 ) -> LocalisationFilter:
     """The filter with the particle budget ``particles``: through the registry's budget where
     the algorithm has one, and as the size of CEAMCL's tracking species; ``sensor`` names
     the sensor model (the Nav2 peer keeps the wheel's beam model)."""
     if get(algorithm).with_particles is not None:
-        return make_paced_filter(algorithm, grid, rng, pace, n_particles=particles, sensor=sensor)
+        return make_paced_filter(algorithm, grid, rng, n_particles=particles, sensor=sensor)
     if algorithm == "ceamcl":
         cfg = with_config("ceamcl", tracking_samples=particles)
-        return make_paced_filter(algorithm, grid, rng, pace, config=cfg, sensor=sensor)
+        return make_paced_filter(algorithm, grid, rng, config=cfg, sensor=sensor)
     raise ConfigError(f"tracking: {algorithm} has no particle budget to set")
 
 
@@ -136,7 +135,7 @@ def run_tracking_trial(trial: TrackingTrial) -> TrackingResult:
     """One algorithm over the whole log from the perturbed start (a top-level function, so any
     executor can run it)."""
     rng = filter_rng(trial.seed, 0, trial.algorithm)
-    f = tracking_filter(trial.algorithm, trial.grid, rng, trial.particles, trial.pace, trial.sensor)
+    f = tracking_filter(trial.algorithm, trial.grid, rng, trial.particles, trial.sensor)
     result = run_filter(
         f,
         trial.log,
