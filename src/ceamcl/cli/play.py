@@ -21,6 +21,7 @@ from ceamcl.cli.run import (
     add_log_arguments,
     add_map_arguments,
     add_truth_arguments,
+    check_truth_from,
     log_path,
     map_resolution,
     open_kwargs,
@@ -79,12 +80,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 def truth_mode(args: argparse.Namespace) -> str:
     """``--truth``, with ``--synthetic-odometry`` as ``--truth yes``; conflicts refused."""
-    if args.truth_from is not None and (args.truth != "auto" or args.synthetic_odometry):
-        given = "--synthetic-odometry" if args.synthetic_odometry else f"--truth {args.truth}"
-        raise ConfigError(
-            f"truth: {given} has no effect with --truth-from, whose corrected log is the truth; "
-            "expected one of them"
-        )
+    given = None if args.truth == "auto" else f"--truth {args.truth}"
+    check_truth_from(args.truth_from, "--synthetic-odometry" if args.synthetic_odometry else given)
     if args.synthetic_odometry:
         if args.truth == "no":
             raise ConfigError(

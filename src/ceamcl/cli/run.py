@@ -253,10 +253,16 @@ def check_log_arguments(args: argparse.Namespace) -> None:
     """Refuse, before the log is read, the combinations of ``run`` and ``evaluate-log`` options
     one of which would be ignored or refused only after the work of reading it."""
     check_pace(args.update_min_d, args.update_min_a, every_scan=args.every_scan)
-    if args.truth_from is not None and args.truth != "auto":
+    check_truth_from(args.truth_from, None if args.truth == "auto" else f"--truth {args.truth}")
+
+
+def check_truth_from(truth_from: str | None, truth_option: str | None) -> None:
+    """Refuse a truth option (``truth_option``: as given, e.g. ``--truth no``) beside
+    ``--truth-from``, whose corrected log is the truth (``run``, ``evaluate-log``, ``play``)."""
+    if truth_from is not None and truth_option is not None:
         raise ConfigError(
-            f"truth: --truth {args.truth} has no effect with --truth-from, whose corrected log "
-            "is the truth; expected one of them"
+            f"truth: {truth_option} has no effect with --truth-from, whose corrected log is the "
+            "truth; expected one of them"
         )
 
 
