@@ -52,15 +52,23 @@ class _Loader(yaml.SafeLoader):
 _Loader.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT_12, list("-+0123456789."))
 
 
+def yaml_problem(exc: yaml.YAMLError) -> tuple[int | None, str]:
+    """The line (1-based, ``None`` if unknown) and the one-line problem of a YAML error
+    (PyYAML's own text draws the line with a caret over several lines)."""
+    mark = getattr(exc, "problem_mark", None)
+    problem = getattr(exc, "problem", None) or " ".join(str(exc).split())
+    return (None if mark is None else mark.line + 1), problem
+
+
 def load_yaml_text(text: str, where: str, error: type[CeamclError] = ConfigError) -> Any:
     """Parse ``text`` (from ``where``, a file name for messages)."""
     try:
         return yaml.load(text, Loader=_Loader)
     except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        line = f":{mark.line + 1}" if mark is not None else ""
-        problem = getattr(exc, "problem", None) or " ".join(str(exc).split())
-        raise error(f"{where}{line}: not valid YAML: {problem}") from None
+        line, problem = yaml_problem(exc)
+        raise error(
+            f"{where}{'' if line is None else f':{line}'}: not valid YAML: {problem}"
+        ) from None
     except RecursionError:
         raise error(f"{where}: not valid YAML: nested too deeply") from None
 

@@ -23,6 +23,7 @@ import yaml
 
 from ceamcl.errors import ConfigError
 from ceamcl.filters import registry
+from ceamcl.io.safe_yaml import yaml_problem
 from ceamcl.sensors.beam_model import BeamModelConfig
 from ceamcl.sensors.likelihood_field import LikelihoodFieldConfig
 
@@ -155,10 +156,9 @@ def load_yaml(path: str | Path, node_name: str = "amcl") -> dict[str, Any]:
     except OSError as exc:
         raise ConfigError(f"{p}: cannot read the parameter file ({exc.strerror})") from None
     except yaml.YAMLError as exc:  # one line: where, and what the parser found
-        mark = getattr(exc, "problem_mark", None)
-        line = f" (line {mark.line + 1})" if mark is not None else ""
-        problem = getattr(exc, "problem", None) or " ".join(str(exc).split())
-        raise ConfigError(f"{p}: not a YAML file{line}: {problem}") from None
+        line, problem = yaml_problem(exc)
+        at = "" if line is None else f" (line {line})"
+        raise ConfigError(f"{p}: not a YAML file{at}: {problem}") from None
     if not isinstance(doc, Mapping):
         raise ConfigError(f"{p}: expected a mapping of node names to ros__parameters")
     out: dict[str, Any] = {}
