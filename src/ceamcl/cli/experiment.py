@@ -439,15 +439,13 @@ def _run_tuning(
     run again with the same --out and protocol (course, routes, --seed, --trials, --max-time:
     :func:`ceamcl.experiments.tuning.protocol_key`) goes on where it stopped."""
     partial = tuning.partial_path(args.out, settings)
-    done = tuning.read_tuning_csv(partial) if partial.exists() else []
-    result = tuning.run_tuning(
+    return tuning.run_tuning(
         settings,
         _tuning_grid(args),
         progress=progress,
-        done=done,
+        done=tuning.read_partial(args.out, settings),
         on_row=lambda row: tuning.append_row(partial, row),
     )
-    return result
 
 
 def _tuning_runs(settings: ExperimentSettings, args: argparse.Namespace) -> int:
@@ -456,11 +454,8 @@ def _tuning_runs(settings: ExperimentSettings, args: argparse.Namespace) -> int:
     cands = tuning.candidates(
         [a for a in settings.algorithms if a in tuning.BASELINES], _tuning_grid(args)
     )
-    per = len(settings.course.routes) * settings.trials
-    partial = tuning.partial_path(args.out, settings)
-    done = tuning.read_tuning_csv(partial) if partial.exists() else []
-    finished = {r.candidate for r in done if r.runs == per}  # resumed, not run again
-    return sum(c not in finished for c in cands) * per
+    finished = tuning.finished_rows(tuning.read_partial(args.out, settings), settings)
+    return sum(c not in finished for c in cands) * len(settings.course.routes) * settings.trials
 
 
 #: The experiments, in the order ``--help`` lists them. Adding one: its module under

@@ -255,7 +255,7 @@ def run_tuning(
     if not algorithms:
         raise ConfigError(f"algorithms: the tuning sweep tunes {', '.join(BASELINES)}")
     per = len(settings.course.routes) * settings.trials
-    finished = {r.candidate: r for r in done if r.runs == per}
+    finished = finished_rows(done, settings)
     cands = candidates(algorithms, grid)
     todo = [c for c in cands if c not in finished]
     total = len(todo) * per
@@ -390,6 +390,18 @@ def partial_path(out: str | os.PathLike[str], settings: ExperimentSettings) -> P
     return Path(out) / (
         f"tuning-partial-seed{settings.seed}-trials{settings.trials}-{protocol_key(settings)}.csv"
     )
+
+
+def read_partial(out: str | os.PathLike[str], settings: ExperimentSettings) -> list[TuningRow]:
+    """The rows an interrupted sweep of this protocol left in ``out`` (none: a new sweep)."""
+    partial = partial_path(out, settings)
+    return read_tuning_csv(partial) if partial.exists() else []
+
+
+def finished_rows(done: Sequence[TuningRow], settings: ExperimentSettings) -> dict[Any, TuningRow]:
+    """The configurations of ``done`` whose every run finished (resumed, not run again)."""
+    per = len(settings.course.routes) * settings.trials
+    return {r.candidate: r for r in done if r.runs == per}
 
 
 def append_row(path: Path, row: TuningRow) -> None:
