@@ -75,16 +75,14 @@ class SerialExecutor(Executor):
         self._shutdown = True
 
 
-def _single_threaded_worker(memory_bytes: int | None = None) -> None:
+def _single_threaded_worker(memory_bytes: int) -> None:
     """Worker initialiser: one numba thread per worker process, so ``workers`` processes use
     ``workers`` cores rather than each spreading its kernels over every core; Ctrl-C ignored
     (a terminal sends it to the whole process group: the command ends its workers itself, and
     each printed a traceback); the command's memory budget (``--memory-budget``, which was
     set in the command's process only, so the executors' numbers differed)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    if memory_bytes is not None:
-        os.environ["CEAMCL_MEMORY_BUDGET"] = str(memory_bytes)
-        budget.install(budget.Budget(memory_bytes))
+    budget.install(budget.Budget(memory_bytes))
     os.environ["NUMBA_NUM_THREADS"] = "1"
     import sys
 
