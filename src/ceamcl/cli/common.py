@@ -101,6 +101,20 @@ def require_available(algorithm: str) -> None:
         raise ConfigError(f"algorithm: {algorithm} cannot run here: {reason}")
 
 
+def algorithm_names(values: Sequence[str] | None) -> list[str] | None:
+    """``--algorithms`` as given (space- or comma-separated) as a list of names; ``None`` when
+    the option was left out (every algorithm); an empty list is refused."""
+    if values is None:
+        return None
+    names = [n for v in values for n in (p.strip() for p in v.split(",")) if n]
+    if not names:
+        raise ConfigError(
+            f"algorithms: expected one or more algorithm names, got {list(values)!r} "
+            "(leave --algorithms out to run all)"
+        )
+    return names
+
+
 def check_particles(count: int | None, algorithm: str | None = None) -> None:
     """Refuse a ``--particles`` count beyond the memory budget, before any filter is built;
     with ``algorithm``, refuse one for an algorithm that sizes itself (CEAMCL: eq. 16), which

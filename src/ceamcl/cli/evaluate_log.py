@@ -10,6 +10,7 @@ from rich.console import Console
 from ceamcl import budget
 from ceamcl.cli.common import (
     TrialsProgress,
+    algorithm_names,
     check_particles,
     plain_table,
     plural,
@@ -165,10 +166,7 @@ def _check_mode(args: argparse.Namespace) -> None:
 
 def run(args: argparse.Namespace, console: Console) -> int:
     _check_mode(args)
-    wanted = None
-    if args.algorithms is not None:
-        wanted = [n.strip() for a in args.algorithms for n in a.split(",") if n.strip()]
-    algos, skipped = registry.resolve(wanted)
+    algos, skipped = registry.resolve(algorithm_names(args.algorithms))
     if not algos:
         raise ConfigError("algorithms: none of the chosen algorithms can run here")
     starts = DEFAULT_STARTS if args.starts is None else args.starts

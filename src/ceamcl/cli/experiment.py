@@ -21,6 +21,7 @@ from ceamcl.cli.common import (
     RunProgress,
     TrialsProgress,
     add_output_arguments,
+    algorithm_names,
     make_progress,
     non_negative_int,
     plain_table,
@@ -655,14 +656,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 
 def _settings(args: argparse.Namespace, console: Console) -> ExperimentSettings:
-    names = None
-    if args.algorithms is not None:
-        names = [n for a in args.algorithms for n in _names(a)]
-        if not names:
-            raise ConfigError(
-                f"algorithms: expected one or more algorithm names, got {args.algorithms!r} "
-                "(leave --algorithms out to run all)"
-            )
+    names = algorithm_names(args.algorithms)
     if args.starts_count is not None:
         raise ConfigError(
             f"starts: --starts {args.starts_count} is evaluate-log's count of start points; an "
