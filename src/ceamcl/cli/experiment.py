@@ -61,14 +61,13 @@ class Experiment:
 
     ``run(settings, args, progress)`` returns the experiment's result (with ``.records``);
     ``table(result)`` is the table printed; ``write(result, out, meta)`` writes its files.
-    ``repeats(args)``: runs per trial (the delta experiment runs every trial once per delta;
-    the tuning sweep once per configuration, ``count`` gives its exact number of runs);
+    ``repeats(args)``: runs per trial (the delta experiment runs every trial once per delta);
     ``algorithms``: a fixed set of algorithms, or ``None`` for the registry's.
     ``default_algorithms``: what runs without ``--algorithms`` (``None``: every algorithm).
     ``default_seed``: the base seed without ``--seed``.
-    ``routes(settings, args)``: the routes one algorithm runs per trial, when the experiment
-    runs more than the settings' course (the state experiment's three scenarios), and
-    ``where(args)`` names them.
+    ``count(settings, args)``: the exact number of runs where it is not algorithms x routes x
+    trials x repeats (the tuning sweep; the state experiment's three scenarios and real logs),
+    and ``where(args)`` names what it runs on.
     ``visuals``: whether its result keeps trial records to run again for the visual outputs
     (``--gif``, ``--mp4``, ``--report``, ``--mcap``); without, those flags are refused before
     any trial runs.
@@ -85,7 +84,6 @@ class Experiment:
     default_algorithms: tuple[str, ...] | None = None
     default_seed: int = 0
     count: Callable[[ExperimentSettings, argparse.Namespace], int] | None = None
-    routes: Callable[[ExperimentSettings, argparse.Namespace], int] | None = None
     where: Callable[[argparse.Namespace], str] | None = None
     visuals: bool = True
 
@@ -525,7 +523,6 @@ EXPERIMENTS: dict[str, Experiment] = {
         state_experiment.write_state,
         default_algorithms=state_experiment.DEFAULT_ALGORITHMS,
         visuals=False,  # its runs keep their states, not their particles
-        routes=lambda settings, args: sum(len(c.routes) for c in _state_courses(args)),
         count=_state_runs,
         where=lambda args: ", ".join(c.name for c in _state_courses(args)),
     ),
@@ -712,16 +709,12 @@ def run(args: argparse.Namespace, console: Console) -> int:
             "not runs to draw; expected none of these flags (ceamcl experiment table1, marked, "
             "delta and kidnapped draw their first run of each algorithm)"
         )
-    routes = (
-        len(settings.course.routes)
-        if experiment.routes is None
-        else experiment.routes(settings, args)
-    )
-    runs = len(settings.algorithms) * routes * settings.trials
     place = settings.course.name if experiment.where is None else experiment.where(args)
-    runs *= experiment.repeats(args)
     if experiment.count is not None:
         runs = experiment.count(settings, args)
+    else:
+        runs = len(settings.algorithms) * len(settings.course.routes) * settings.trials
+        runs *= experiment.repeats(args)
     budget.require("--trials x routes x algorithms", runs, RUN_BYTES, "runs")
     ensure_output_dir(args.out)  # fail on an unwritable folder before hours of trials
     if not args.quiet:
