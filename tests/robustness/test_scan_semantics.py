@@ -76,6 +76,10 @@ def test_scan_with_bad_limits_is_a_project_error() -> None:
         LaserScan(np.ones(3), 0.0, float("nan"), 0.0, 4.0)
     with pytest.raises(CeamclError, match="ranges"):
         LaserScan(np.array(["a", "b"]), 0.0, 0.1, 0.0, 4.0)
+    # a 2-D array is not read as one scan of twice the beams at the wrong bearings
+    with pytest.raises(CeamclError, match=r"ranges: expected a 1-D .* shape \(181, 2\)"):
+        LaserScan(np.ones((181, 2)), 0.0, 0.1, 0.0, 4.0)
+    assert LaserScan(2.0, 0.0, 0.1, 0.0, 4.0).n_beams == 1  # one number is one reading
 
 
 NO_INFORMATION = {

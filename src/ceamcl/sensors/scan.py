@@ -52,9 +52,14 @@ class LaserScan:
 
     def __post_init__(self) -> None:
         try:
-            r = np.asarray(self.ranges, dtype=np.float64).reshape(-1)
+            r = np.asarray(self.ranges, dtype=np.float64)
         except (TypeError, ValueError):
             raise LogFormatError("scan: ranges: expected a sequence of numbers") from None
+        if r.ndim > 1:  # flattened, its beams would land at the wrong bearings
+            raise LogFormatError(
+                f"scan: ranges: expected a 1-D sequence of numbers, got shape {r.shape}"
+            )
+        r = r.reshape(-1)
         object.__setattr__(self, "ranges", r)
         if not (np.isfinite(self.range_max) and self.range_max > 0):
             raise LogFormatError(
