@@ -522,3 +522,24 @@ def test_evaluate_log_takes_comma_separated_algorithms_as_experiment_does(
     assert main([*args, "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert "unknown algorithm 'ekf'" in err and "missing.log" not in err
+
+
+def test_a_missing_tf2_msgs_says_how_to_build_it(monkeypatch: pytest.MonkeyPatch) -> None:
+    # 'ceamcl[ros]' from PyPI has rclpy but no tf2_msgs (no wheel ships it): the error must not
+    # tell the user to install what is installed (docs/ros.md).
+    from ceamcl.cli import node
+    from ceamcl.errors import CeamclError
+
+    def missing(name: str) -> None:
+        raise ModuleNotFoundError("No module named 'tf2_msgs'", name="tf2_msgs")
+
+    monkeypatch.setattr(node, "import_module", missing)
+    with pytest.raises(CeamclError, match=r"tf2_msgs, which has no wheel on PyPI.*build-tf2-msgs"):
+        node.import_ros("node", "node")
+
+    def no_rclpy(name: str) -> None:
+        raise ModuleNotFoundError("No module named 'rclpy'", name="rclpy")
+
+    monkeypatch.setattr(node, "import_module", no_rclpy)
+    with pytest.raises(CeamclError, match=r"install 'ceamcl\[ros\]'"):
+        node.import_ros("play", "play")

@@ -37,6 +37,13 @@ def import_ros(module: str, command: str) -> ModuleType:
     try:
         return import_module(f"ceamcl.ros.{module}")
     except ImportError as exc:
+        if exc.name == "tf2_msgs":
+            raise CeamclError(
+                f"ceamcl {command} needs tf2_msgs, which has no wheel on PyPI: build it into "
+                "this environment with ros/build-tf2-msgs.sh from ceamcl's source (needs "
+                "'ceamcl[ros-build]', cmake and a C compiler; `make` does it) or source a "
+                "ROS 2 installation (docs/ros.md)"
+            ) from None
         raise CeamclError(
             f"ceamcl {command} needs ROS 2 (rclpy and the message packages): install "
             f"'ceamcl[ros]' or source a ROS 2 installation ({exc})"
