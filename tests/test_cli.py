@@ -120,6 +120,26 @@ def test_world_export_loads_back_equal(tmp_path: Path, fmt: str) -> None:
     assert load_map(target) == get_world("symmetric-hall")
 
 
+def test_printed_paths_and_reasons_keep_their_brackets(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Rich reads "[peers]" as markup and drops it: the install hint lost its extra and paths
+    # their folder names.
+    from ceamcl.filters import registry
+
+    target = tmp_path / "br[peers]" / "m.yaml"
+    assert main(["world", "small-office", "-o", str(target)]) == 0
+    assert str(target) in capsys.readouterr().out.replace("\n", "")
+    monkeypatch.setattr(
+        registry,
+        "unavailable_reason",
+        lambda name: "not installed (pip install 'ceamcl[peers]')" if name == "nav2-amcl" else None,
+    )
+    argv = ["experiment", "table1", "--trials", "1", "--algorithms", "nav2-amcl"]
+    assert main([*argv, "--out", str(tmp_path / "x")]) == 2
+    assert "pip install 'ceamcl[peers]'" in capsys.readouterr().out
+
+
 def test_world_list(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["world", "--list"]) == 0
     out = capsys.readouterr().out

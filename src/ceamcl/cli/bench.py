@@ -97,7 +97,7 @@ def run_ros_latency(args: argparse.Namespace, console: Console) -> int:
             f"{r['algorithm']:>10} {size:>15}: p50 {r['p50_ms']:6.2f} ms  p95 {r['p95_ms']:6.2f}"
             f" ms  max {r['max_ms']:7.2f} ms  ({r['scans']} scans) {verdict}"
         )
-    console.print(f"wrote {path}")
+    console.print(f"wrote {path}", markup=False)
     return 0
 
 
@@ -149,7 +149,7 @@ def _with_progress(
 def _print_targets(console: Console, targets: list[dict[str, Any]]) -> None:
     for t in targets:
         value = "-" if t["value"] is None else f"{t['value']:.2f}"
-        console.print(f"{target_verdict(t):>12}  {t['target']}: {value}")
+        console.print(f"{target_verdict(t):>12}  {t['target']}: {value}", markup=False)
 
 
 def run(args: argparse.Namespace, console: Console) -> int:
@@ -175,5 +175,5 @@ def run(args: argparse.Namespace, console: Console) -> int:
     )
     js, md = write_report(result, out)
     _print_targets(console, result["targets"])
-    console.print(f"wrote {js} and {md}")
+    console.print(f"wrote {js} and {md}", markup=False)
     return 0

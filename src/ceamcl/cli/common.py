@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import (
     BarColumn,
     MofNCompleteColumn,
@@ -225,9 +226,9 @@ def summary_table(title: str, summary: Mapping[str, Any], keys: Iterable[str]) -
 
 def print_written(console: Console, out_dir: Path | None, files: Iterable[Path]) -> None:
     """Where a run's results went, and its visual outputs."""
-    console.print(f"results written to [bold]{out_dir}[/]")
+    console.print(f"results written to [bold]{escape(str(out_dir))}[/]")
     for path in files:
-        console.print(f"  {path}")
+        console.print(f"  {path}", markup=False)
 
 
 def add_output_arguments(

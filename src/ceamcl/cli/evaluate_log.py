@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 
 from rich.console import Console
+from rich.markup import escape
 
 from ceamcl import budget
 from ceamcl.cli.common import (
@@ -175,15 +176,15 @@ def run(args: argparse.Namespace, console: Console) -> int:
     prepared, grid, map_source, pace = open_inputs(args)
     doubt = truth_doubt(prepared, grid)
     if not args.quiet:
-        console.print(f"map: {map_source}")
+        console.print(f"map: {map_source}", markup=False)
         print_truth(console, prepared, doubt)
         console.print(
             f"filter updates (every algorithm): {'every scan' if pace is None else pace.describe()}"
         )
-        console.print(f"sensor model: {registry.describe_sensor(args.sensor)}")
+        console.print(f"sensor model: {registry.describe_sensor(args.sensor)}", markup=False)
         print_sensor_note(console, args.sensor, algos)
         for name, why in skipped.items():
-            console.print(f"[yellow]{name} skipped[/]: {why}")
+            console.print(f"[yellow]{name} skipped[/]: {escape(why)}")
     if args.tracking:
         return run_tracking(args, console, prepared, grid, map_source, algos, skipped, pace, doubt)
     with TrialsProgress(console, quiet=args.quiet) as progress:
@@ -247,7 +248,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
         console.print(plain_table(title, header, rows))
         for note in registry.global_notes(row["algorithm"] for row in ev.table):
             console.print(note, highlight=False)
-        console.print(f"results written to [bold]{ev.out_dir}[/]")
+        console.print(f"results written to [bold]{escape(str(ev.out_dir))}[/]")
     return 0
 
 
@@ -311,5 +312,5 @@ def run_tracking(
         )
         console.print(plain_table(title, accuracy, acc_rows))
         console.print(plain_table("heading, calibration and cost", cost, cost_rows))
-        console.print(f"results written to [bold]{tr.out_dir}[/]")
+        console.print(f"results written to [bold]{escape(str(tr.out_dir))}[/]")
     return 0

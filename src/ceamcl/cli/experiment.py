@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from rich.console import Console, Group, RenderableType
+from rich.markup import escape
 from rich.table import Table
 from rich.text import Text
 
@@ -679,7 +680,7 @@ def _settings(args: argparse.Namespace, console: Console) -> ExperimentSettings:
         wanted = names if names is not None else EXPERIMENTS[args.experiment].default_algorithms
         algorithms, skipped = registry.resolve(wanted)
     for alg, reason in skipped.items():
-        console.print(f"[yellow]skipping {alg}[/]: {reason}")
+        console.print(f"[yellow]skipping {alg}[/]: {escape(reason)}")
     if not algorithms:
         raise ConfigError("algorithms: nothing left to run")
     return ExperimentSettings(

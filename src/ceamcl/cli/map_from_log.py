@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from rich.console import Console
+from rich.markup import escape
 
 from ceamcl.cli.common import laser_mount, positive_float, positive_int
 from ceamcl.cli.run import add_log_arguments, log_path, open_kwargs
@@ -75,5 +76,5 @@ def run(args: argparse.Namespace, console: Console) -> int:
             f" -> {grid.width} x {grid.height} cells ({w:.1f} x {h:.1f} m), "
             f"{stats.free_area_m2:.0f} m^2 free, {stats.cells_occupied} occupied cells"
         )
-        console.print(f"map written to [bold]{out}[/]")
+        console.print(f"map written to [bold]{escape(str(out))}[/]")
     return 0

@@ -119,8 +119,10 @@ def run(args: argparse.Namespace, console: Console) -> int:
     )
     physical_warnings(log, grid, args.map or f"the map built from {prepared.map_log.path}")
     if not args.quiet:
-        console.print(f"truth: {prepared.truth_reason}; odometry: {prepared.odometry}")
-        console.print(f"map: {map_source}")
+        console.print(
+            f"truth: {prepared.truth_reason}; odometry: {prepared.odometry}", markup=False
+        )
+        console.print(f"map: {map_source}", markup=False)
     frames = ros_play.Frames(args.map_frame, args.odom_frame, args.base_frame, args.laser_frame)
     progress = make_progress(f"[bold]play[/] {log.name}", console, quiet=args.quiet)
     with progress:

@@ -291,7 +291,7 @@ def truth_doubt(prepared: Any, grid: OccupancyGrid) -> TruthDoubt | None:
 def print_truth(console: Console, prepared: Any, doubt: TruthDoubt | None = None) -> None:
     """What was decided about ground truth and odometry, and repaired scan times; with
     ``doubt`` (:func:`truth_doubt`), how well the truth explains its scans on the map."""
-    console.print(f"ground truth: {prepared.truth_reason}")
+    console.print(f"ground truth: {prepared.truth_reason}", markup=False)
     if doubt is not None:
         console.print(doubt.summary())
     if not prepared.has_truth:
@@ -410,10 +410,12 @@ def run(args: argparse.Namespace, console: Console) -> int:
     prepared, grid, map_source, pace = open_inputs(args)
     doubt = truth_doubt(prepared, grid)
     if not args.quiet:
-        console.print(f"map: {map_source}")
+        console.print(f"map: {map_source}", markup=False)
         print_truth(console, prepared, doubt)
         console.print(f"filter updates: {'every scan' if pace is None else pace.describe()}")
-        console.print(f"sensor model: {registry.sensor_of(args.algorithm, args.sensor)}")
+        console.print(
+            f"sensor model: {registry.sensor_of(args.algorithm, args.sensor)}", markup=False
+        )
         print_sensor_note(console, args.sensor, [args.algorithm])
         if prepared.noise is not None:
             n = prepared.noise

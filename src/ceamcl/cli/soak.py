@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from ceamcl.cli.common import (
@@ -121,7 +122,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
         for key, value in rows:
             table.add_row(key, value)
         console.print(table)
-        console.print(f"results written to [bold]{paths[0].parent}[/]")
+        console.print(f"results written to [bold]{escape(str(paths[0].parent))}[/]")
     if not report.passed:
         reasons = []
         if not report.memory_flat:
@@ -135,6 +136,6 @@ def run(args: argparse.Namespace, console: Console) -> int:
             )
         if report.nonfinite_estimates:
             reasons.append(f"{report.nonfinite_estimates} estimates were NaN or infinite")
-        console.print(f"[bold red]soak failed[/]: {'; '.join(reasons)}")
+        console.print(f"[bold red]soak failed[/]: {escape('; '.join(reasons))}")
         return 1
     return 0

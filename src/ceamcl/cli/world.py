@@ -32,10 +32,10 @@ def run(args: argparse.Namespace, console: Console) -> int:
                 + " (ceamcl world --list lists them)"
             )
         for name, desc in describe_worlds().items():
-            console.print(f"{name:16s} {desc}")
+            console.print(f"{name:16s} {desc}", markup=False)
         return 0
     if not args.output:
         raise ConfigError("world: -o/--output MAP.yaml is required to export a world")
     path = save_map(get_world(args.name), args.output, image_format=args.format)
-    console.print(f"wrote {path}")
+    console.print(f"wrote {path}", markup=False)
     return 0
