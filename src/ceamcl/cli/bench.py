@@ -11,7 +11,7 @@ from typing import Any
 from rich.console import Console
 
 from ceamcl import peers
-from ceamcl.bench import BenchSettings, real_maps, run_bench, write_report
+from ceamcl.bench import BenchSettings, run_bench, write_report
 from ceamcl.bench.report import target_verdict
 from ceamcl.cli.common import make_progress
 from ceamcl.errors import ConfigError
@@ -102,6 +102,8 @@ def run_ros_latency(args: argparse.Namespace, console: Console) -> int:
 
 
 def run_real_maps(args: argparse.Namespace, console: Console) -> int:
+    from ceamcl.bench import real_maps  # matplotlib: not for `ceamcl --help` (architecture.md)
+
     data = Path(args.data) if args.data is not None else real_maps.DEFAULT_DATA
     settings = (
         real_maps.RealMapsSettings.quick_run(data)
