@@ -133,9 +133,32 @@ def test_increment_between_round_trips_through_apply_increment() -> None:
         if inc.trans >= MIN_TRANSLATION_FOR_ROT1_M:
             np.testing.assert_allclose(back[:2], b[i, :2], atol=1e-9)
         else:
-            # Under 1 cm rot1 is taken as 0: position lands within the translation length.
-            assert inc.rot1 == 0.0
-            assert np.hypot(*(back[:2] - b[i, :2])) <= 2 * inc.trans + 1e-12
+            # Under 1 cm the robot moves only forwards or backwards, as the displacement along
+            # its old heading says: the position lands within sqrt(2) of the length, on the
+            # right side of the start.
+            assert inc.rot1 in (0.0, np.pi)
+            assert np.hypot(*(back[:2] - b[i, :2])) <= np.sqrt(2) * inc.trans + 1e-12
+            heading = np.array([np.cos(a[i, 2]), np.sin(a[i, 2])])
+            assert (back[:2] - a[i, :2]) @ heading * (step[i] @ heading) >= 0.0
+
+
+def test_a_robot_backing_up_in_steps_under_a_centimetre_ends_behind_its_start() -> None:
+    # Odometry read at every scan of a slowly reversing robot: 200 steps of 5 mm straight back
+    # at heading 0.3 rad. Re-integrating the increments ends where the odometry does (a rot1 of
+    # 0 for short steps carried it 1 m forwards instead).
+    heading = np.array([np.cos(0.3), np.sin(0.3)])
+    poses = np.array([[*(-0.005 * k * heading), 0.3] for k in range(201)])
+    here = poses[0]
+    for k in range(1, len(poses)):
+        inc = increment_between(poses[k - 1], poses[k])
+        assert inc.rot1 == np.pi and inc.trans == pytest.approx(0.005)
+        here = apply_increment(here, inc.rot1, inc.trans, inc.rot2)[0]
+    np.testing.assert_allclose(here, poses[-1], atol=1e-9)
+    # the noise of a reversing step is a straight step's: pi is no turn (module docstring)
+    forward = increment_between(poses[1], poses[0])
+    assert increment_between(poses[0], poses[1]).variances(NOISE) == pytest.approx(
+        forward.variances(NOISE)
+    )
 
 
 def test_zero_motion_is_zero_increment_and_adds_no_noise() -> None:

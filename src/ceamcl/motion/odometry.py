@@ -10,8 +10,11 @@ component is perturbed by zero-mean Gaussian noise whose *variance* is
     rot2:  alpha1 * rot2^2 + alpha2 * trans^2
 
 As in ROS amcl's differential model, the rotation noise uses the smaller of ``rot1`` and
-``rot1 - pi`` (a robot driving backwards has not really turned by pi), and ``rot1`` is taken
-as 0 for translations under 1 cm, where the direction of travel is meaningless.
+``rot1 - pi`` (a robot driving backwards has not really turned by pi), and for translations
+under 1 cm, where the direction of travel is meaningless, ``rot1`` is taken as 0 (forwards) or
+pi (backwards) by the sign of the displacement along the old heading: a reversing robot whose
+odometry is read at every scan moves in steps that small, and a ``rot1`` of 0 would carry it
+forwards by as much as it backed up.
 """
 
 from __future__ import annotations
@@ -78,7 +81,10 @@ def increment_between(previous: ArrayLike, current: ArrayLike) -> OdometryIncrem
     c = np.asarray(current, dtype=np.float64)
     dx, dy = c[0] - p[0], c[1] - p[1]
     trans = float(np.hypot(dx, dy))
-    rot1 = 0.0 if trans < MIN_TRANSLATION_FOR_ROT1_M else float(diff(np.arctan2(dy, dx), p[2]))
+    if trans >= MIN_TRANSLATION_FOR_ROT1_M:
+        rot1 = float(diff(np.arctan2(dy, dx), p[2]))
+    else:  # only forwards or backwards (module docstring)
+        rot1 = np.pi if dx * np.cos(p[2]) + dy * np.sin(p[2]) < 0.0 else 0.0
     rot2 = float(diff(c[2] - p[2], rot1))
     return OdometryIncrement(rot1, trans, rot2)
 
