@@ -30,6 +30,12 @@ def test_wrap_of_pi_and_minus_pi_is_pi() -> None:
     assert float(wrap(0.0)) == 0.0
     # Just past -pi stays near -pi (it is inside the interval).
     assert float(wrap(-np.pi + 1e-6)) == pytest.approx(-np.pi + 1e-6, abs=1e-12)
+    # One ulp above pi: np.mod rounds the tiny negative up to 2 pi, which gave -pi.
+    from ceamcl.angles import wrap_one
+
+    above = np.nextafter(np.pi, 4.0)
+    assert float(wrap(above)) == np.pi and float(wrap(np.array([above]))[0]) == np.pi
+    assert wrap_one(above) == np.pi
 
 
 def test_diff_is_the_shortest_signed_difference() -> None:

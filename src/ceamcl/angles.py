@@ -16,13 +16,16 @@ TWO_PI = 2.0 * np.pi
 def wrap(angle: ArrayLike) -> NDArray[np.float64]:
     """Wrap angles to the half-open interval (-pi, pi]."""
     a = np.asarray(angle, dtype=np.float64)
-    return np.pi - np.mod(np.pi - a, TWO_PI)
+    m = np.mod(np.pi - a, TWO_PI)
+    # np.mod of a tiny negative rounds up to 2 pi itself, which would give -pi
+    return np.pi - np.where(m >= TWO_PI, 0.0, m)
 
 
 @numba.njit(cache=True)
 def wrap_one(angle: float) -> float:  # pragma: no cover
     """:func:`wrap` of one angle inside compiled kernels: the same operations, the same bits."""
-    return np.pi - np.mod(np.pi - angle, TWO_PI)
+    m = np.mod(np.pi - angle, TWO_PI)
+    return np.pi - (0.0 if m >= TWO_PI else m)
 
 
 def diff(a: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:

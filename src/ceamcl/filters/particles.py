@@ -57,7 +57,8 @@ def uniform_log_weights(n: int) -> NDArray[np.float64]:
 class ParticleSet:
     """The particle set: ``N`` particles as parallel arrays.
 
-    poses: ``(N, 3)`` poses ``(x, y, theta)``, headings in ``[-pi, pi)``.
+    poses: ``(N, 3)`` poses ``(x, y, theta)``, headings within ``[-pi, pi]`` (every move
+        wraps them to ``(-pi, pi]``).
     log_weights: ``(N,)`` normalised log importance weights (CEAMCL weighs inside species
         from ``loglik`` and leaves them uniform).
     loglik: ``(N,)`` log-likelihood ``log p(z | x)`` of the last scan (-inf: impossible).
