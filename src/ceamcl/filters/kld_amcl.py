@@ -6,7 +6,9 @@ sensor models:
 * **Update thresholds.** Odometry accumulates between filter updates; a scan triggers an
   update only once the odometry pose has moved more than ``update_min_d`` along x or y, or
   turned more than ``update_min_a``, since the last update (amcl tests each axis of the
-  odometry frame). The first scan after an initialisation always updates. An update moves
+  odometry frame; the filter sees only increments, so its axes are the robot's at the last
+  initialisation: the runner and the ROS node, which know the odometry frame, gate there and
+  zero these thresholds). The first scan after an initialisation always updates. An update moves
   the particles by the whole accumulated motion, then weights them.
 * **Scoring as amcl**: the sensor model (likelihood field or beam) is built with
   ``scoring="ros"``, amcl's ``p = 1 + sum_k pz_k^3`` (:mod:`ceamcl.sensors.scoring`), unless

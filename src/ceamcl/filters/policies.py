@@ -74,7 +74,9 @@ class AllOf(Policy):
 class OnMotion(Policy):
     """True once the odometry has moved more than ``min_distance_m`` along x or y, or turned
     more than ``min_angle_rad``, since the last update (amcl's ``update_min_d``,
-    ``update_min_a``, tested per axis of the odometry frame as amcl does)."""
+    ``update_min_a``, tested per axis of the frame the context's motion is given in: the
+    odometry frame where the runner or the ROS node gates, as amcl does; the robot's axes at
+    the last initialisation inside KLD-AMCL, which sees only increments)."""
 
     min_distance_m: float
     min_angle_rad: float
