@@ -415,6 +415,15 @@ def test_unknown_selection_is_refused_naming_the_field() -> None:
         EvolutionConfig(selection="tournament")
 
 
+@pytest.mark.parametrize("field", ["mutation_sigma_xy_m", "mutation_sigma_theta_rad"])
+@pytest.mark.parametrize("value", [float("nan"), float("inf"), -0.1])
+def test_a_mutation_sigma_that_is_not_a_finite_non_negative_number_is_refused(
+    field: str, value: float
+) -> None:
+    with pytest.raises(ValueError, match=f"{field}: expected a finite number >= 0"):
+        EvolutionConfig(**{field: value})  # type: ignore[arg-type]
+
+
 def _hard_set(rng: np.random.Generator) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Poses with headings at +-pi and 0, log-likelihoods with NaN, -inf and ties."""
     n = int(rng.integers(2, 400))

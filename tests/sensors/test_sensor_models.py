@@ -390,3 +390,28 @@ def test_laser_mounting_pose_matters(model_name: str) -> None:
         at_laser = laser_poses(truth, offset)
         ll_shifted = model.log_likelihood(at_laser, model.prepare(wrong))[0]
         assert ll_shifted == pytest.approx(ll_right, abs=1e-6)
+
+
+@pytest.mark.parametrize(
+    ("config", "field"),
+    [
+        ("LikelihoodFieldConfig", "max_occ_dist_m"),
+        ("LikelihoodFieldConfig", "z_hit"),
+        ("LikelihoodFieldConfig", "sigma_hit_m"),
+        ("BeamModelConfig", "z_hit"),
+        ("BeamModelConfig", "lambda_short"),
+        ("BeamModelConfig", "z_short"),
+    ],
+)
+def test_a_sensor_parameter_that_is_not_finite_is_refused_naming_it(
+    config: str, field: str
+) -> None:
+    # inf passed the '> 0' checks: an OverflowError while building the field, or +inf / NaN
+    # likelihoods that sent every filter back to global localisation at every scan
+    import ceamcl.sensors.beam_model as beam
+    import ceamcl.sensors.likelihood_field as lf
+
+    cls = getattr(lf if config.startswith("Likelihood") else beam, config)
+    for value in (float("inf"), float("nan")):
+        with pytest.raises(ValueError, match=f"{field}: expected a finite number"):
+            cls(**{field: value})

@@ -58,8 +58,10 @@ class EvolutionConfig:
             v = getattr(self, name)
             if not 0.0 <= v <= 1.0:
                 raise ValueError(f"{name}: expected a probability in [0, 1], got {v}")
-        if self.mutation_sigma_xy_m < 0 or self.mutation_sigma_theta_rad < 0:
-            raise ValueError("mutation sigmas must be >= 0")
+        for name in ("mutation_sigma_xy_m", "mutation_sigma_theta_rad"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v >= 0):
+                raise ValueError(f"{name}: expected a finite number >= 0, got {v}")
 
 
 def crossover(

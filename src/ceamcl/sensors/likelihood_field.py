@@ -56,6 +56,9 @@ class LikelihoodFieldConfig:
     def __post_init__(self) -> None:
         check_temper(self.temper)
         check_scoring(self.scoring, resolve_temper(self.temper, self.scoring))
+        for name in ("z_hit", "z_rand", "sigma_hit_m", "max_occ_dist_m"):
+            if not math.isfinite(getattr(self, name)):
+                raise ValueError(f"{name}: expected a finite number, got {getattr(self, name)}")
         if not (self.z_hit > 0 and self.z_rand >= 0):
             raise ValueError("z_hit must be > 0 and z_rand >= 0")
         if not self.sigma_hit_m > 0:
