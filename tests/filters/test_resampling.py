@@ -60,6 +60,11 @@ def test_systematic_edge_cases() -> None:
     # Changing the sample size: 3 particles to 12.
     idx = systematic([1 / 3, 1 / 3, 1 / 3], 12, rng)
     assert np.bincount(idx, minlength=3).tolist() == [4, 4, 4]
+    # Finite weights whose sum overflows are weights like any others (every pointer fell on
+    # the last index), for both schemes.
+    for scheme in (systematic, multinomial):
+        idx = scheme([1e308, 1e308], 400, rng)
+        assert 150 <= np.bincount(idx, minlength=2)[0] <= 250
 
 
 def test_effective_sample_size() -> None:

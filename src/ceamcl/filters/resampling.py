@@ -44,10 +44,12 @@ def multinomial(weights: ArrayLike, n: int, rng: np.random.Generator) -> NDArray
 def _cdf(w: NDArray[np.float64]) -> NDArray[np.float64]:
     """Cumulative weights ending at 1; NaN, infinite or negative weights count as 0, and
     with no weight left every index is equally likely."""
-    cdf = np.cumsum(w)
+    with np.errstate(over="ignore", invalid="ignore"):  # an overflow is repaired below
+        cdf = np.cumsum(w)
     if not (np.isfinite(cdf[-1]) and cdf[-1] > 0.0) or np.any(w < 0):
         w = np.where(np.isfinite(w) & (w > 0), w, 0.0)
-        cdf = np.cumsum(w)
+        top = w.max() if w.size else 0.0
+        cdf = np.cumsum(w / top) if top > 0.0 else np.cumsum(w)  # finite weights may overflow
         if not cdf[-1] > 0.0:
             cdf = np.arange(1.0, w.size + 1.0)
     cdf /= cdf[-1]
