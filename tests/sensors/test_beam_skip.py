@@ -85,6 +85,20 @@ def test_when_almost_nothing_is_explained_every_beam_counts() -> None:
     assert skipped == 0 and kept.n_beams == prepared.n_beams
 
 
+def test_the_error_threshold_counts_as_amcls_at_the_boundary() -> None:
+    # amcl: every beam counts once skipped >= beams x beam_skip_error_threshold (ours was >)
+    grid = room(box=False)
+    ten = LaserGeometry.covering(np.pi, 10, 8.0)
+    true = cast_fan(grid, laser_poses(POSE[None, :], ten.pose), ten.angles, ten.range_max)[0]
+    for crowded, expect in ((9, 0), (8, 8)):
+        ranges = true.copy()
+        ranges[:crowded] = 0.4  # people close in front, nowhere near a wall
+        prepared = LikelihoodFieldModel(grid).prepare(ten.scan(ranges))
+        assert prepared.n_beams == 10
+        _, skipped = skip_unexplained_beams(grid, [POSE[None, :]], prepared, BeamSkipConfig())
+        assert skipped == expect
+
+
 def test_any_hypothesis_that_explains_a_beam_keeps_it() -> None:
     """Two hypotheses: the crate's readings (about 2 m straight ahead) end on the right-hand
     wall seen from 2 m in front of it, so with that hypothesis alive they stay, and the

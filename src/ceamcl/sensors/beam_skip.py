@@ -9,17 +9,17 @@ at the true pose falls by about 25 (tempered) under clutter, places elsewhere ex
 better, and CEAMCL's kidnap recovery fires on a robot that was never kidnapped.
 
 ROS amcl's answer is ``do_beamskip`` (likelihood field; ``beam_skip_distance`` 0.5 m,
-``beam_skip_threshold`` 0.3, ``beam_skip_error_threshold`` 0.9): a beam counts when at least
-30 % of the particles put its end point within 0.5 m of an obstacle; when more than 90 % of the
-beams would go, the robot is lost rather than surrounded by clutter, and every beam counts.
+``beam_skip_threshold`` 0.3, ``beam_skip_error_threshold`` 0.9): a beam counts when more than
+30 % of the particles put its end point within 0.5 m of an obstacle; when 90 % of the beams or
+more would go, the robot is lost rather than surrounded by clutter, and every beam counts.
 :func:`skip_unexplained_beams` asks it for groups of poses (hypotheses: CEAMCL's species):
 
 * a beam is *explained* when, seen from the centre of **any** group of poses (a species: its
   mean position and circular mean heading), it ends within ``distance_m`` of an obstacle (one
   pose per hypothesis instead of a 30 % vote: a tracked cloud spread by the motion put a share
   of its end points near a wall for beams that end 0.6-1 m from it at its centre, on intel).
-  With ``threshold`` set, a beam is also explained when at least that share of the poses of a
-  group (amcl's vote) put its end point near an obstacle: it keeps the readings that pin the
+  With ``threshold`` set, a beam is also explained when more than that share of the poses of
+  a group (amcl's vote) put its end point near an obstacle: it keeps the readings that pin the
   pose when the centre trails the robot along a corridor, but lets more clutter count, and on
   the real logs it left the truth at more steps than it saved (docs/state.md, "amcl's vote,
   measured"), so it is off by default;
@@ -27,7 +27,7 @@ beams would go, the robot is lost rather than surrounded by clutter, and every b
   than ``distance_m``, than the range to the first occupied cell along it (unknown cells let
   the ray through). A reading that passes through a wall of the map says the hypothesis is
   wrong, and keeps counting, so a kidnapped robot is still noticed;
-* as in amcl, when more than ``error_threshold`` of the beams would go, none does.
+* as in amcl, when ``error_threshold`` of the beams or more would go, none does.
 
 Every group is then scored on the same beams, so likelihoods stay comparable between them.
 CEAMCL skips beams only while a single species lives (tracking): with several, the beams one
@@ -165,8 +165,8 @@ def skip_unexplained_beams(
     config: BeamSkipConfig,
 ) -> tuple[PreparedScan, int]:
     """The beams that at least one group of poses explains (module docstring), and how many
-    were left out. ``prepared`` itself when none is left out, or when more than
-    ``error_threshold`` of them would be (nothing explains the scan: the robot is lost, and
+    were left out. ``prepared`` itself when none is left out, or when ``error_threshold`` of
+    them or more would be (nothing explains the scan: the robot is lost, and
     every beam must count)."""
     if prepared.n_beams == 0:
         return prepared, 0
@@ -183,7 +183,7 @@ def skip_unexplained_beams(
         sub = keep_beams(prepared, ~explained)
         voted = np.zeros(loose.size, dtype=bool)
         for p in poses:
-            voted |= near_obstacle(grid, p, sub, config.distance_m).mean(axis=0) >= config.threshold
+            voted |= near_obstacle(grid, p, sub, config.distance_m).mean(axis=0) > config.threshold
         loose = loose[~voted]
         if loose.size == 0:
             return prepared, 0
@@ -198,7 +198,7 @@ def skip_unexplained_beams(
     drop = np.zeros(prepared.n_beams, dtype=bool)
     drop[loose[short]] = True
     skipped = int(np.count_nonzero(drop))
-    if skipped == 0 or skipped > config.error_threshold * prepared.n_beams:
+    if skipped == 0 or skipped >= config.error_threshold * prepared.n_beams:  # amcl's >=
         return prepared, 0
     return keep_beams(prepared, ~drop), skipped
 
