@@ -12,11 +12,15 @@ which orders poses exactly as the likelihood does.
 With ``selection="best"`` (the paper's) both operators never lower the best likelihood of the
 set they act on, and they pull a species onto its likelihood peak, far tighter than the real
 error of the pose (docs/ceamcl.md, "calibration"). ``selection="metropolis"`` accepts children
-as a Metropolis-Hastings move on the (tempered) likelihood: a mutant replaces its parent with
+with a Metropolis acceptance on the (tempered) likelihood: a mutant replaces its parent with
 probability ``min(1, p(y | c) / p(y | p))``, a crossover pair replaces both parents with
 probability ``min(1, p(y | c1) p(y | c2) / (p(y | p1) p(y | p2)))``. Better children are always
-kept, worse ones sometimes, so the samples keep the posterior's spread (a resample-move step,
-Gilks and Berzuini 2001) instead of collapsing onto its mode.
+kept, worse ones sometimes. The mutation is then a random-walk Metropolis move, which keeps
+the scan's tempered likelihood (wider than the posterior of many scans); eq. 17's blend is
+not: it contracts a pair (``c1 - c2 = (2 xi - 1)(p1 - p2)``) and is not its own reverse, so
+no acceptance rule makes it keep a distribution. The two pull opposite ways, and their balance
+is what keeps a species about as wide as its error instead of collapsing onto its mode
+(docs/ceamcl.md, "Why a tracked species is too wide").
 """
 
 from __future__ import annotations
