@@ -292,3 +292,19 @@ if __name__ == "__main__":
         print("points up:", v)
     for v in cli_only_violations():
         print("outside the CLI:", v)
+
+
+def loaded_at_run_time(code: str, roots: tuple[str, ...]) -> list[str]:
+    """The modules under ``roots`` that running ``code`` in a fresh interpreter imports (the
+    static graph above cannot see what third-party packages pull in)."""
+    import json
+    import subprocess
+    import sys
+
+    probe = (
+        f"{code}\nimport json, sys\n"
+        f"print(json.dumps(sorted(m for m in sys.modules if m.split('.')[0] in {roots!r})))\n"
+    )
+    run = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    return list(json.loads(run.stdout.strip().splitlines()[-1]))

@@ -313,26 +313,22 @@ def memory_cases() -> list[Case]:
                 "map.png",
             )
         )
-    out.append(
-        Case(
-            "memory",
-            "map-image-over-small-budget",
-            ("run", "box.log", "--map", "map.yaml", "--out", "out", "--memory-budget", "64MiB"),
-            combine(log, write_map(map_yaml("map.png"), png_header_only(3000, 3000), "map.png")),
-            ("map.yaml: image", "3000 x 3000 pixels", "memory budget of 64.0 MiB"),
-        )
-    )
     # 3000 x 3000 cells peak at about 1.05 GiB in a run (87-100 B a cell measured): at 64 B a
     # cell the budget let them through under 1 GiB (budget.MAP_CELL_BYTES)
-    out.append(
-        Case(
-            "memory",
-            "map-image-over-a-budget-it-would-exceed",
-            ("run", "box.log", "--map", "map.yaml", "--out", "out", "--memory-budget", "1GiB"),
-            combine(log, write_map(map_yaml("map.png"), png_header_only(3000, 3000), "map.png")),
-            ("map.yaml: image", "3000 x 3000 pixels", "memory budget of 1.0 GiB"),
+    big_map = write_map(map_yaml("map.png"), png_header_only(3000, 3000), "map.png")
+    for name, limit, shown in (
+        ("map-image-over-small-budget", "64MiB", "64.0 MiB"),
+        ("map-image-over-a-budget-it-would-exceed", "1GiB", "1.0 GiB"),
+    ):
+        out.append(
+            Case(
+                "memory",
+                name,
+                ("run", "box.log", "--map", "map.yaml", "--out", "out", "--memory-budget", limit),
+                combine(log, big_map),
+                ("map.yaml: image", "3000 x 3000 pixels", f"memory budget of {shown}"),
+            )
         )
-    )
     out.append(
         Case(
             "memory",
