@@ -154,6 +154,12 @@ def test_a_robot_backing_up_in_steps_under_a_centimetre_ends_behind_its_start() 
         assert inc.rot1 == np.pi and inc.trans == pytest.approx(0.005)
         here = apply_increment(here, inc.rot1, inc.trans, inc.rot2)[0]
     np.testing.assert_allclose(here, poses[-1], atol=1e-9)
+    # a reversing step has turned no more than a straight one: pi is no turn (module
+    # docstring); the look-around measures turns so, the noise grows with them
+    back = increment_between(poses[0], poses[1])
+    assert back.turns == pytest.approx((0.0, 0.0), abs=1e-12)
+    turning = increment_between(poses[0], poses[1] + np.array([0.0, 0.0, -0.6]))
+    assert turning.rot1 == np.pi and turning.turns == pytest.approx((0.0, 0.6))
     # the noise of a reversing step is a straight step's: pi is no turn (module docstring)
     forward = increment_between(poses[1], poses[0])
     assert increment_between(poses[0], poses[1]).variances(NOISE) == pytest.approx(

@@ -63,10 +63,18 @@ class OdometryIncrement:
     def is_zero(self) -> bool:
         return self.rot1 == 0.0 and self.trans == 0.0 and self.rot2 == 0.0
 
-    def variances(self, noise: OdometryNoise) -> tuple[float, float, float]:
-        """Variances of the three components under ``noise`` (Table 5.6)."""
+    @property
+    def turns(self) -> tuple[float, float]:
+        """How far the robot really turned in ``rot1`` and ``rot2``: each rotation or its
+        difference to pi, whichever is smaller (driving backwards is ``rot1`` = pi, no turn;
+        module docstring). What the noise grows with, and what a turn measures."""
         r1 = min(abs(float(diff(self.rot1, 0.0))), abs(float(diff(self.rot1, np.pi))))
         r2 = min(abs(float(diff(self.rot2, 0.0))), abs(float(diff(self.rot2, np.pi))))
+        return r1, r2
+
+    def variances(self, noise: OdometryNoise) -> tuple[float, float, float]:
+        """Variances of the three components under ``noise`` (Table 5.6)."""
+        r1, r2 = self.turns
         t = self.trans
         return (
             noise.alpha1 * r1**2 + noise.alpha2 * t**2,

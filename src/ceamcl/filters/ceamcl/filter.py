@@ -645,7 +645,7 @@ class CEAMCL:
             return 0
         top = int(idx[np.argmax(ps.loglik[idx])])
         centre = self._peaks.get(sid, ps.poses[top])
-        turn = abs(increment.rot1) + abs(increment.rot2)
+        turn = sum(increment.turns)  # a step backwards (rot1 = pi) is no turn
         radius = min(cfg.look_around_max_m, reach + cfg.look_around_gain * increment.trans)
         spread = min(3.0 * cfg.look_around_rad, cfg.look_around_rad + cfg.look_around_gain * turn)
         offsets = _look_around_offsets(
