@@ -37,6 +37,7 @@ __all__ = [
     "current",
     "default_memory_bytes",
     "format_bytes",
+    "format_count",
     "parse_bytes",
     "require",
     "use",
@@ -89,7 +90,22 @@ def parse_bytes(text: str) -> int:
     return int(value)
 
 
+#: Counts and sizes from this on are written in scientific notation (``6.3e+301``): a route
+#: file or a header can ask for any number, and a refusal must stay one short line.
+_COMPACT_FROM = 1e15
+
+
+def format_count(n: float) -> str:
+    """``124,021,032`` below 10^15, ``6.3e+301`` from there on (and ``inf``, ``nan``)."""
+    if not abs(n) < _COMPACT_FROM:  # also inf and NaN
+        return f"{n:.1e}"
+    return f"{n:,.0f}"
+
+
 def format_bytes(n: float) -> str:
+    """``7.4 GiB``; beyond 1024 TiB, ``6.3e+301 B`` (never hundreds of digits)."""
+    if not n < 1024 * (1 << 40):  # also inf and NaN
+        return f"{n:.1e} B"
     for unit, size in (("TiB", 1 << 40), ("GiB", 1 << 30), ("MiB", 1 << 20), ("KiB", 1 << 10)):
         if n >= size:
             return f"{n / size:.1f} {unit}"
@@ -162,6 +178,6 @@ def require(field: str, count: float, bytes_each: float, what: str) -> None:
     need = float(count) * float(bytes_each)
     if not need <= budget:  # also catches NaN
         raise BudgetError(
-            f"{field}: {float(count):,.0f} {what} would need {format_bytes(need)}, over the "
-            f"memory budget of {format_bytes(budget)} (raise it with --memory-budget)"
+            f"{field}: {format_count(float(count))} {what} would need {format_bytes(need)}, "
+            f"over the memory budget of {format_bytes(budget)} (raise it with --memory-budget)"
         )

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from ceamcl import budget
 from ceamcl.errors import CeamclError, ConfigError
 from ceamcl.experiments.routes import (
     kidnapped_course,
@@ -132,6 +133,26 @@ def test_bad_route_files_name_the_field(tmp_path: Path, body: str, field: str) -
     with pytest.raises(ConfigError, match=field) as info:
         load_route_file(f)
     assert "bad.yaml" in str(info.value)
+
+
+def test_a_budget_refusal_writes_a_huge_count_compactly(tmp_path: Path) -> None:
+    """A turn rate of 1e-300 rad/s asks for 6.3e+301 steps: the refusal printed all 302 of
+    its digits (an 859-character line); it is one short line."""
+    _hall_map(tmp_path)
+    f = tmp_path / "slow.yaml"
+    f.write_text(
+        "map: hall.yaml\nroutes:\n  - start: [3.75, 3.75, 0]\n    waypoints: [[3, 3]]\n"
+        "simulation:\n  turn_rate_rps: 1e-300\n"
+    )
+    with pytest.raises(
+        budget.BudgetError, match=r"routes\[0\] .*: 6\.3e\+301 steps would need "
+    ) as info:
+        load_route_file(f)
+    assert len(str(info.value)) < 250
+    assert budget.format_count(124_021_032) == "124,021,032"
+    assert budget.format_count(float("inf")) == "inf"
+    assert budget.format_bytes(7.4 * (1 << 30)) == "7.4 GiB"
+    assert budget.format_bytes(1e306) == "1.0e+306 B"
 
 
 def test_missing_route_file_and_map(tmp_path: Path) -> None:
