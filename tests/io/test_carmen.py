@@ -254,3 +254,67 @@ def test_streaming_reads_lazily(tmp_path: Path) -> None:
     assert isinstance(next(it), CarmenLaser)
     with pytest.raises(LogFormatError):
         next(it)
+
+
+def _mixed_log() -> list[str]:
+    return [
+        "# a comment",
+        "PARAM robot_front_laser_max 40.0",
+        "ODOM 0 0 0 0.1 0 0 0.5 nohost 0.5",
+        *(flaser(180, 1.0 + k, (0.1 * k, 0.0, 0.0), float(k)) for k in range(5)),
+    ]
+
+
+@pytest.mark.parametrize("eol", ["\r\n", "\r", "mixed"])
+@pytest.mark.parametrize("chunk", [1 << 16, 7])
+def test_line_ends_cr_lf_and_lone_cr_read_as_lf(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, eol: str, chunk: int
+) -> None:
+    """A log saved with classic Mac line ends (CR alone) was one line: read as 1 scan of 5,
+    the rest dropped silently. CR LF, LF and CR all end a line, also when a CR LF straddles
+    two of the chunks the file is read in."""
+    import ceamcl.io.carmen as carmen
+
+    monkeypatch.setattr(carmen, "_CHUNK_BYTES", chunk, raising=False)
+    lines = _mixed_log()
+    ends = ["\r", "\r\n", "\n"] * len(lines) if eol == "mixed" else [eol] * len(lines)
+    text = "".join(line + end for line, end in zip(lines, ends, strict=False))
+    plain = read_carmen(write(tmp_path, lines))
+    for name, data in (("cr.log", text.encode()), ("cr.log.gz", gzip.compress(text.encode()))):
+        (tmp_path / name).write_bytes(data)
+        log = read_carmen(tmp_path / name)
+        assert len(log) == 5
+        np.testing.assert_array_equal(log.ranges_flat, plain.ranges_flat)
+        np.testing.assert_array_equal(log.times, plain.times)
+        np.testing.assert_array_equal(log.info["scan_lines"], [4, 5, 6, 7, 8])
+        assert log.info["message_counts"] == plain.info["message_counts"]
+        assert log.range_max[0] == 40.0
+
+
+def test_a_line_over_the_bound_is_refused_whatever_ends_the_lines(tmp_path: Path) -> None:
+    from ceamcl import budget
+
+    long = flaser(200_000, 1.2345, (0, 0, 0), 1.0)  # 1.4 MB, over the 1 MiB line bound
+    for eol in ("\n", "\r"):
+        path = tmp_path / "long.log"
+        path.write_bytes(eol.join(["# ok", long, "# after"]).encode())
+        with budget.use(budget.Budget(64 << 20)):
+            with pytest.raises(budget.BudgetError, match=r"long\.log:2: line longer than 1\.0 MiB"):
+                read_carmen(path)
+
+
+def test_a_utf8_byte_order_mark_is_not_part_of_the_first_message(tmp_path: Path) -> None:
+    """A log saved as "UTF-8 with BOM" lost its first line: '\\ufeffFLASER' was counted as an
+    unknown message (199 scans of 200)."""
+    lines = [flaser(180, 1.0, (0.1 * k, 0.0, 0.0), float(k)) for k in range(3)]
+    path = tmp_path / "bom.log"
+    path.write_bytes(b"\xef\xbb\xbf" + ("\n".join(lines) + "\n").encode())
+    log = read_carmen(path)
+    assert len(log) == 3 and log.info["skipped_messages"] == {}
+    np.testing.assert_array_equal(log.info["scan_lines"], [1, 2, 3])
+    gz = tmp_path / "bom.log.gz"
+    gz.write_bytes(gzip.compress(path.read_bytes()))
+    assert len(read_carmen(gz)) == 3
+    # a BOM anywhere else is not text of a CARMEN log: the line is an unknown message
+    path.write_bytes(("\n".join(lines) + "\n\ufeffNEFF 3\n").encode())
+    assert read_carmen(path).info["skipped_messages"] == {"\ufeffNEFF": 1}

@@ -48,7 +48,8 @@ without host names read as well. A malformed line raises
 :class:`~ceamcl.errors.LogFormatError` naming the file, the line and what was expected.
 
 Files are read as a stream (:func:`iter_carmen`): only the scans of the chosen laser and the
-odometry are kept in memory, as arrays (:func:`read_carmen`).
+odometry are kept in memory, as arrays (:func:`read_carmen`). A line ends at LF, CR LF or a
+lone CR (classic Mac OS); a UTF-8 byte order mark at the start of the file is skipped.
 """
 
 from __future__ import annotations
@@ -359,20 +360,56 @@ def _open_binary(path: Path) -> io.BufferedIOBase:
     return raw
 
 
-def _lines(path: Path, fh: io.BufferedIOBase) -> Iterator[tuple[int, str]]:
-    """Numbered text lines, each at most the budget's line length, UTF-8 (ASCII in practice)."""
-    limit = budget.current().line_bytes
+#: Bytes read from the file at a time while splitting it into lines.
+_CHUNK_BYTES = 1 << 16
+_BOM = b"\xef\xbb\xbf"
+
+
+def _raw_lines(path: Path, fh: io.BufferedIOBase, limit: int) -> Iterator[bytes]:
+    """The file's lines without their line ends, split at CR LF (Windows), LF (Unix) and a
+    lone CR (classic Mac OS) alike, each at most ``limit`` bytes. Read in chunks of what the
+    stream has (``read1``), so a pipe's line is handed on as soon as it is complete."""
+    parts: list[bytes] = []  # the pieces of a line not ended yet
+    size = 0  # their length
     lineno = 0
+    cr_last = False  # the last chunk ended with a CR: a LF first in the next one is its pair
     while True:
-        raw = fh.readline(limit + 1)
-        if not raw:
-            return
-        lineno += 1
-        if len(raw) > limit and not raw.endswith(b"\n"):
-            raise budget.BudgetError(
-                f"{path}:{lineno}: line longer than {budget.format_bytes(limit)}, the line-length "
-                "bound of the memory budget (raise it with --memory-budget)"
-            )
+        chunk = fh.read1(_CHUNK_BYTES)
+        if not chunk:
+            break
+        if cr_last and chunk[:1] == b"\n":
+            chunk = chunk[1:]
+        cr_last = chunk[-1:] == b"\r"
+        for piece in chunk.splitlines(keepends=True):  # bytes split at CR LF, LF, CR only
+            ended = piece[-1:] in (b"\n", b"\r")
+            body = piece.rstrip(b"\r\n") if ended else piece
+            size += len(body)
+            if size > limit:
+                raise _long_line(path, lineno + 1, limit)
+            if not ended:  # the last piece of the chunk: the line goes on in the next
+                parts.append(body)
+                continue
+            lineno += 1
+            yield b"".join((*parts, body)) if parts else body
+            parts, size = [], 0
+    if parts:
+        yield b"".join(parts)
+
+
+def _long_line(path: Path, lineno: int, limit: int) -> budget.BudgetError:
+    return budget.BudgetError(
+        f"{path}:{lineno}: line longer than {budget.format_bytes(limit)}, the line-length "
+        "bound of the memory budget (raise it with --memory-budget)"
+    )
+
+
+def _lines(path: Path, fh: io.BufferedIOBase) -> Iterator[tuple[int, str]]:
+    """Numbered text lines, each at most the budget's line length, UTF-8 (ASCII in practice),
+    without a UTF-8 byte order mark at the start of the file."""
+    limit = budget.current().line_bytes
+    for lineno, raw in enumerate(_raw_lines(path, fh, limit), start=1):
+        if lineno == 1 and raw.startswith(_BOM):
+            raw = raw[len(_BOM) :]  # as Windows editors save "UTF-8" text
         if b"\x00" in raw:
             raise LogFormatError(
                 f"{path}:{lineno}: binary data (NUL bytes); expected a CARMEN text log"
