@@ -189,6 +189,66 @@ def test_gzip_is_read_transparently(tmp_path: Path) -> None:
     np.testing.assert_array_equal(packed.ranges_flat, plain.ranges_flat)
 
 
+def test_beam_count_that_does_not_agree_with_the_fields_is_refused(tmp_path: Path) -> None:
+    """``FLASER 179`` followed by 180 ranges was read shifted and accepted: the 180th range
+    became the laser's x, the robot pose took the laser's theta, the timestamp the robot's
+    theta (a scan at -0.35 s, a laser mounted 1.6 m off). Only the timestamp, host and logger
+    timestamp may follow the fields; more, or a logger timestamp that is not a number, is an
+    error naming the line."""
+    good = [flaser(180, 1.5, (0.1 * k, 0.2, 0.3), 10.0 + k) for k in range(3)]
+    bad = good[1].replace("FLASER 180 ", "FLASER 179 ", 1)
+    with pytest.raises(
+        LogFormatError,
+        match=r"run\.log:2: FLASER: the beam count 179 and the fields do not agree: 4 fields "
+        r"follow where at most 3 may \(expected 179 ranges, 6 pose values, then \[timestamp",
+    ):
+        read_carmen(write(tmp_path, [good[0], bad, good[2]]))
+    # one beam too many: the host name lands where the timestamp goes
+    bad = good[1].replace("FLASER 180 ", "FLASER 181 ", 1)
+    with pytest.raises(
+        LogFormatError,
+        match=r"run\.log:2: FLASER: timestamp: expected a number, got 'nohost' \(does the "
+        r"beam count 181 agree with the fields\?",
+    ):
+        read_carmen(write(tmp_path, [good[0], bad, good[2]]))
+    # without host and logger timestamp, more than two beams too few are caught by the count
+    short = [line.rsplit(" ", 2)[0] for line in good]  # ... timestamp
+    bad = short[1].replace("FLASER 180 ", "FLASER 177 ", 1)
+    with pytest.raises(LogFormatError, match=r"run\.log:2: FLASER: the beam count 177 and"):
+        read_carmen(write(tmp_path, [short[0], bad, short[2]]))
+    assert len(read_carmen(write(tmp_path, short))) == 3
+
+
+@pytest.mark.parametrize(
+    ("line", "message"),
+    [
+        (
+            "FLASER 3 1 1 1 0 0 0 0 0 0 1 h 1 extra",
+            r"FLASER: the beam count 3 and the fields do not agree: 4 fields follow",
+        ),
+        (
+            "FLASER 3 1 1 1 0 0 0 0 0 0 1 h x",
+            r"FLASER: the beam count 3 and the fields do not agree: the logger timestamp is "
+            r"'x', not a number",
+        ),
+        (
+            "RAWLASER1 0 -1.57 3.14 0.0174 80.0 0.01 0 3 1 2 3 0 0.5 h 0.5 9",
+            r"RAWLASER1: the beam count 3 and the fields do not agree: 4 fields follow where "
+            r"at most 3 may \(expected 3 ranges, remission count 0, 0 remissions, then",
+        ),
+        (
+            "ROBOTLASER1 0 -1.5 3.0 0.5 20.0 0.01 0 2 1 2 0 0 0 0 0 0 0 0 0 0 0 0 1 h 1 2",
+            r"ROBOTLASER1: the beam count 2 and the fields do not agree: 4 fields follow",
+        ),
+    ],
+)
+def test_fields_after_a_laser_message_name_the_beam_count(
+    tmp_path: Path, line: str, message: str
+) -> None:
+    with pytest.raises(LogFormatError, match=r"run\.log:2: " + message):
+        read_carmen(write(tmp_path, ["# ok", line]))
+
+
 @pytest.mark.parametrize(
     ("line", "message"),
     [

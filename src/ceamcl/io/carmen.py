@@ -44,7 +44,9 @@ and ``#`` comment lines.
 
 Every other message (``NEFF``, ``SYNC``, ``TRUEPOS``, ``SONAR``, ...) is skipped and counted.
 Trailing fields after the timestamp (host, logger timestamp) are optional, so logs written
-without host names read as well. A malformed line raises
+without host names read as well; nothing more may follow a laser message's fields (more
+fields, or a logger timestamp that is not a number, mean the beam count does not agree with
+the ranges given: the line would be read shifted). A malformed line raises
 :class:`~ceamcl.errors.LogFormatError` naming the file, the line and what was expected.
 
 Files are read as a stream (:func:`iter_carmen`): only the scans of the chosen laser and the
@@ -247,6 +249,30 @@ class _Line:
             raise self.error(f"timestamp: expected a finite number of seconds, got {value}")
         return value
 
+    def laser_end(self, n: int, fields: str) -> float:
+        """The timestamp of a laser line whose ``fields`` (the ``n`` ranges and what follows
+        them) end at the cursor. Only ``[timestamp [host [logger_timestamp]]]`` may follow: a
+        beam count that does not agree with the ranges given shifts every later field, and a
+        line read so would be wrong silently (the 180th range taken for the laser's x)."""
+        rest = self.tokens[self.pos :]
+        layout = f"expected {fields}, then [timestamp [host [logger_timestamp]]]"
+        if len(rest) > 3:
+            raise self.error(
+                f"the beam count {n} and the fields do not agree: {len(rest)} fields follow "
+                f"where at most 3 may ({layout})"
+            )
+        if len(rest) == 3 and not _is_number(rest[2]):
+            raise self.error(
+                f"the beam count {n} and the fields do not agree: the logger timestamp is "
+                f"{rest[2]!r}, not a number ({layout})"
+            )
+        if rest and not _is_number(rest[0]):
+            raise self.error(
+                f"timestamp: expected a number, got {rest[0]!r} (does the beam count {n} agree "
+                f"with the fields? {layout})"
+            )
+        return self.timestamp()
+
 
 def _is_number(tok: str) -> bool:
     try:
@@ -261,7 +287,7 @@ def _parse_old_laser(ln: _Line) -> CarmenLaser:
     ranges = ln.numbers(n, f"{n} ranges")
     laser_pose = ln.pose("laser pose x y theta")
     robot_pose = ln.pose("robot pose odom_x odom_y odom_theta")
-    ts = ln.timestamp()
+    ts = ln.laser_end(n, f"{n} ranges, 6 pose values")
     return CarmenLaser(
         kind=ln.kind,
         laser_id=_LASER_ID[ln.kind],
@@ -290,11 +316,13 @@ def _parse_new_laser(ln: _Line, kind: str, laser_id: int) -> CarmenLaser:
     m = ln.count("remission count")
     ln.numbers(m, f"{m} remissions")
     laser_pose = robot_pose = None
+    fields = f"{n} ranges, remission count {m}, {m} remissions"
     if kind == "ROBOTLASER":
         laser_pose = ln.pose("laser pose x y theta")
         robot_pose = ln.pose("robot pose x y theta")
         ln.numbers(5, "tv rv forward_safety_dist side_safety_dist turn_axis")
-    ts = ln.timestamp()
+        fields += ", 6 pose values, tv rv forward_safety_dist side_safety_dist turn_axis"
+    ts = ln.laser_end(n, fields)
     if not (math.isfinite(max_range) and max_range > 0):
         raise ln.error(f"maximum_range: expected a positive number, got {max_range}")
     return CarmenLaser(
