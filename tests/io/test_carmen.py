@@ -181,6 +181,82 @@ def test_rawlaser_only_takes_pose_from_odom(tmp_path: Path) -> None:
     np.testing.assert_allclose(log.poses[0], [0.5, 0.0, 0.1], atol=1e-12)
 
 
+RAW = "RAWLASER1 0 -1.57 3.14 0.0174 80.0 0.01 0 3 1 2 3 0"
+
+
+def _raw_log(scan_t: list[str], odom_t: list[str]) -> list[str]:
+    """ODOM and RAWLASER1 lines in turn, the robot driving 0.5 m a line along x; an empty
+    time leaves the line without timestamp, host and logger timestamp."""
+    lines = []
+    for k, (ts, to) in enumerate(zip(scan_t, odom_t, strict=True)):
+        lines.append(f"ODOM {0.5 * k} 0 0 0.5 0 0" + (f" {to} h {to}" if to else ""))
+        lines.append(RAW + (f" {ts} h {ts}" if ts else ""))
+    return lines
+
+
+def test_rawlaser_needs_timestamps_on_its_scans_and_on_odom(tmp_path: Path) -> None:
+    """RAWLASER scans take their pose from ODOM at their time. With untimed ODOM lines the
+    poses came out NaN (a NaN trajectory with exit 0, or a traceback in the mapper); with
+    untimed scans the scan indices 0, 1, 2 were read as seconds against ODOM's clock (every
+    scan the first pose). Both are refused naming the first line without a timestamp."""
+    timed = [f"{100 + 0.2 * k:.1f}" for k in range(4)]
+    with pytest.raises(
+        LogFormatError,
+        match=r"run\.log:3: ODOM line without a timestamp: the RAWLASER1 scans take the "
+        r"robot's pose from ODOM at their time",
+    ):
+        read_carmen(write(tmp_path, _raw_log(timed, [timed[0], "", "", ""])))
+    with pytest.raises(LogFormatError, match=r"run\.log:1: ODOM line without a timestamp"):
+        read_carmen(write(tmp_path, _raw_log(timed, [""] * 4)))
+    with pytest.raises(
+        LogFormatError, match=r"run\.log:2: RAWLASER1 scan without a timestamp: RAWLASER scans"
+    ):
+        read_carmen(write(tmp_path, _raw_log([""] * 4, timed)))
+    log = read_carmen(write(tmp_path, _raw_log(timed, timed)))
+    np.testing.assert_allclose(log.poses[:, 0], [0.0, 0.5, 1.0, 1.5])
+    # FLASER scans carry their pose: ODOM lines without a timestamp are fine beside them
+    lines = ["ODOM 0 0 0 0 0 0", flaser(180, 1.0, (1, 2, 0), 7.5), "ODOM 0 0 0 0 0 0"]
+    assert np.all(np.isfinite(read_carmen(write(tmp_path, lines)).poses))
+
+
+def test_rawlaser_scans_outside_the_odometry_time_span_are_refused(tmp_path: Path) -> None:
+    """Scans that do not overlap the odometry's time span at all would each take its first
+    or last pose; a scan a little before the first ODOM line takes the first pose."""
+    odom_t = [f"{100 + 0.2 * k:.1f}" for k in range(4)]
+    scan_t = [f"{200 + 0.2 * k:.1f}" for k in range(4)]
+    with pytest.raises(
+        LogFormatError,
+        match=r"run\.log: the RAWLASER1 scans \(lines 2-8\) span 200\.000 \.\. 200\.600 s "
+        r"and the 4 ODOM lines 100\.000 \.\. 100\.600 s: the times do not overlap",
+    ):
+        read_carmen(write(tmp_path, _raw_log(scan_t, odom_t)))
+    early = [f"{99.9 + 0.2 * k:.1f}" for k in range(4)]  # 0.1 s before each ODOM line
+    log = read_carmen(write(tmp_path, _raw_log(early, odom_t)))
+    np.testing.assert_allclose(log.poses[:, 0], [0.0, 0.25, 0.75, 1.25])
+
+
+def test_poses_at_scans_never_gives_a_nan_pose() -> None:
+    """The guard of every reader that interpolates odometry: NaN times are refused, so are
+    scans with no time in the odometry's span; the poses otherwise are interpolated."""
+    from ceamcl.io.recorded import poses_at_scans
+
+    def fail(what: str) -> LogFormatError:
+        return LogFormatError(f"x: {what}")
+
+    t, poses = np.array([0.0, 1.0]), np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    kw = {"scans": "the scans", "odometry": "the odometry", "error": fail}
+    with pytest.raises(LogFormatError, match=r"x: the odometry: time nan of entry 1"):
+        poses_at_scans([0.0, math.nan], poses, [0.5], **kw)
+    with pytest.raises(LogFormatError, match=r"x: the scans: time nan of entry 0"):
+        poses_at_scans(t, poses, [math.nan, 0.5], **kw)
+    with pytest.raises(LogFormatError, match=r"the times do not overlap"):
+        poses_at_scans(t, poses, [1.5, 2.0], **kw)
+    out = poses_at_scans(t, poses, [-0.5, 0.5, 1.0], **kw)
+    np.testing.assert_allclose(out[:, 0], [0.0, 0.5, 1.0])
+    with pytest.raises(LogFormatError, match=r"scan 0 \(t=0\.500 s\): the pose interpolated"):
+        poses_at_scans(t, [[0.0, 0.0, 0.0], [math.inf, 0.0, 0.0]], [0.5], **kw)
+
+
 def test_gzip_is_read_transparently(tmp_path: Path) -> None:
     lines = [flaser(180, 1.0, (0, 0, 0), float(k)) for k in range(3)]
     plain = read_carmen(write(tmp_path, lines))

@@ -64,8 +64,10 @@ def write_bag(
     odom: str = "topic",
     scan_topic: str = "/scan",
     bad_x: float | None = None,
+    scan_delay: float = 0.0,
 ) -> Path:
-    """A small bag; ``bad_x``: the x of the sixth odometry message (a broken pose)."""
+    """A small bag; ``bad_x``: the x of the sixth odometry message (a broken pose);
+    ``scan_delay``: seconds added to the scans' stamps (another clock)."""
     ts = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
     if "tf2_msgs/msg/TFMessage" not in ts.types:  # the Noetic store lacks it
         ts.register(
@@ -129,7 +131,7 @@ def write_bag(
                     c_tf, int(t * 1e9) + 1, ser(m["TF"](transforms=[tfm]), m["TF"].__msgtype__)
                 )
         for k in range(N_SCANS):
-            t = 0.15 + 0.2 * k
+            t = 0.15 + 0.2 * k + scan_delay
             ranges = np.full(N_BEAMS, 1.0 + k, dtype=np.float32)
             ranges[0] = np.inf
             scan = m["LaserScan"](
@@ -205,3 +207,29 @@ def test_a_broken_odometry_pose_is_named(
     bag = write_bag(tmp_path / "b", False, odom=odom, bad_x=bad_x)
     with pytest.raises(LogFormatError, match=says):
         open_log(bag)
+
+
+@pytest.mark.parametrize("ros1", [True, False], ids=["ros1", "ros2"])
+def test_scans_stamped_outside_the_odometry_time_span_are_refused(
+    tmp_path: Path, ros1: bool
+) -> None:
+    """Scans stamped by another clock than the odometry (5000 s against 0-1 s: simulated and
+    wall time) each took the odometry's last pose: a robot that never moved, exit 0. No scan
+    within the odometry's time span is now an error naming both spans."""
+    bag = write_bag(tmp_path / ("run.bag" if ros1 else "run"), ros1, scan_delay=5000.0)
+    with pytest.raises(
+        LogFormatError,
+        match=r"run(\.bag)?: the scans on /scan span 5000\.150 \.\. 5000\.950 s and the "
+        r"odometry on /odom 0\.000 \.\. 1\.000 s: the times do not overlap",
+    ):
+        open_log(bag)
+
+
+def test_scans_a_little_past_the_odometry_take_its_last_pose(tmp_path: Path) -> None:
+    """Real logs start and end their streams at slightly different times: scans after the last
+    odometry message (here the last two of five) are kept with the last pose."""
+    log = open_log(write_bag(tmp_path / "run.bag", True, scan_delay=0.3))
+    expected_t = 0.45 + 0.2 * np.arange(N_SCANS)
+    np.testing.assert_allclose(log.times, expected_t, atol=1e-6)
+    truth = np.array([_true_pose(min(t, 1.0)) for t in expected_t])
+    np.testing.assert_allclose(log.poses, truth, atol=1e-6)

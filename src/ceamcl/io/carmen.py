@@ -74,7 +74,7 @@ from ceamcl import budget
 from ceamcl.errors import ConfigError, LogFormatError
 from ceamcl.io import streams
 from ceamcl.io.odometry_sign import MOVE_M, check_sign, forward_steps, signed_poses
-from ceamcl.io.recorded import RecordedLog, check_pose_values, interpolate_poses
+from ceamcl.io.recorded import RecordedLog, check_pose_values, poses_at_scans
 from ceamcl.pose import relative_poses
 
 __all__ = [
@@ -528,7 +528,9 @@ def read_carmen(
             ``info["odometry_sign"]`` says so); ``"recorded"``: the poses as recorded.
 
     Messages with poses (FLASER/RLASER/ROBOTLASER) are used when the log has them; a log with
-    only RAWLASER messages takes the robot's pose from ODOM, interpolated at each scan's time.
+    only RAWLASER messages takes the robot's pose from ODOM, interpolated at each scan's time
+    (scans and ODOM lines need timestamps then, and times that overlap:
+    :func:`~ceamcl.io.recorded.poses_at_scans`).
     The robot's pose at a scan is the message's robot (odometry) pose; the laser's mounting
     pose on the robot is the difference of the two poses the message holds.
 
@@ -540,6 +542,7 @@ def read_carmen(
         raise ConfigError(f"odometry-sign: expected auto or recorded, got {odometry_sign!r}")
     with_pose, raw = _Stream(), _Stream()
     odom: list[tuple[float, float, float, float, float]] = []
+    untimed_odom: list[int] = []  # the line of the first ODOM without a timestamp, if any
     counts: Counter[str] = Counter()
     skipped: Counter[str] = Counter()
     params: dict[str, str] = {}
@@ -554,6 +557,8 @@ def read_carmen(
             if held > budget.current().memory_bytes:  # ODOM lines are kept too
                 budget.require(f"{p}:{msg.line}: odometry kept", len(odom) + 1, ODOM_BYTES, "ODOM")
             odom.append((msg.timestamp, msg.x, msg.y, msg.theta, msg.tv))
+            if math.isnan(msg.timestamp) and not untimed_odom:
+                untimed_odom.append(msg.line)
         elif isinstance(msg, CarmenParam):
             counts["PARAM"] += 1
             params[msg.name] = msg.value
@@ -606,10 +611,31 @@ def read_carmen(
             raise LogFormatError(
                 f"{p}: RAWLASER{laser} scans carry no pose and the log has no ODOM line"
             )
+        # the pose at a scan is the odometry's at the scan's time: both need a clock
+        if not timed:
+            raise LogFormatError(
+                f"{p}:{stream.lines[0]}: RAWLASER{laser} scan without a timestamp: RAWLASER "
+                "scans carry no pose and take the robot's from ODOM at their time; expected "
+                "timestamp host logger_timestamp after the remissions"
+            )
+        if untimed_odom:
+            raise LogFormatError(
+                f"{p}:{untimed_odom[0]}: ODOM line without a timestamp: the RAWLASER{laser} "
+                "scans take the robot's pose from ODOM at their time; expected a timestamp "
+                "after x y theta tv rv accel on every ODOM line"
+            )
         odom_poses = o[:, 1:4]
         if unsigned:
             odom_poses, _ = signed_poses(o[:, 0], odom_poses, o[:, 0], o[:, 4])
-        robot = interpolate_poses(o[:, 0], odom_poses, times)
+        lines = f"lines {stream.lines[0]}-{stream.lines[-1]}"
+        robot = poses_at_scans(
+            o[:, 0],
+            odom_poses,
+            times,
+            scans=f"the RAWLASER{laser} scans ({lines})",
+            odometry=f"the {len(odom)} ODOM lines",
+            error=lambda what: LogFormatError(f"{p}: {what}"),
+        )
         if unsigned:
             reversed_increments = int(np.count_nonzero(forward_steps(robot) < -MOVE_M))
         mount = np.zeros((n, 3))

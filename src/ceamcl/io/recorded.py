@@ -31,7 +31,7 @@ from ceamcl.angles import wrap
 from ceamcl.motion.odometry import OdometryNoise, synthetic_odometry
 from ceamcl.sensors.scan import LaserScan, laser_poses
 
-__all__ = ["RecordedLog", "RobotLog", "interpolate_poses"]
+__all__ = ["RecordedLog", "RobotLog", "interpolate_poses", "poses_at_scans"]
 
 
 class RobotLog(Protocol):
@@ -201,7 +201,8 @@ def _noise_dict(noise: OdometryNoise) -> dict[str, float]:
 def interpolate_poses(times: ArrayLike, poses: ArrayLike, at: ArrayLike) -> NDArray[np.float64]:
     """Poses ``(T, 3)`` at times ``at``: linear in x and y, along the shorter arc in heading.
 
-    Times before the first or after the last sample take the end pose.
+    Times before the first or after the last sample take the end pose. A time that is not a
+    number gives a NaN pose: the readers call :func:`poses_at_scans`, which refuses that.
     """
     t = np.asarray(times, dtype=np.float64).reshape(-1)
     p = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
@@ -212,6 +213,55 @@ def interpolate_poses(times: ArrayLike, poses: ArrayLike, at: ArrayLike) -> NDAr
     return np.column_stack(
         [np.interp(q, t, p[:, 0]), np.interp(q, t, p[:, 1]), wrap(np.interp(q, t, heading))]
     )
+
+
+def poses_at_scans(
+    sample_times: ArrayLike,
+    sample_poses: ArrayLike,
+    scan_times: ArrayLike,
+    *,
+    scans: str,
+    odometry: str,
+    error: Callable[[str], Exception],
+) -> NDArray[np.float64]:
+    """The odometry's poses interpolated at the scans' times (:func:`interpolate_poses`),
+    refusing with ``error`` what would give poses that mean nothing:
+
+    * a sample or scan time that is not finite (the pose would be NaN);
+    * scan times that do not overlap the odometry's time span at all: every scan would take
+      the first or the last odometry pose, a robot that never moves (scans stamped by another
+      clock, such as simulated time against wall time). Scans a little before the first or
+      after the last sample, as real logs have, still take the end pose;
+    * and, as a last guard, any interpolated pose that is not finite.
+
+    ``scans`` and ``odometry`` name the two sources in the message (``"the scans on /scan"``).
+    """
+    t = np.asarray(sample_times, dtype=np.float64).reshape(-1)
+    q = np.asarray(scan_times, dtype=np.float64).reshape(-1)
+    for name, values in ((odometry, t), (scans, q)):
+        bad = np.flatnonzero(~np.isfinite(values))
+        if bad.size:
+            k = int(bad[0])
+            raise error(f"{name}: time {values[k]} of entry {k}: expected finite times")
+    if t.size and q.size and max(t.min(), q.min()) > min(t.max(), q.max()):
+        raise error(
+            f"{scans} span {_span(q)} and {odometry} {_span(t)}: the times do not overlap, so "
+            "every scan would take the odometry's first or last pose (a robot that never "
+            "moves); expected scans stamped within the odometry's time span, by the same clock"
+        )
+    poses = interpolate_poses(t, sample_poses, q)
+    bad = np.flatnonzero(~np.all(np.isfinite(poses), axis=1))
+    if bad.size:
+        k = int(bad[0])
+        raise error(
+            f"{scans}: scan {k} (t={q[k]:.3f} s): the pose interpolated from {odometry} is "
+            f"not finite ({poses[k, 0]}, {poses[k, 1]}, {poses[k, 2]}); expected finite poses"
+        )
+    return poses
+
+
+def _span(t: NDArray[np.float64]) -> str:
+    return f"{t.min():.3f} .. {t.max():.3f} s"
 
 
 #: Poses beyond these are not of a building (and overflow the motion model's squares): a

@@ -7,10 +7,12 @@ odometry pose at each scan, from
 * the ``odom_frame -> base_frame`` transform on ``/tf`` when the bag has no Odometry topic.
 
 Poses are interpolated at each scan's header stamp (linear in x, y; shorter arc in yaw); a
-scan stamped 0 takes the bag's receive time. The laser's mounting pose comes from the
-``base_frame -> <scan frame>`` transform on ``/tf_static`` or ``/tf`` when the bag has one,
-else the laser is taken to sit at the base. Readings outside ``[range_min, range_max]``, NaN
-and infinities are no-return, as in ``sensor_msgs/LaserScan``.
+scan stamped 0 takes the bag's receive time. Scans whose stamps do not overlap the odometry's
+time span at all (another clock) are refused (:func:`ceamcl.io.recorded.poses_at_scans`).
+The laser's mounting pose comes from the ``base_frame -> <scan frame>`` transform on
+``/tf_static`` or ``/tf`` when the bag has one, else the laser is taken to sit at the base.
+Readings outside ``[range_min, range_max]``, NaN and infinities are no-return, as in
+``sensor_msgs/LaserScan``.
 
 A missing topic or frame raises :class:`~ceamcl.errors.LogFormatError` listing what the bag
 holds. Bags are read as a stream; only the scans and poses are kept.
@@ -33,7 +35,7 @@ from ceamcl.io.recorded import (
     POSE_LIMIT_M,
     RecordedLog,
     check_pose_values,
-    interpolate_poses,
+    poses_at_scans,
 )
 
 __all__ = ["LASER_SCAN", "ODOMETRY", "TF", "read_bag"]
@@ -233,7 +235,14 @@ def _read(
             raise LogFormatError(
                 f"{p}: /tf {parent} -> {child}: expected a finite laser mount, got {link}"
             )
-    poses = interpolate_poses(o[:, 0], np.column_stack([o[:, 1], o[:, 2], yaw]), t)
+    poses = poses_at_scans(
+        o[:, 0],
+        np.column_stack([o[:, 1], o[:, 2], yaw]),
+        t,
+        scans=f"the scans on {scan_conns[0].topic}",
+        odometry=f"the odometry on {source}",
+        error=lambda what: LogFormatError(f"{p}: {what}"),
+    )
     m = np.asarray(meta, dtype=np.float64)
     for k in range(n):
         if not (np.isfinite(m[k, 0]) and np.isfinite(m[k, 1])):
