@@ -139,6 +139,25 @@ def test_param_sets_max_range_and_rear_laser_is_selectable(tmp_path: Path) -> No
     assert read_carmen(path, max_range_m=8.0).range_max[0] == 8.0
 
 
+@pytest.mark.parametrize("value", ["-1", "0", "nan", "inf", "-inf", "far"])
+def test_param_max_range_that_is_not_a_positive_finite_number_names_its_line(
+    tmp_path: Path, value: str
+) -> None:
+    """-1, 0 and nan fell back to CARMEN's 80 m silently; inf failed later as 'scan:
+    range_max: expected a positive finite number, got inf', naming no file or line."""
+    lines = ["# a log", f"PARAM robot_front_laser_max {value} nohost 0"]
+    lines += [flaser(180, 1.0, (0, 0, 0), float(k)) for k in range(2)]
+    with pytest.raises(
+        LogFormatError,
+        match=rf"run\.log:2: PARAM robot_front_laser_max: expected a positive finite number of "
+        rf"metres, got '{value}'",
+    ):
+        read_carmen(write(tmp_path, lines))
+    # the rear laser's parameter is the rear laser's business
+    lines[1] = f"PARAM robot_rear_laser_max {value}"
+    assert read_carmen(write(tmp_path, lines)).range_max[0] == 80.0
+
+
 def test_flaser_without_hostname_or_timestamp_tail(tmp_path: Path) -> None:
     lines = [flaser(180, 1.0, (1, 2, 0), 7.5, host=False), flaser(180, 1.0, (1, 2, 0), 8.5)]
     log = read_carmen(write(tmp_path, lines))

@@ -65,6 +65,7 @@ def write_bag(
     scan_topic: str = "/scan",
     bad_x: float | None = None,
     scan_delay: float = 0.0,
+    range_max: float = 10.0,
 ) -> Path:
     """A small bag; ``bad_x``: the x of the sixth odometry message (a broken pose);
     ``scan_delay``: seconds added to the scans' stamps (another clock)."""
@@ -142,7 +143,7 @@ def write_bag(
                 time_increment=0.0,
                 scan_time=0.1,
                 range_min=0.1,
-                range_max=10.0,
+                range_max=range_max,
                 ranges=ranges,
                 intensities=np.zeros(0, dtype=np.float32),
             )
@@ -233,3 +234,18 @@ def test_scans_a_little_past_the_odometry_take_its_last_pose(tmp_path: Path) -> 
     np.testing.assert_allclose(log.times, expected_t, atol=1e-6)
     truth = np.array([_true_pose(min(t, 1.0)) for t in expected_t])
     np.testing.assert_allclose(log.poses, truth, atol=1e-6)
+
+
+@pytest.mark.parametrize("range_max", [math.inf, math.nan, 0.0])
+def test_a_scan_range_max_that_is_not_a_positive_finite_number_is_named(
+    tmp_path: Path, range_max: float
+) -> None:
+    """range_max: inf passed the reader's check (only > 0) and failed later as 'scan:
+    range_max: expected a positive finite number, got inf', naming no bag or topic."""
+    bag = write_bag(tmp_path / "run.bag", True, range_max=range_max)
+    with pytest.raises(
+        LogFormatError,
+        match=r"run\.bag: /scan: scan 0 \(t=0\.150 s\): expected 0 <= range_min < range_max, "
+        r"range_max a finite number of metres, got range_min=0\.1.*, range_max=" + str(range_max),
+    ):
+        open_log(bag)

@@ -546,6 +546,7 @@ def read_carmen(
     counts: Counter[str] = Counter()
     skipped: Counter[str] = Counter()
     params: dict[str, str] = {}
+    param_lines: dict[str, int] = {}
     for msg in iter_carmen(p):
         if isinstance(msg, CarmenLaser):
             counts[msg.kind] += 1
@@ -562,6 +563,7 @@ def read_carmen(
         elif isinstance(msg, CarmenParam):
             counts["PARAM"] += 1
             params[msg.name] = msg.value
+            param_lines[msg.name] = msg.line
         elif isinstance(msg, CarmenComment):
             counts["#"] += 1
         else:
@@ -640,7 +642,7 @@ def read_carmen(
             reversed_increments = int(np.count_nonzero(forward_steps(robot) < -MOVE_M))
         mount = np.zeros((n, 3))
 
-    default_max = _param_max_range(params, laser, p)
+    default_max = _param_max_range(params, param_lines, laser, p)
     per_msg = np.asarray(stream.max_range, dtype=np.float64)
     if max_range_m is not None:
         range_max = np.full(n, float(max_range_m))
@@ -680,14 +682,23 @@ def read_carmen(
     )
 
 
-def _param_max_range(params: dict[str, str], laser: int, path: Path) -> float:
+def _param_max_range(
+    params: dict[str, str], lines: dict[str, int], laser: int, path: Path
+) -> float:
+    """The old-style lasers' maximum range: ``PARAM robot_front_laser_max`` (or ``_rear_``)
+    if the log sets it, else CARMEN's 80 m. A value that is not a positive finite number is
+    an error naming its line (``-1`` or ``nan`` fell back to 80 m, ``inf`` failed later
+    naming no file)."""
     key = {1: "robot_front_laser_max", 2: "robot_rear_laser_max"}.get(laser)
     if key is None or key not in params:
         return CARMEN_DEFAULT_MAX_RANGE_M
     try:
         value = float(params[key])
     except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
         raise LogFormatError(
-            f"{path}: PARAM {key}: expected a number, got {params[key]!r}"
-        ) from None
-    return value if value > 0 else CARMEN_DEFAULT_MAX_RANGE_M
+            f"{path}:{lines[key]}: PARAM {key}: expected a positive finite number of metres, "
+            f"got {params[key]!r}"
+        )
+    return value
