@@ -155,6 +155,16 @@ def test_a_budget_refusal_writes_a_huge_count_compactly(tmp_path: Path) -> None:
     assert budget.format_bytes(1e306) == "1.0e+306 B"
 
 
+def test_a_repeated_key_in_a_route_file_is_refused(tmp_path: Path) -> None:
+    """Two 'routes:' keys loaded only the second list, silently."""
+    _hall_map(tmp_path)
+    f = tmp_path / "twice.yaml"
+    route = "  - start: [3.75, 3.75, 0]\n    waypoints: [[3, 3]]\n"
+    f.write_text(f"map: hall.yaml\nroutes:\n{route}routes:\n{route}")
+    with pytest.raises(ConfigError, match=r"twice\.yaml:5: .*duplicate key 'routes' \(first on"):
+        load_route_file(f)
+
+
 def test_missing_route_file_and_map(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="cannot read"):
         load_route_file(tmp_path / "nope.yaml")

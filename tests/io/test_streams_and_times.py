@@ -60,6 +60,27 @@ def test_safe_yaml_reads_yaml_12_floats_and_refuses_aliases() -> None:
         load_yaml_text("a: &a [1]\nb: *a\n", "x.yaml")
 
 
+def test_safe_yaml_refuses_a_repeated_key_naming_it_and_its_lines() -> None:
+    """PyYAML kept the last value of a repeated key silently (yaml-cpp's choice has varied by
+    version): a map with 'resolution' twice was read at the second value."""
+    text = "image: m.pgm\nresolution: 0.05\nnested:\n  a: 1\n  b: 2\nresolution: 0.5\n"
+    with pytest.raises(
+        ConfigError,
+        match=r"x\.yaml:6: not valid YAML: duplicate key 'resolution' \(first on line 2\)",
+    ):
+        load_yaml_text(text, "x.yaml")
+    with pytest.raises(ConfigError, match=r"x\.yaml:3: .*duplicate key 'a' \(first on line 2\)"):
+        load_yaml_text("n:\n  a: 1\n  a: 2\n", "x.yaml")
+    with pytest.raises(ConfigError, match=r"x\.yaml:1: .*duplicate key 'a'"):
+        load_yaml_text("{a: 1, b: 2, a: 3}\n", "x.yaml")
+    # the same name in different mappings is fine, so are keys of different YAML types
+    doc = load_yaml_text("a: {x: 1}\nb: {x: 2}\n", "x.yaml")
+    assert doc == {"a": {"x": 1}, "b": {"x": 2}}
+    load_yaml_text("1: int\n1.0: float\n", "x.yaml")
+    # a merge key's entries may be overridden (they are not written twice)
+    assert load_yaml_text("<<: {a: 1, b: 2}\na: 3\n", "x.yaml") == {"a": 3, "b": 2}
+
+
 def test_ground_truth_is_decided_by_content_not_by_name(tmp_path: Path) -> None:
     corrected = read_carmen(write(tmp_path / "plain.log", box_log_lines(5, neff=True)))
     assert poses_look_corrected(corrected)[0]

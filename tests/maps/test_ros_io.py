@@ -391,6 +391,16 @@ def test_yaml_12_numbers_are_read_as_ros_reads_them(tmp_path: Path) -> None:
         assert load_map(path).resolution == value
 
 
+def test_a_repeated_key_is_refused_naming_it(tmp_path: Path) -> None:
+    """'resolution: 0.05' and later 'resolution: 0.5' loaded at 0.5 silently; which one
+    yaml-cpp (Nav2) keeps has varied by version."""
+    write_pgm(tmp_path / "map.pgm", PATTERN)
+    path = write_yaml(tmp_path / "dup.yaml", extra="resolution: 0.5\n")
+    assert_map_error(
+        path, f"{path}:7: not valid YAML: duplicate key 'resolution' (first on line 2)"
+    )
+
+
 def test_aliases_are_refused_with_the_line(tmp_path: Path) -> None:
     write_pgm(tmp_path / "map.pgm", PATTERN)
     path = write_yaml(tmp_path / "alias.yaml", extra="a: &x [1, 2]\nb: *x\n")

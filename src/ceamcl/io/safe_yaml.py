@@ -8,6 +8,9 @@ without the ways a tiny file can exhaust memory.
   ``5e-2``, ``1e3`` and ``.5`` are numbers; PyYAML's YAML 1.1 resolver reads the first two as
   text. The loader resolves YAML 1.2 core-schema floats as well.
 * **Encodings.** Text that is not UTF-8 is refused naming the file, not a traceback.
+* **Unique keys.** YAML requires a mapping's keys to be unique; PyYAML keeps the last value of
+  a repeated key and yaml-cpp's choice has varied by version, so ``resolution`` given twice
+  could mean 0.05 here and 0.5 in Nav2. A repeated key is refused naming it and its lines.
 
 Errors are :class:`~ceamcl.errors.CeamclError` subclasses chosen by the caller (``error``).
 """
@@ -47,6 +50,29 @@ class _Loader(yaml.SafeLoader):
                 event.start_mark,
             )
         return super().compose_node(parent, index)
+
+    def construct_mapping(self, node: Any, deep: bool = False) -> Any:
+        """A mapping whose keys are unique, as YAML requires (PyYAML keeps the last value)."""
+        if isinstance(node, yaml.MappingNode):
+            first: dict[Any, int] = {}
+            for key_node, _ in node.value:
+                if key_node.tag == "tag:yaml.org,2002:merge":
+                    continue
+                key = (key_node.tag, self.construct_object(key_node, deep=True))
+                try:
+                    seen = first.get(key)
+                except TypeError:  # an unhashable key: PyYAML's own error names it
+                    continue
+                if seen is not None:
+                    raise yaml.constructor.ConstructorError(
+                        None,
+                        None,
+                        f"duplicate key {key[1]!r} (first on line {seen}); expected each key "
+                        "once in a mapping",
+                        key_node.start_mark,
+                    )
+                first[key] = key_node.start_mark.line + 1
+        return super().construct_mapping(node, deep=deep)
 
 
 _Loader.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT_12, list("-+0123456789."))
