@@ -186,7 +186,17 @@ def test_trinary_negate_1(tmp_path: Path, negate: str) -> None:
     assert grid.data[0].tolist() == [100, -1, 0]
 
 
-@pytest.mark.parametrize("negate", ["0", "false", "no"])
+@pytest.mark.parametrize("negate", ["2", "-1", "0x1", "07", '"1"', '"yes"', "y", "On", "TRUE"])
+def test_negate_as_nav2_reads_it_any_integer_nonzero_is_yes(tmp_path: Path, negate: str) -> None:
+    """nav2's loadMapYaml reads negate with as<int> (nonzero: yes), else as<bool>; yaml-cpp
+    reads a scalar's text whatever its quoting. 'negate: 2' was refused ('expected 0, 1,
+    false or true, got 2')."""
+    write_pgm(tmp_path / "map.pgm", [[0, 255]])
+    grid = load_map(write_yaml(tmp_path / "map.yaml", negate=negate))
+    assert grid.data.tolist() == [[0, 100]]
+
+
+@pytest.mark.parametrize("negate", ["0", "false", "no", "0x0", "-0", '"0"', '"No"', "n", "OFF"])
 def test_negate_false_spellings(tmp_path: Path, negate: str) -> None:
     write_pgm(tmp_path / "map.pgm", [[0, 255]])
     grid = load_map(write_yaml(tmp_path / "map.yaml", negate=negate))
@@ -336,10 +346,17 @@ def assert_map_error(yaml_path: Path, *fragments: str) -> str:
         ({"origin": "[1.0, 2.0, .inf]"}, "origin"),
         ({"origin": "1.0"}, "origin"),
         ({"origin": "{x: 1}"}, "origin"),
-        ({"negate": "2"}, "negate"),
-        ({"negate": "-1"}, "negate"),
-        ({"negate": '"yes"'}, "negate"),
         ({"negate": "0.5"}, "negate"),
+        ({"negate": "1.0"}, "negate"),
+        ({"negate": '"maybe"'}, "negate"),
+        ({"negate": "tRUE"}, "negate"),
+        ({"negate": "4294967296"}, "negate"),  # beyond yaml-cpp's as<int>
+        ({"negate": '"08"'}, "negate"),  # octal, as yaml-cpp's stream reads a leading 0
+        ({"resolution": '" 0.05"'}, "resolution"),  # yaml-cpp reads no leading space
+        ({"resolution": '"0x10"'}, "resolution"),
+        ({"resolution": '"5e"'}, "resolution"),
+        ({"resolution": "1" + "0" * 400}, "resolution"),  # an int too large for a float
+        ({"origin": '["1.0", "2.0", "x"]'}, "origin"),
         ({"occupied_thresh": "1.5"}, "occupied_thresh"),
         ({"occupied_thresh": "high"}, "occupied_thresh"),
         ({"free_thresh": "-0.1"}, "free_thresh"),
@@ -399,6 +416,24 @@ def test_a_repeated_key_is_refused_naming_it(tmp_path: Path) -> None:
     assert_map_error(
         path, f"{path}:7: not valid YAML: duplicate key 'resolution' (first on line 2)"
     )
+
+
+def test_quoted_numbers_are_read_as_nav2_reads_them(tmp_path: Path) -> None:
+    """yaml-cpp's as<double> converts a scalar's text whatever its quoting, so Nav2 loads
+    'resolution: "0.05"'; it was refused ('expected a finite number > 0, got '0.05'')."""
+    write_pgm(tmp_path / "map.pgm", PATTERN)
+    plain = load_map(write_yaml(tmp_path / "plain.yaml", origin="[1.5, -2.0, 0.25]"))
+    quoted = load_map(
+        write_yaml(
+            tmp_path / "quoted.yaml",
+            resolution='"0.05"',
+            origin='[\'1.5\', "-2", "0.25 "]',
+            occupied_thresh="'0.65'",
+            free_thresh='"1.96e-1"',
+        )
+    )
+    assert quoted == plain
+    assert quoted.resolution == 0.05 and quoted.origin == (1.5, -2.0, 0.25)
 
 
 def test_aliases_are_refused_with_the_line(tmp_path: Path) -> None:

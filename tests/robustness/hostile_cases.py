@@ -722,7 +722,7 @@ def cli_cases() -> list[Case]:
         "origin-short": map_yaml(origin="[0, 0]"),
         "origin-text": map_yaml(origin="[a, b, c]"),
         "origin-nan": map_yaml(origin="[.nan, 0, 0]"),
-        "negate-2": map_yaml(negate="2"),
+        "negate-half": map_yaml(negate="0.5"),  # nav2 reads 2 as yes, 0.5 not at all
         "occupied-1.5": map_yaml(occupied_thresh="1.5"),
         "free-above-occupied": map_yaml(free_thresh="0.7"),
         "mode-fancy": map_yaml() + "mode: fancy\n",

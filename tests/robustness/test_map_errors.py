@@ -40,7 +40,7 @@ def write_map(folder: Path, image_mode: str = "L", **changes: str | None) -> Pat
         ({"resolution": "-0.05"}, "key 'resolution': expected a finite number > 0"),
         ({"resolution": ".nan"}, "key 'resolution': expected a finite number > 0"),
         ({"origin": "[0, 0]"}, "key 'origin': expected a list of three finite numbers"),
-        ({"negate": "2"}, "key 'negate': expected 0, 1, false or true"),
+        ({"negate": "0.5"}, "key 'negate': expected an integer (0: no, any other: yes"),
         ({"occupied_thresh": "1.5"}, "key 'occupied_thresh': expected a number in [0, 1]"),
         ({"free_thresh": "0.7"}, "key 'free_thresh': expected a value smaller than"),
         ({"mode": "fancy"}, "key 'mode': expected one of trinary, scale, raw"),

@@ -17,11 +17,17 @@ YAML keys (all required except ``mode``; any other key is an error):
 ``origin``
     ``[x, y, yaw]``: pose of the lower-left corner of the image (cell (0, 0)) in the world.
 ``negate``
-    ``0``/``1`` or ``false``/``true``: if set, white means occupied and black free.
+    An integer, nonzero meaning yes (as nav2's ``loadMapYaml`` reads it, ``as<int>``), or
+    ``false``/``true`` (also ``no``/``yes``, ``off``/``on``): if set, white means occupied and
+    black free.
 ``occupied_thresh``, ``free_thresh``
     Numbers in [0, 1] with ``free_thresh < occupied_thresh``.
 ``mode``
     ``trinary`` (default), ``scale`` or ``raw`` (case-insensitive, as nav2).
+
+Numbers are read as yaml-cpp reads them for Nav2: a quoted scalar whose text is a number
+(``resolution: "0.05"``) is that number, since yaml-cpp converts a scalar's text whatever its
+quoting.
 
 Pixel to cell value, for a pixel with colour channels averaged to a brightness
 ``shade`` in [0, 1] and ``p = 1 - shade`` (``p = shade`` when ``negate``):
@@ -63,6 +69,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import secrets
 import warnings
 from collections.abc import Callable
@@ -175,13 +182,12 @@ def _read_meta(path: Path) -> _MapMeta:
         raise fail("origin", "a list of three finite numbers [x, y, yaw]")
     ox, oy, oyaw = (float(v or 0.0) for v in origin_vals)
 
-    negate_raw = doc["negate"]
-    if isinstance(negate_raw, bool):
-        negate = negate_raw
-    elif isinstance(negate_raw, int) and negate_raw in (0, 1):
-        negate = bool(negate_raw)
-    else:
-        raise fail("negate", "0, 1, false or true")
+    negate = _negate(doc["negate"])
+    if negate is None:
+        raise fail(
+            "negate",
+            "an integer (0: no, any other: yes, as Nav2 reads it) or true/false, yes/no, on/off",
+        )
 
     thresholds: dict[str, float] = {}
     for key in ("occupied_thresh", "free_thresh"):
@@ -212,11 +218,63 @@ def _read_meta(path: Path) -> _MapMeta:
     )
 
 
+# What yaml-cpp's ``as<double>``/``as<int>`` read in a scalar's text, whatever its quoting
+# (``YAML_DEFINE_CONVERT_STREAMABLE``: ``stream >> value`` with no leading white space, any
+# trailing; integers in decimal, hex ``0x..`` or octal ``0..``, as ``std::ios::dec`` is unset).
+_CPP_SPACE = "[ \t\n\v\f\r]*"
+_CPP_DOUBLE = re.compile(r"[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][-+]?[0-9]+)?" + _CPP_SPACE)
+_CPP_INT = re.compile(r"([-+]?)(0[xX][0-9a-fA-F]+|0[0-7]*|[1-9][0-9]*)" + _CPP_SPACE)
+_INT32 = range(-(2**31), 2**31)
+# yaml-cpp's ``as<bool>``: these names in lower case, upper case or capitalised.
+_CPP_BOOL = {"y": True, "yes": True, "true": True, "on": True}
+_CPP_BOOL |= {"n": False, "no": False, "false": False, "off": False}
+
+
 def _number(value: Any) -> float | None:
-    """``value`` as a float if it is a YAML number (int or float, not bool), else None."""
+    """``value`` as a float if it is a YAML number (int or float, not bool), or a string whose
+    text yaml-cpp's ``as<double>`` reads as one (``resolution: "0.05"``: Nav2 reads any
+    scalar's text, quoted or not); else None."""
+    if isinstance(value, str) and _CPP_DOUBLE.fullmatch(value):
+        return float(value)
     if isinstance(value, bool) or not isinstance(value, int | float):
         return None
-    return float(value)
+    try:
+        return float(value)
+    except OverflowError:  # an integer of hundreds of digits: yaml-cpp's as<double> fails too
+        return None
+
+
+def _negate(value: Any) -> bool | None:
+    """``negate`` as nav2's ``loadMapYaml`` reads it: ``as<int>`` (any 32-bit integer, nonzero
+    meaning yes), else ``as<bool>``; None if neither reads it."""
+    if isinstance(value, bool):
+        return value
+    if isinstance(value, int):
+        return bool(value) if value in _INT32 else None
+    if not isinstance(value, str):
+        return None
+    m = _CPP_INT.fullmatch(value)
+    if m is not None:
+        sign, digits = m.groups()
+        if digits[:2] in ("0x", "0X"):
+            number = int(digits[2:], 16)
+        else:
+            number = int(digits, 8 if digits[0] == "0" else 10)
+        number = -number if sign == "-" else number
+        return bool(number) if number in _INT32 else None
+    return _CPP_BOOL.get(value.lower()) if _flexible_case(value) else None
+
+
+def _flexible_case(text: str) -> bool:
+    """yaml-cpp's ``IsFlexibleCase``: lower case, upper case, or capitalised."""
+
+    def lower(t: str) -> bool:
+        return all("a" <= c <= "z" for c in t)
+
+    def upper(t: str) -> bool:
+        return all("A" <= c <= "Z" for c in t)
+
+    return lower(text) or (upper(text[:1]) and (lower(text[1:]) or upper(text[1:])))
 
 
 def _read_image(
