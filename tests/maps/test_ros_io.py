@@ -436,6 +436,31 @@ def test_quoted_numbers_are_read_as_nav2_reads_them(tmp_path: Path) -> None:
     assert quoted.resolution == 0.05 and quoted.origin == (1.5, -2.0, 0.25)
 
 
+def test_the_budget_not_pillows_bomb_guard_decides_how_large_a_map_may_be(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Pillow's Image.open refuses images over 2 x MAX_IMAGE_PIXELS (179 M pixels) as
+    decompression bombs: a 14000 x 14000 map (700 m at 5 cm, which Nav2 loads) was refused
+    as 'cannot read the image (unreadable or truncated)' whatever the budget."""
+    from ceamcl import budget
+
+    monkeypatch.setattr(Image, "MAX_IMAGE_PIXELS", 2)  # every image is a "bomb" now
+    write_pgm(tmp_path / "map.pgm", PATTERN)
+    grid = load_map(write_yaml(tmp_path / "map.yaml"))
+    assert grid.data.shape == (2, 3)
+    assert Image.MAX_IMAGE_PIXELS == 2  # the process-wide setting is put back
+    # a header of 196 M pixels: the budget refuses it, before anything is decoded
+    (tmp_path / "big.pgm").write_bytes(b"P5\n14000 14000\n255\n\x00")
+    path = write_yaml(tmp_path / "big.yaml", image="big.pgm")
+    with budget.use(budget.Budget(1 << 30)):
+        with pytest.raises(
+            budget.BudgetError,
+            match=r"big\.pgm' \(key 'image'\): 14000 x 14000 pixels: 196,000,000 map cells "
+            r"would need 23\.4 GiB, over the memory budget of 1\.0 GiB",
+        ):
+            load_map(path)
+
+
 def test_aliases_are_refused_with_the_line(tmp_path: Path) -> None:
     write_pgm(tmp_path / "map.pgm", PATTERN)
     path = write_yaml(tmp_path / "alias.yaml", extra="a: &x [1, 2]\nb: *x\n")

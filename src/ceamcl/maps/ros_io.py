@@ -71,6 +71,7 @@ import math
 import os
 import re
 import secrets
+import threading
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -277,6 +278,10 @@ def _flexible_case(text: str) -> bool:
     return lower(text) or (upper(text[:1]) and (lower(text[1:]) or upper(text[1:])))
 
 
+#: Held while Pillow's decompression-bomb limit is lifted (a process-wide setting).
+_PILLOW_LIMIT_OFF = threading.Lock()
+
+
 def _read_image(
     image_path: Path, yaml_path: Path
 ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
@@ -287,10 +292,16 @@ def _read_image(
     if not image_path.is_file():
         raise MapFormatError(f"{where} (key 'image'): expected an image file, not a folder")
     try:
-        with warnings.catch_warnings():
-            # The budget below decides what is too large, not Pillow's warning threshold.
-            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
-            img = Image.open(image_path)
+        with _PILLOW_LIMIT_OFF:
+            # The budget below decides what is too large, not Pillow's decompression-bomb
+            # guard: Image.open refuses over 2 x MAX_IMAGE_PIXELS (179 M pixels), a 700 m
+            # square map at 5 cm that Nav2 loads. open() reads only the header.
+            saved = Image.MAX_IMAGE_PIXELS
+            Image.MAX_IMAGE_PIXELS = None
+            try:
+                img = Image.open(image_path)
+            finally:
+                Image.MAX_IMAGE_PIXELS = saved
         with img:
             w, h = img.size  # from the header: checked before the pixels are decoded
             budget.require(
