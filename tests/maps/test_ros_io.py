@@ -495,7 +495,7 @@ def test_image_file_missing(tmp_path: Path) -> None:
 def test_image_is_a_folder(tmp_path: Path) -> None:
     (tmp_path / "dir.pgm").mkdir()
     path = write_yaml(tmp_path / "m.yaml", "dir.pgm")
-    assert_map_error(path, "dir.pgm", "expected an image file")
+    assert_map_error(path, "dir.pgm", "expected a regular image file, got a folder")
 
 
 @pytest.mark.parametrize(

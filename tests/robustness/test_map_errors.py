@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -66,7 +67,22 @@ def test_truncated_and_unreadable_images(tmp_path: Path) -> None:
             load_map(path)
     image.unlink()
     image.mkdir()
-    with pytest.raises(MapFormatError, match="not a folder"):
+    with pytest.raises(MapFormatError, match="expected a regular image file, got a folder"):
+        load_map(path)
+
+
+def test_a_fifo_or_a_device_as_the_image_is_named_as_such(tmp_path: Path) -> None:
+    """A FIFO or /dev/zero as the image was reported as 'expected an image file, not a
+    folder'."""
+    path = write_map(tmp_path, image="img.fifo")
+    os.mkfifo(tmp_path / "img.fifo")
+    with pytest.raises(
+        MapFormatError,
+        match=r"image '.*img\.fifo' \(key 'image'\): expected a regular image file, got a FIFO",
+    ):
+        load_map(path)
+    path = write_map(tmp_path, image="/dev/zero")
+    with pytest.raises(MapFormatError, match=r"'/dev/zero' .*regular image file, got a device"):
         load_map(path)
 
 

@@ -71,6 +71,7 @@ import math
 import os
 import re
 import secrets
+import stat
 import threading
 import warnings
 from collections.abc import Callable
@@ -290,7 +291,9 @@ def _read_image(
     if not image_path.exists():
         raise MapFormatError(f"{where} (key 'image'): file not found")
     if not image_path.is_file():
-        raise MapFormatError(f"{where} (key 'image'): expected an image file, not a folder")
+        raise MapFormatError(
+            f"{where} (key 'image'): expected a regular image file, got {_file_kind(image_path)}"
+        )
     try:
         with _PILLOW_LIMIT_OFF:
             # The budget below decides what is too large, not Pillow's decompression-bomb
@@ -318,6 +321,23 @@ def _read_image(
         raise MapFormatError(
             f"{where}: cannot read the image (unreadable or truncated): {e}"
         ) from e
+
+
+def _file_kind(path: Path) -> str:
+    """What a path that exists but is no regular file is, for a message."""
+    try:
+        mode = path.stat().st_mode
+    except OSError as e:
+        return f"a path that cannot be read ({e.strerror or e})"
+    if stat.S_ISDIR(mode):
+        return "a folder"
+    if stat.S_ISFIFO(mode):
+        return "a FIFO (named pipe)"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "a device"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return "a special file"
 
 
 def _image_channels(
