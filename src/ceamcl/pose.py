@@ -8,6 +8,13 @@ from numpy.typing import ArrayLike, NDArray
 
 from ceamcl.angles import circular_mean, diff
 
+#: Poses beyond these are not of a building (and overflow the motion model's squares): a
+#: position further than 10,000 km from the origin, a heading of more than 10^6 rad (a log's
+#: headings may run on unwrapped, a few hundred turns at most). Log poses
+#: (:func:`ceamcl.io.recorded.check_pose_values`) and a map's origin are bounded by them.
+POSE_LIMIT_M = 1e7
+HEADING_LIMIT_RAD = 1e6
+
 
 def normalised(weights: ArrayLike | None, n: int) -> NDArray[np.float64]:
     """Weights summing to 1; uniform when absent, empty, or not positive/finite in total."""

@@ -107,9 +107,10 @@ def test_round_trip(tmp_path: Path, fmt: str) -> None:
 
 
 def test_round_trip_awkward_floats(tmp_path: Path) -> None:
-    # 1e-05 is written by repr() without a dot, which PyYAML would read back as a string.
+    # 1e-05 is written by repr() without a dot, which PyYAML would read back as a string
+    # (the origin within the 10^7 m bound of map origins and log poses).
     grid = OccupancyGrid(
-        np.array([[0, -1], [100, 0]], dtype=np.int8), 1e-5, (-1e-7, 123456789.125, -3.0)
+        np.array([[0, -1], [100, 0]], dtype=np.int8), 1e-5, (-1e-7, 9876543.125, -3.0)
     )
     assert load_map(save_map(grid, tmp_path / "m.yaml")) == grid
 
@@ -459,6 +460,22 @@ def test_the_budget_not_pillows_bomb_guard_decides_how_large_a_map_may_be(
             r"would need 23\.4 GiB, over the memory budget of 1\.0 GiB",
         ):
             load_map(path)
+
+
+@pytest.mark.parametrize(
+    "origin", ["[1e17, 0, 0]", "[0, -2.0e7, 0]", "[0, 0, 1.5e6]", "[1e300, 0, 0]"]
+)
+def test_an_origin_beyond_the_bounds_of_log_poses_is_refused(tmp_path: Path, origin: str) -> None:
+    """An origin of 1e17 m was accepted: every pose of the run came out as
+    99999999999999984.0 (the precision lost), and 1e300 leaked a matplotlib warning. The
+    origin is bounded as log poses are (10^7 m, 10^6 rad)."""
+    write_pgm(tmp_path / "map.pgm", PATTERN)
+    path = write_yaml(tmp_path / "far.yaml", origin=origin)
+    assert_map_error(
+        path, "key 'origin': expected [x, y, yaw] with |x|, |y| <= 1e+07 m and |yaw| <= 1e+06 rad"
+    )
+    grid = load_map(write_yaml(tmp_path / "edge.yaml", origin="[1e7, -1e7, -1e6]"))
+    assert grid.origin == (1e7, -1e7, -1e6)
 
 
 def test_aliases_are_refused_with_the_line(tmp_path: Path) -> None:

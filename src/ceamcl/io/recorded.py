@@ -29,9 +29,17 @@ from numpy.typing import ArrayLike, NDArray
 
 from ceamcl.angles import wrap
 from ceamcl.motion.odometry import OdometryNoise, synthetic_odometry
+from ceamcl.pose import HEADING_LIMIT_RAD, POSE_LIMIT_M
 from ceamcl.sensors.scan import LaserScan, laser_poses
 
-__all__ = ["RecordedLog", "RobotLog", "interpolate_poses", "poses_at_scans"]
+__all__ = [
+    "HEADING_LIMIT_RAD",
+    "POSE_LIMIT_M",
+    "RecordedLog",
+    "RobotLog",
+    "interpolate_poses",
+    "poses_at_scans",
+]
 
 
 class RobotLog(Protocol):
@@ -264,11 +272,8 @@ def _span(t: NDArray[np.float64]) -> str:
     return f"{t.min():.3f} .. {t.max():.3f} s"
 
 
-#: Poses beyond these are not of a building (and overflow the motion model's squares): a
-#: position further than 10,000 km from the origin, a heading of more than 10^6 rad (a log's
-#: headings may run on unwrapped, a few hundred turns at most).
-POSE_LIMIT_M = 1e7
-HEADING_LIMIT_RAD = 1e6
+#: Poses beyond ``POSE_LIMIT_M`` and ``HEADING_LIMIT_RAD`` (:mod:`ceamcl.pose`, where a map's
+#: origin is bounded by them too) are refused.
 
 
 def check_pose_values(v: NDArray[np.float64], what: str, error: Callable[[str], Exception]) -> None:

@@ -15,7 +15,8 @@ YAML keys (all required except ``mode``; any other key is an error):
 ``resolution``
     Cell side in metres, a finite number > 0.
 ``origin``
-    ``[x, y, yaw]``: pose of the lower-left corner of the image (cell (0, 0)) in the world.
+    ``[x, y, yaw]``: pose of the lower-left corner of the image (cell (0, 0)) in the world,
+    within the bounds of log poses (``|x|, |y| <= 10^7 m``, ``|yaw| <= 10^6 rad``).
 ``negate``
     An integer, nonzero meaning yes (as nav2's ``loadMapYaml`` reads it, ``as<int>``), or
     ``false``/``true`` (also ``no``/``yes``, ``off``/``on``): if set, white means occupied and
@@ -88,6 +89,7 @@ from ceamcl import budget
 from ceamcl.errors import InputWarning, MapFormatError
 from ceamcl.io.safe_yaml import load_yaml_file
 from ceamcl.maps.grid import OccupancyGrid
+from ceamcl.pose import HEADING_LIMIT_RAD, POSE_LIMIT_M
 
 __all__ = ["load_map", "save_map"]
 
@@ -183,6 +185,14 @@ def _read_meta(path: Path) -> _MapMeta:
     if len(origin_vals) != 3 or any(v is None or not math.isfinite(v) for v in origin_vals):
         raise fail("origin", "a list of three finite numbers [x, y, yaw]")
     ox, oy, oyaw = (float(v or 0.0) for v in origin_vals)
+    if max(abs(ox), abs(oy)) > POSE_LIMIT_M or abs(oyaw) > HEADING_LIMIT_RAD:
+        # as log poses: beyond, the cells' centres lose their precision (an origin of 1e17 m
+        # put every pose at 99999999999999984.0) and the plots their axes
+        raise fail(
+            "origin",
+            f"[x, y, yaw] with |x|, |y| <= {POSE_LIMIT_M:g} m and |yaw| <= "
+            f"{HEADING_LIMIT_RAD:g} rad (the bounds of log poses)",
+        )
 
     negate = _negate(doc["negate"])
     if negate is None:
