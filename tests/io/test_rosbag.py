@@ -15,6 +15,7 @@ from ceamcl.io.rosbag import read_bag
 
 rosbags = pytest.importorskip("rosbags")
 from rosbags.rosbag1 import Writer as Writer1  # noqa: E402
+from rosbags.rosbag2 import StoragePlugin  # noqa: E402
 from rosbags.rosbag2 import Writer as Writer2  # noqa: E402
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore  # noqa: E402
 
@@ -66,6 +67,7 @@ def write_bag(
     bad_x: float | None = None,
     scan_delay: float = 0.0,
     range_max: float = 10.0,
+    mcap: bool = False,
 ) -> Path:
     """A small bag; ``bad_x``: the x of the sixth odometry message (a broken pose);
     ``scan_delay``: seconds added to the scans' stamps (another clock)."""
@@ -78,7 +80,12 @@ def write_bag(
         )
     m = _msgs(ts)
     ser = ts.serialize_ros1 if ros1 else ts.serialize_cdr
-    writer = Writer1(path) if ros1 else Writer2(path, version=9)
+    if ros1:
+        writer = Writer1(path)
+    elif mcap:
+        writer = Writer2(path, version=9, storage_plugin=StoragePlugin.MCAP)
+    else:
+        writer = Writer2(path, version=9)
     with writer:
         c_scan = writer.add_connection(scan_topic, m["LaserScan"].__msgtype__, typestore=ts)
         c_odom = (
@@ -249,3 +256,30 @@ def test_a_scan_range_max_that_is_not_a_positive_finite_number_is_named(
         r"range_max a finite number of metres, got range_min=0\.1.*, range_max=" + str(range_max),
     ):
         open_log(bag)
+
+
+@pytest.mark.parametrize("mcap", [True, False], ids=["mcap", "db3"])
+def test_a_ros2_storage_file_out_of_its_folder_is_read_as_a_bag(tmp_path: Path, mcap: bool) -> None:
+    """A lone .mcap (or .db3) file, copied out of its bag folder, was read as a CARMEN log:
+    'alone.mcap:1: not UTF-8/ASCII text (byte 0x89 at column 1); expected a CARMEN text log'.
+    rosbags reads such a file on its own; a damaged one says to read the bag's folder."""
+    import shutil
+
+    folder = write_bag(tmp_path / "run", False, mcap=mcap)
+    suffix = ".mcap" if mcap else ".db3"
+    lone = tmp_path / f"alone{suffix}"
+    shutil.copy(next(folder.glob(f"*{suffix}")), lone)
+    assert log_format(lone) == "ros2"
+    log, whole = open_log(lone), open_log(folder)
+    assert len(log) == N_SCANS and log.info["format"] == "ros2"
+    np.testing.assert_array_equal(log.times, whole.times)
+    np.testing.assert_array_equal(log.poses, whole.poses)
+    np.testing.assert_array_equal(log.ranges_flat, whole.ranges_flat)
+    cut = tmp_path / f"cut{suffix}"
+    cut.write_bytes(lone.read_bytes()[:300])
+    with pytest.raises(
+        LogFormatError,
+        match=rf"cut\{suffix}: cannot open the \{suffix} file of a ROS 2 bag on its own: .*; "
+        r"read the bag from its folder \(the one holding metadata\.yaml\)",
+    ):
+        open_log(cut)

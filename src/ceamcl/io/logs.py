@@ -2,7 +2,7 @@
 
 :func:`open_log` picks the reader by file type: a ROS 1 bag (``.bag`` or the ``#ROSBAG``
 header), a ROS 2 bag (a folder with ``metadata.yaml``, or a ``.db3``/``.mcap`` file inside
-one), anything else a CARMEN log (plain or gzip). Every reader returns a
+one or on its own), anything else a CARMEN log (plain or gzip). Every reader returns a
 :class:`~ceamcl.io.recorded.RecordedLog` (the log type, its ground truth and synthetic
 odometry are described in :mod:`ceamcl.io.recorded`).
 """
@@ -37,6 +37,9 @@ __all__ = [
 DEFAULT_SYNTHETIC_NOISE = OdometryNoise(0.02, 0.02, 0.02, 0.02)
 
 LogFormat = Literal["carmen", "ros1", "ros2"]
+
+#: The first bytes of a ROS 2 bag's storage files, by suffix: MCAP and SQLite 3.
+ROS2_STORAGE_MAGIC = {".mcap": b"\x89MCAP0\r\n", ".db3": b"SQLite format 3\x00"}
 
 
 def poses_look_corrected(log: RecordedLog) -> tuple[bool, str]:
@@ -77,11 +80,13 @@ def log_format(path: str | os.PathLike[str]) -> LogFormat:
     if p.suffix in (".db3", ".mcap") and (p.parent / "metadata.yaml").is_file():
         return "ros2"
     try:
-        head = streams.sniff(p, 13, "log")  # a pipe keeps these bytes for the reader
+        head = streams.sniff(p, 16, "log")  # a pipe keeps these bytes for the reader
     except OSError as exc:
         raise LogFormatError(f"{p}: cannot read the log: {exc.strerror or exc}") from None
     if head.startswith(b"#ROSBAG V2.0") or p.suffix == ".bag":
         return "ros1"
+    if head.startswith(ROS2_STORAGE_MAGIC.get(p.suffix, b"\0\0")):
+        return "ros2"  # a ROS 2 bag's storage file out of its folder (rosbag.read_bag)
     return "carmen"
 
 

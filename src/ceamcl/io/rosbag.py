@@ -91,12 +91,19 @@ def read_bag(
             "save it to a file first"
         )
     paths = _bag_paths(p)
+    # a ROS 2 storage file out of its folder: rosbags reads it alone (its own topic list)
+    lone = paths[0].is_file() and paths[0].suffix in (".db3", ".mcap")
     try:
         reader = AnyReader(paths, default_typestore=get_typestore(Stores.LATEST))
         reader.open()
     except CeamclError:
         raise
     except Exception as exc:  # rosbags raises many types on a damaged container
+        if lone:
+            raise LogFormatError(
+                f"{p}: cannot open the {p.suffix} file of a ROS 2 bag on its own: "
+                f"{_one_line(exc)}; read the bag from its folder (the one holding metadata.yaml)"
+            ) from None
         raise LogFormatError(f"{p}: cannot open the bag: {_one_line(exc)}") from None
     try:
         return _read(reader, p, scan_topic, odom_topic, _strip(odom_frame), _strip(base_frame))
