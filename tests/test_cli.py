@@ -478,6 +478,12 @@ def test_every_option_with_a_default_shows_it_in_its_help() -> None:
         (["experiment", "state", "--executor", "bogus"], "executor: unknown executor"),
         (["experiment", "state", "--start-routes", "0"], "start-routes: the state"),
         (["experiment", "table1", "--starts", "5"], "--start-routes I,J"),
+        # no route: empty tables with exit 0 (marked, tune, state), a traceback (kidnapped, delta)
+        (["experiment", "marked", "--start-routes", ""], "--start-routes: expected comma"),
+        (["experiment", "tune", "--start-routes", " , "], "route numbers (one or more)"),
+        (["experiment", "kidnapped", "--start-routes", ""], "route numbers (one or more)"),
+        (["experiment", "delta", "--start-routes", ","], "route numbers (one or more)"),
+        (["experiment", "state", "--world", "marked-hall", "--start-routes", ""], "one or more"),
         (["experiment", "tune", "--max-beams", "inf"], "argument --max-beams"),
         (["experiment", "tune", "--particle-counts", "1.7"], "argument --particle-counts"),
         # an empty list ran the defaults; a value given twice ran once and was counted twice

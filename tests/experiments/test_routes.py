@@ -179,6 +179,8 @@ def test_select_starts() -> None:
     assert [r.name for r in course.routes] == ["room2", "room0"]
     with pytest.raises(ConfigError, match="start-routes: route 4 out of range"):
         paper_course().select([4])
+    with pytest.raises(ConfigError, match="start-routes: expected one or more route numbers"):
+        paper_course().select([])  # ran no route: empty tables, or a traceback
 
 
 def test_kidnapped_course_jumps_while_odometry_stands_still() -> None:

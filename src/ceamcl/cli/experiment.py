@@ -535,12 +535,17 @@ def _names(text: str) -> list[str]:
 
 
 def _indices(text: str) -> list[int]:
+    """argparse type: comma-separated route numbers, at least one (an empty or blank list ran
+    no route: empty tables, or a traceback in kidnapped and delta)."""
     try:
-        return [int(t) for t in _names(text)]
+        numbers = [int(t) for t in _names(text)]
     except ValueError:
+        numbers = []
+    if not numbers:
         raise argparse.ArgumentTypeError(
-            f"expected comma-separated route numbers, got {text!r}"
-        ) from None
+            f"expected comma-separated route numbers (one or more), got {text!r}"
+        )
+    return numbers
 
 
 def _floats(text: str) -> list[float]:

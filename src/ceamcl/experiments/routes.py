@@ -145,6 +145,11 @@ class Course:
         its number, so its trials draw what they draw among all the routes."""
         if indices is None:
             return self
+        if not indices:  # an empty selection ran nothing and wrote empty tables
+            raise ConfigError(
+                f"start-routes: expected one or more route numbers; this course has routes "
+                f"0..{len(self.routes) - 1}"
+            )
         bad = [i for i in indices if not 0 <= i < len(self.routes)]
         if bad:
             raise ConfigError(
