@@ -199,6 +199,27 @@ def test_cli_tune(tmp_path: Path) -> None:
     assert exc.value.code == 2
 
 
+@pytest.mark.parametrize("given", ["mcl,ceamcl", "ceamcl", "nav2-amcl mcl-tuned"])
+def test_tune_refuses_an_algorithm_it_does_not_tune_naming_it_before_any_work(
+    given: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--algorithms mcl,ceamcl`` tuned mcl alone without a word, and ``--algorithms ceamcl``
+    was refused only after the header, without naming what was given."""
+    out = tmp_path / "tune"
+    argv = ["experiment", "tune", "--algorithms", *given.split(), "--trials", "1"]
+    argv += ["--max-time", "2", "--executor", "serial", "--out", str(out)]
+    assert main(argv) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""  # no header, no run
+    others = [a for a in given.replace(" ", ",").split(",") if a not in BASELINES]
+    assert f"got {', '.join(others)}, which it does not tune" in captured.err
+    assert "tunes mcl, gmcl, kld-amcl" in captured.err
+    assert not out.exists()
+    settings = ExperimentSettings(paper_course().select([0]), ("mcl", "ceamcl"), trials=1)
+    with pytest.raises(ConfigError, match="got ceamcl, which it does not tune"):
+        run_tuning(settings, TuningGrid(), quiet=True)
+
+
 # ---------------------------------------------------------------------- the presets
 DOCS_CSV = Path(__file__).resolve().parents[2] / "docs" / "tuning.csv"
 

@@ -72,6 +72,8 @@ class Experiment:
     ``visuals``: whether its result keeps trial records to run again for the visual outputs
     (``--gif``, ``--mp4``, ``--report``, ``--mcap``); without, those flags are refused before
     any trial runs.
+    ``check_algorithms(names)``: refuses names given with ``--algorithms`` that the
+    experiment cannot run (the tuning sweep: the baselines only), before any work.
     """
 
     help: str
@@ -87,6 +89,7 @@ class Experiment:
     count: Callable[[ExperimentSettings, argparse.Namespace], int] | None = None
     where: Callable[[argparse.Namespace], str] | None = None
     visuals: bool = True
+    check_algorithms: Callable[[Sequence[str]], None] | None = None
 
 
 # ---------------------------------------------------------------- the tables printed
@@ -451,9 +454,7 @@ def _run_tuning(
 def _tuning_runs(settings: ExperimentSettings, args: argparse.Namespace) -> int:
     """Runs of the sweep: configurations x routes x trials, without the configurations a
     resumed sweep has already run."""
-    cands = tuning.candidates(
-        [a for a in settings.algorithms if a in tuning.BASELINES], _tuning_grid(args)
-    )
+    cands = tuning.candidates(settings.algorithms, _tuning_grid(args))
     finished = tuning.finished_rows(tuning.read_partial(args.out, settings), settings)
     return sum(c not in finished for c in cands) * len(settings.course.routes) * settings.trials
 
@@ -509,6 +510,7 @@ EXPERIMENTS: dict[str, Experiment] = {
         default_algorithms=tuning.BASELINES,
         default_seed=tuning.TUNING_SEED,
         visuals=False,  # one row per configuration: no run to draw
+        check_algorithms=tuning.check_algorithms,
     ),
     "state": Experiment(
         "the localisation state (LOCALISED / AMBIGUOUS / LOST): precision and recall on "
@@ -683,7 +685,10 @@ def _settings(args: argparse.Namespace, console: Console) -> ExperimentSettings:
             )
     else:
         wanted = names if names is not None else EXPERIMENTS[args.experiment].default_algorithms
-        algorithms, skipped = registry.resolve(wanted)
+        algorithms, skipped = registry.resolve(wanted)  # an unknown name first
+        check = EXPERIMENTS[args.experiment].check_algorithms
+        if check is not None and names is not None:
+            check(names)
     for alg, reason in skipped.items():
         console.print(f"[yellow]skipping {alg}[/]: {escape(reason)}")
     if not algorithms:

@@ -114,15 +114,28 @@ def _scoring(algorithm: str) -> str:
     return str(getattr(registry.get(algorithm).default(), "scoring", "product"))
 
 
+def check_algorithms(algorithms: Iterable[str]) -> None:
+    """Refuse, naming them, algorithms the sweep does not tune (they were dropped without a
+    word when given beside a baseline: ``--algorithms mcl,ceamcl`` tuned mcl alone)."""
+    chosen = list(algorithms)
+    other = [a for a in chosen if a not in BASELINES]
+    if other:
+        raise ConfigError(
+            f"algorithms: the tuning sweep tunes {', '.join(BASELINES)} only; got "
+            f"{', '.join(other)}, which it does not tune"
+        )
+    if not chosen:
+        raise ConfigError(f"algorithms: the tuning sweep tunes {', '.join(BASELINES)}")
+
+
 def candidates(algorithms: Iterable[str], grid: TuningGrid) -> list[Candidate]:
     """Every configuration of the grid for each algorithm (KLD-AMCL with ``scoring="ros"``,
-    its default, takes temper 1 only; headings from the scan only with test poses)."""
+    its default, takes temper 1 only; headings from the scan only with test poses); an
+    algorithm the sweep does not tune is refused (:func:`check_algorithms`)."""
+    algorithms = list(algorithms)
+    check_algorithms(algorithms)
     out = []
     for alg in algorithms:
-        if alg not in BASELINES:
-            raise ConfigError(
-                f"algorithms: the tuning sweep tunes {', '.join(BASELINES)}, got {alg!r}"
-            )
         tempers = (1.0,) if _scoring(alg) == "ros" else grid.temper
         for beams in grid.max_beams:
             for temper in tempers:
@@ -245,15 +258,15 @@ def run_tuning(
     done: Sequence[TuningRow] = (),
     on_row: Callable[[TuningRow], None] | None = None,
 ) -> TuningResult:
-    """Run the sweep over the baselines among ``settings.algorithms`` and score it.
+    """Run the sweep over ``settings.algorithms`` (baselines only: :func:`check_algorithms`)
+    and score it.
 
     Configurations run one after another (their runs in parallel on the settings' executor);
     ``on_row(row)`` is called as each finishes (the CLI appends it to a file), and rows in
     ``done`` (from an interrupted sweep with the same seed and trials) are not run again.
     """
-    algorithms = [a for a in settings.algorithms if a in BASELINES]
-    if not algorithms:
-        raise ConfigError(f"algorithms: the tuning sweep tunes {', '.join(BASELINES)}")
+    algorithms = list(settings.algorithms)
+    check_algorithms(algorithms)
     per = len(settings.course.routes) * settings.trials
     finished = finished_rows(done, settings)
     cands = candidates(algorithms, grid)
@@ -461,6 +474,7 @@ __all__ = [
     "append_row",
     "best_rows",
     "candidates",
+    "check_algorithms",
     "partial_path",
     "read_tuning_csv",
     "run_tuning",
