@@ -493,6 +493,11 @@ def test_every_option_with_a_default_shows_it_in_its_help() -> None:
         (["experiment", "delta", "--deltas", "20,80,80"], "80 given twice"),
         (["experiment", "tune", "--max-beams", "30,30"], "30 given twice"),
         (["experiment", "tune", "--tempers", ","], "--tempers: expected one or more values"),
+        # headings from the scan without test poses: no configuration, an empty sweep ran
+        (
+            ["experiment", "tune", "--init-headings", "scan", "--init-test-poses", "0"],
+            "init-headings: headings from the scan apply only with test poses",
+        ),
         (["play", "LOG", "--delay", "inf"], "argument --delay"),
         # only node and play hand what follows --ros-args to ROS; run dropped it without a word
         (["run", "LOG", "--ros-args", "--seed", "7"], "unrecognized arguments: --ros-args"),

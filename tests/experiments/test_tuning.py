@@ -86,6 +86,9 @@ def test_grid_candidates_and_amcls_scoring_takes_no_temper() -> None:
     assert guided.init_headings == HeadingPrior() and guided.init_test_poses == 100_000
     with pytest.raises(ConfigError, match="tunes mcl, gmcl, kld-amcl"):
         candidates(["ceamcl"], grid)
+    # a grid without a configuration (headings from the scan, no test poses) is refused
+    with pytest.raises(ConfigError, match=r"init-headings: .* no configuration to run"):
+        TuningGrid(init_test_poses=(0,), init_headings=(True,))
 
 
 # ---------------------------------------------------------------------- a small sweep

@@ -73,6 +73,14 @@ class TuningGrid:
         for name in ("max_beams", "temper", "n_particles", "init_test_poses", "init_headings"):
             if not getattr(self, name):
                 raise ConfigError(f"{name}: expected at least one value to sweep")
+        if not any(self.init_test_poses) and all(self.init_headings):
+            # headings from the scan guide test poses, and there are none: every configuration
+            # is skipped (candidates), and an empty sweep wrote empty tables with exit 0
+            raise ConfigError(
+                "init-headings: headings from the scan apply only with test poses, and the "
+                "grid has none (init_test_poses 0): no configuration to run; add uniform to "
+                "--init-headings or a budget above 0 to --init-test-poses"
+            )
 
 
 DEFAULT_GRID = TuningGrid()
