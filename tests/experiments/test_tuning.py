@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 from dataclasses import asdict
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -200,6 +201,46 @@ def test_cli_tune(tmp_path: Path) -> None:
     with pytest.raises(SystemExit) as exc:
         main([*args, "--init-headings", "sideways", "--out", str(tmp_path / "h")])
     assert exc.value.code == 2
+
+
+def test_an_interrupted_sweep_keeps_its_partial_rows_in_a_folder_it_created(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Ctrl-C (or SIGTERM, the same exception) after the first configuration: the folder the
+    command created is kept with the finished row, and the sweep resumes from it. Interrupted
+    before any row, the folder goes, as for every command."""
+    import ceamcl.experiments.tuning as tuning
+
+    out = tmp_path / "new" / "tune"
+    args = ["experiment", "tune", "--trials", "1", "--start-routes", "0", "--executor", "serial"]
+    args += ["--quiet", "--algorithms", "mcl", "--max-beams", "30", "--tempers", "0.1,0.03"]
+    args += ["--particle-counts", "100", "--init-test-poses", "0", "--max-time", "2"]
+    args += ["--out", str(out)]
+    real = tuning.summarise
+    calls: list[float] = []
+
+    def interrupted_at(n: int) -> Any:
+        def summarise(c: Candidate, outcomes: Any) -> TuningRow:
+            calls.append(c.temper)
+            if len(calls) == n:
+                raise KeyboardInterrupt
+            return real(c, outcomes)
+
+        return summarise
+
+    monkeypatch.setattr(tuning, "summarise", interrupted_at(1))
+    assert main(args) == 130
+    assert not (tmp_path / "new").exists()  # nothing finished: removed
+    calls.clear()
+    monkeypatch.setattr(tuning, "summarise", interrupted_at(2))
+    assert main(args) == 130
+    (partial,) = out.glob("tuning-partial-*.csv")
+    assert [r.temper for r in read_tuning_csv(partial)] == [0.1]
+    calls.clear()
+    monkeypatch.setattr(tuning, "summarise", interrupted_at(99))
+    assert main(args) == 0
+    assert calls == [0.03]  # resumed: the finished configuration did not run again
+    assert sorted(r.temper for r in read_tuning_csv(out / "tuning.csv")) == [0.03, 0.1]
 
 
 @pytest.mark.parametrize("given", ["mcl,ceamcl", "ceamcl", "nav2-amcl mcl-tuned"])

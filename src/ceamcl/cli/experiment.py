@@ -52,6 +52,7 @@ from ceamcl.experiments.routes import resolve_course
 from ceamcl.experiments.table1 import Table1Result
 from ceamcl.experiments.trials import TrialRecord
 from ceamcl.filters import registry
+from ceamcl.io import created
 from ceamcl.io.results import ensure_output_dir
 from ceamcl.outputs import OutputOptions
 
@@ -440,14 +441,23 @@ def _run_tuning(
 ) -> tuning.TuningResult:
     """The sweep, each finished configuration appended to OUT/tuning-partial-*.csv; a sweep
     run again with the same --out and protocol (course, routes, --seed, --trials, --max-time:
-    :func:`ceamcl.experiments.tuning.protocol_key`) goes on where it stopped."""
+    :func:`ceamcl.experiments.tuning.protocol_key`) goes on where it stopped.
+
+    Once a row is in that file, an OUT the command created is kept even if the sweep then fails
+    or is interrupted (the rule that removes it, :mod:`ceamcl.io.created`, deleted the
+    finished rows with it, so the sweep could not resume)."""
     partial = tuning.partial_path(args.out, settings)
+
+    def keep(row: tuning.TuningRow) -> None:
+        tuning.append_row(partial, row)
+        created.forget()  # OUT holds finished work now: keep it, whatever happens next
+
     return tuning.run_tuning(
         settings,
         _tuning_grid(args),
         progress=progress,
         done=tuning.read_partial(args.out, settings),
-        on_row=lambda row: tuning.append_row(partial, row),
+        on_row=keep,
     )
 
 
