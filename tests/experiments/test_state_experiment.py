@@ -190,6 +190,23 @@ def test_state_smoke(tmp_path: Path) -> None:
     assert not list(out.glob("*.tmp*"))
 
 
+def test_state_runs_on_each_of_its_own_scenarios_by_its_world(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--world small-office`` (the kidnapped robot, one of its three scenarios) was refused
+    with "the paper's protocol runs on symmetric-hall or marked-hall"."""
+    out = tmp_path / "s"
+    args = ["experiment", "state", "--trials", "1", "--executor", "serial", "--quiet"]
+    args += ["--algorithms", "mcl", "--max-time", "2"]
+    assert main([*args, "--world", "small-office", "--out", str(out)]) == 0
+    assert "small-office" in (out / "state.md").read_text()
+    assert [r["algorithm"] for r in _read_csv(out / "state.csv")] == ["mcl"] * 3
+    assert main([*args, "--world", "atlantis", "--out", str(tmp_path / "a")]) == 2
+    err = capsys.readouterr().err
+    assert "the state experiment's scenarios run on small-office (the kidnapped robot)" in err
+    assert "paper's protocol" not in err
+
+
 def test_the_state_figure_joins_the_scans_that_have_a_true_pose(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

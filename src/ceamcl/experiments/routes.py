@@ -389,5 +389,15 @@ def resolve_course(
                 "use --routes FILE with a `kidnap` entry for another map"
             )
         return kidnapped_course()
+    if experiment == "state" and world is not None:
+        # its own scenarios (ceamcl.experiments.state.default_courses), one named by its world
+        if world == "small-office":
+            return kidnapped_course()
+        if world not in HALL_WORLDS:
+            raise ConfigError(
+                f"world: the state experiment's scenarios run on small-office (the kidnapped "
+                f"robot), {' or '.join(HALL_WORLDS)}, got {world!r}; use --routes FILE for "
+                "another map"
+            )
     default = "marked-hall" if experiment == "marked" else "symmetric-hall"
     return paper_course(world or default)
