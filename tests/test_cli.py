@@ -574,3 +574,24 @@ def test_a_missing_tf2_msgs_says_how_to_build_it(monkeypatch: pytest.MonkeyPatch
     monkeypatch.setattr(node, "import_module", no_rclpy)
     with pytest.raises(CeamclError, match=r"install 'ceamcl\[ros\]'"):
         node.import_ros("play", "play")
+
+
+def test_a_runs_progress_bars_say_which_is_the_steps_and_which_the_frames() -> None:
+    """A re-run with --gif (and ``demo``/``run`` with an animation) showed two bars with the
+    same label: the steps' and the animation frames' (the tasks' descriptions were dropped)."""
+    import io
+
+    from rich.console import Console
+
+    from ceamcl.cli.common import RunProgress, make_progress
+
+    sink = io.StringIO()
+    console = Console(file=sink, width=200, force_terminal=False)
+    with make_progress("[bold]mcl[/] on room{0}, again", console) as progress:
+        bar = RunProgress(progress)
+        bar.start(10)
+        bar.step(9)
+        bar.frame(3, 3)
+    lines = [line for line in sink.getvalue().splitlines() if line.strip()]
+    assert any(line.startswith("mcl on room{0}, again: steps") for line in lines), lines
+    assert any(line.startswith("mcl on room{0}, again: animation frames") for line in lines)

@@ -134,8 +134,21 @@ def check_particles(count: int | None, algorithm: str | None = None) -> None:
     budget.require("--particles", count, budget.PARTICLE_BYTES, "particles")
 
 
+#: The label of :func:`make_progress` that shows each task's description alone.
+TASK_DESCRIPTION = "{task.description}"
+
+
 def make_progress(label: str, console: Console, *, quiet: bool = False) -> Progress:
-    """The one progress-bar style of the CLI: label, bar, done/total, elapsed time."""
+    """The one progress-bar style of the CLI: label and the task's description, bar,
+    done/total, elapsed time.
+
+    ``label`` (Rich markup) is followed by each task's description, so the bars of one run
+    read apart (``...: steps``, ``...: animation frames``; with the label alone both read the
+    same); :data:`TASK_DESCRIPTION` shows the description alone. Braces in ``label`` (a log's
+    name) are text, not fields.
+    """
+    if label != TASK_DESCRIPTION:
+        label = label.replace("{", "{{").replace("}", "}}") + ": " + TASK_DESCRIPTION
     return Progress(
         TextColumn(label),
         BarColumn(),
@@ -176,7 +189,7 @@ class TrialsProgress:
     """
 
     def __init__(self, console: Console, *, quiet: bool = False) -> None:
-        self.progress = make_progress("{task.description}", console, quiet=quiet)
+        self.progress = make_progress(TASK_DESCRIPTION, console, quiet=quiet)
         self.tasks: dict[str, TaskID] = {}
 
     def __enter__(self) -> TrialsProgress:
