@@ -124,6 +124,11 @@ simulation:
             "simulation: {speed_mps: true}\n",
             r"simulation\.speed_mps: expected a number, got True",
         ),
+        (  # one step, the initialisation, reported as the run's step time
+            "map: hall.yaml\nroutes:\n  - start: [3.75, 3.75, 1.5708]\n"
+            "    waypoints: [[3.75, 3.75], [3.75, 3.75, 1.5708]]\n",
+            r"routes\[0\]\.waypoints: the route does not move",
+        ),
     ],
 )
 def test_bad_route_files_name_the_field(tmp_path: Path, body: str, field: str) -> None:
@@ -163,6 +168,15 @@ def test_a_repeated_key_in_a_route_file_is_refused(tmp_path: Path) -> None:
     f.write_text(f"map: hall.yaml\nroutes:\n{route}routes:\n{route}")
     with pytest.raises(ConfigError, match=r"twice\.yaml:5: .*duplicate key 'routes' \(first on"):
         load_route_file(f)
+
+
+def test_a_route_that_only_turns_on_the_spot_moves(tmp_path: Path) -> None:
+    _hall_map(tmp_path)
+    f = tmp_path / "turn.yaml"
+    f.write_text(
+        "map: hall.yaml\nroutes:\n  - start: [3.75, 3.75, 0]\n    waypoints: [[3.75, 3.75, 1]]\n"
+    )
+    assert len(load_route_file(f).routes) == 1
 
 
 def test_missing_route_file_and_map(tmp_path: Path) -> None:

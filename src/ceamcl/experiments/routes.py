@@ -42,7 +42,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ceamcl import budget
-from ceamcl.angles import wrap
+from ceamcl.angles import diff, wrap
 from ceamcl.errors import ConfigError
 from ceamcl.io.safe_yaml import load_yaml_file
 from ceamcl.maps.grid import OccupancyGrid
@@ -210,6 +210,19 @@ def kidnapped_course() -> Course:
 STEP_BYTES = 16 * 1024
 
 
+def moves(start: NDArray[np.float64], waypoints: tuple[NDArray[np.float64], ...]) -> bool:
+    """Whether driving ``waypoints`` from ``start`` moves the robot at all (a waypoint away from
+    the start, or a heading to turn to), with the tolerances of
+    :func:`ceamcl.simulation.simulator.drive_waypoints`: until it moves the robot stays at
+    ``start``."""
+    for w in waypoints:
+        if float(np.hypot(*(w[:2] - start[:2]))) > 1e-9:
+            return True
+        if w.size == 3 and abs(float(diff(w[2], start[2]))) > 1e-9:
+            return True
+    return False
+
+
 def simulated_steps_bound(route: Route, config: SimulationConfig) -> float:
     """An upper bound on the steps :func:`ceamcl.simulation.simulator.drive_path` records for a
     route (each leg: at most two turns of pi, then the leg's length at ``speed_mps``)."""
@@ -313,6 +326,13 @@ def load_route_file(path: str | os.PathLike[str]) -> Course:
         wps = r.waypoints(item.get("waypoints"), f"{where}.waypoints")
         for j, w in enumerate(wps):
             r.check_free(grid, w, f"{where}.waypoints[{j}]")
+        if not moves(start, wps):
+            # one step, the global initialisation, reported as the run's step time
+            raise r.fail(
+                f"{where}.waypoints",
+                "the route does not move (every waypoint is its start); expected a waypoint "
+                "away from the start or a heading to turn to",
+            )
         kidnap = None
         if "kidnap" in item:
             kd = r.mapping(item["kidnap"], f"{where}.kidnap")
