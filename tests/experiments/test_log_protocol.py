@@ -8,7 +8,9 @@ import math
 from dataclasses import replace
 
 import numpy as np
+import pytest
 
+from ceamcl.errors import ConfigError
 from ceamcl.experiments.evaluate_log import LogTrialResult, aggregate, confidently_wrong
 from ceamcl.experiments.log_windows import start_windows
 from ceamcl.experiments.metrics import score_errors
@@ -40,6 +42,26 @@ def test_windows_never_overlap_and_fewer_starts_say_so() -> None:
     windows, what = start_windows(log, 10, window_m=30.0)
     assert len(windows) == 3 and "3 of the 10 starts requested fit without overlap" in what
     assert all(a[1] <= b[0] for a, b in itertools.pairwise(windows))
+
+
+def test_a_window_shorter_than_the_scan_gap_is_refused_or_said_as_used() -> None:
+    """``--window-s 0.001`` ran windows of 2 scans, 2-4 s long, under the title "windows of
+    0.001 s"."""
+    log = straight_log(21, 1.0)  # a scan a second, a metre apart
+    with pytest.raises(ConfigError, match=r"window-s: 0.5 s is shorter than the gap between"):
+        start_windows(log, 3, window_s=0.5)
+    with pytest.raises(ConfigError, match=r"window-m: 0.5 m is shorter than the gap between"):
+        start_windows(log, 3, window_m=0.5)
+    # a scan every 0.1 s but for one gap of 4.1 s: the window before it is stretched, and the
+    # description says which lengths were used
+    times = np.r_[np.arange(10) * 0.1, 5.0 + np.arange(11) * 0.1]
+    gappy = replace(log, times=times)
+    windows, what = start_windows(gappy, 3, window_s=0.3)
+    used = [times[e - 1] - times[s] for s, e in windows]
+    assert max(used) > 4.0
+    assert what.startswith(f"0.3 s ({min(used):.3g}-{max(used):.3g} s used: a window ends at")
+    _, what = start_windows(log, 3, window_s=2.0)
+    assert what == "2 s"  # nothing stretched: nothing added
 
 
 def test_travelled_skips_scans_without_truth() -> None:

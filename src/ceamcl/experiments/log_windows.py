@@ -78,6 +78,37 @@ def start_windows(
     while k > 1 and any(a[1] > b[0] for a, b in itertools.pairwise(windows)):
         k -= 1
         windows = spread(k)
+    if scans is None:
+        what += _stretched(progress, length, windows, "s" if window_s is not None else "m")
     if len(windows) < starts:
         what += f" ({len(windows)} of the {starts} starts requested fit without overlap)"
     return windows, what
+
+
+#: A window longer than this many times its length is said to be stretched (its description
+#: gives the lengths used).
+STRETCHED = 1.5
+
+
+def _stretched(
+    progress: NDArray[np.float64], length: float, windows: list[tuple[int, int]], unit: str
+) -> str:
+    """Windows of seconds or metres end at the first scan that reaches their length, so a scan
+    gap longer than the length stretches them: refused when every window is its first two scans
+    because of it (the length decided nothing; "windows of 0.001 s" were 2-4 s long), said in
+    the description when some window is stretched ("" when none is)."""
+    used = [float(progress[e - 1] - progress[s]) for s, e in windows]
+    gaps = [float(progress[s + 1] - progress[s]) for s, _ in windows]
+    flag = "window-s" if unit == "s" else "window-m"
+    if all(e - s == 2 for s, e in windows) and all(g > length + 1e-9 for g in gaps):
+        raise ConfigError(
+            f"{flag}: {length:g} {unit} is shorter than the gap between the log's scans at every "
+            f"start ({min(gaps):.3g}-{max(gaps):.3g} {unit}), so every window would be its first "
+            f"2 scans, not {length:g} {unit}; expected at least {min(gaps):.3g} {unit}, or --scans"
+        )
+    if max(used) > STRETCHED * length:
+        return (
+            f" ({min(used):.3g}-{max(used):.3g} {unit} used: a window ends at the first scan "
+            "that reaches its length)"
+        )
+    return ""
