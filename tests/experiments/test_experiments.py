@@ -174,6 +174,49 @@ def test_kidnapped_smoke(tmp_path: Path) -> None:
     assert (out / "kidnapped.png").stat().st_size > 0
 
 
+def test_the_runs_folder_holds_the_runs_of_the_latest_experiment_only(tmp_path: Path) -> None:
+    """``OUT/runs/ALGORITHM/`` kept an earlier experiment's ``run.gif`` (a longer run) beside
+    this one's ``summary.json``, and the folder of an algorithm this run did not have whole."""
+    import json
+
+    out = tmp_path / "m"
+    args = ["experiment", "marked", *_SMOKE, "--max-time", "2", "--out", str(out)]
+    assert main([*args, "--algorithms", "mcl,kld-amcl", "--gif", "--mcap", "x.mcap"]) == 0
+    assert {p.name for p in (out / "runs" / "mcl").iterdir()} == {
+        "run.gif",
+        "x.mcap",
+        "summary.json",
+    }
+    assert (out / "runs" / "kld-amcl" / "x.mcap").is_file()
+    (out / "runs" / "mcl" / "notes.txt").write_text("mine")
+    assert main([*args, "--algorithms", "mcl", "--report", "--max-time", "1"]) == 0
+    assert {p.name for p in (out / "runs" / "mcl").iterdir()} == {
+        "report.html",
+        "summary.json",
+        "notes.txt",  # not a file of the command's: left alone
+    }
+    summary = json.loads((out / "runs" / "mcl" / "summary.json").read_text())
+    assert summary["max_time_s"] == 1.0
+    assert sorted(p.name for p in (out / "runs").iterdir()) == ["mcl"]  # kld-amcl's is gone
+    assert main([*args, "--algorithms", "mcl"]) == 0  # draws nothing: no earlier run stays
+    assert [p.name for p in (out / "runs" / "mcl").iterdir()] == ["notes.txt"]
+
+
+def test_a_trials_visual_outputs_replace_an_earlier_runs_files(tmp_path: Path) -> None:
+    """``write_trial_outputs`` into a folder with an earlier run's files (``run.gif``) left them
+    beside its own ``summary.json``; it removes them first, as ``write_run_files`` does."""
+    from ceamcl.experiments.common import write_trial_outputs
+    from ceamcl.outputs import OutputOptions
+
+    settings = ExperimentSettings(paper_course(), ("mcl",), trials=1, max_time_s=1.0)
+    record = run_trial(Trial("marked", "mcl", settings.course, 0, 0, 0, max_time_s=1.0))
+    (tmp_path / "run.gif").write_bytes(b"GIF89a earlier")
+    (tmp_path / "notes.txt").write_text("mine")
+    done = write_trial_outputs(record, settings, tmp_path, OutputOptions.none())
+    assert done.same_as_record
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt", "summary.json"]
+
+
 def test_cli_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = str(tmp_path / "x")
     assert main(["experiment", "table1", "--algorithms", "ekf", "--out", out]) == 2

@@ -3,6 +3,8 @@ from the same perturbed true pose, scored by the APE at the scans with truth."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -101,3 +103,29 @@ def test_tracking_with_the_beam_model_corrects_the_start_error() -> None:
     assert beam.ape_median_m < 0.2 and beam.ape_rmse_m < 0.3
     assert beam.position_errors[-10:].max() < 0.3
     assert not np.array_equal(beam.estimates, runs["likelihood-field"].estimates)
+
+
+def test_tracking_into_a_used_folder_leaves_no_trajectory_of_an_earlier_run(
+    tmp_path: Path,
+) -> None:
+    """A second ``--tracking`` run with fewer algorithms left the first's ``tracking-mcl.tum``
+    (another seed) beside its own ``groundtruth.tum``, for evo_ape to compare without a word."""
+    from ceamcl.cli import main
+    from tests.robustness.hostile_cases import box_log_lines, write_lines
+
+    write_lines("box.log", box_log_lines(30, neff=True))(tmp_path)
+    out = tmp_path / "tr"
+    args = ["evaluate-log", str(tmp_path / "box.log"), "--tracking", "--particles", "100"]
+    args += ["--executor", "serial", "--quiet", "--out", str(out)]
+    assert main([*args, "--algorithms", "mcl,kld-amcl"]) == 0
+    assert {p.name for p in out.glob("tracking-*.tum")} == {
+        "tracking-mcl.tum",
+        "tracking-kld-amcl.tum",
+    }
+    (out / "notes.tum").write_text("mine\n")
+    assert main([*args, "--algorithms", "kld-amcl", "--seed", "1"]) == 0
+    assert {p.name for p in out.glob("*.tum")} == {
+        "groundtruth.tum",
+        "tracking-kld-amcl.tum",
+        "notes.tum",  # not a file of the command's: left alone
+    }

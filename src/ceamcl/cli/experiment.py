@@ -34,8 +34,10 @@ from ceamcl.errors import ConfigError
 from ceamcl.experiments import delta, kidnapped, marked, table1, tuning
 from ceamcl.experiments import state as state_experiment
 from ceamcl.experiments.common import (
+    RUNS_FOLDER,
     ExperimentSettings,
     TrialOutputs,
+    clear_earlier_runs,
     compact_count,
     first_records,
     fmt,
@@ -749,6 +751,8 @@ def run(args: argparse.Namespace, console: Console) -> int:
         result = experiment.run(settings, args, progress)
     meta["wall_time_s"] = round(time.perf_counter() - started, 1)
     paths = experiment.write(result, args.out, meta)
+    if experiment.visuals:  # OUT/runs/ holds the runs of these tables only
+        clear_earlier_runs(args.out)
     if not args.quiet:
         console.print(experiment.table(result))
         console.print(
@@ -787,7 +791,7 @@ def _write_run_outputs(
     """Run the first trial of each algorithm again, with its particles, and write its visual
     outputs into ``OUT/runs/ALGORITHM/``."""
     for record in first_records(records):
-        out_dir = Path(args.out) / "runs" / record.algorithm
+        out_dir = Path(args.out) / RUNS_FOLDER / record.algorithm
         done = _rerun(record, settings, out_dir, outputs, console, quiet=args.quiet)
         if not done.same_as_record:
             console.print(

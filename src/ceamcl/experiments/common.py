@@ -22,7 +22,7 @@ from ceamcl.experiments.routes import Course
 from ceamcl.experiments.trials import Trial, TrialRecord, localise_trial, run_trial
 from ceamcl.filters import registry
 from ceamcl.io.results import atomic_write, ensure_output_dir, write_json
-from ceamcl.outputs import OutputOptions, write_outputs
+from ceamcl.outputs import OutputOptions, clear_run_files, write_outputs
 
 T = TypeVar("T")
 
@@ -150,8 +150,12 @@ def write_trial_outputs(
 
     The run is checked against the record: ``same_as_record`` is whether the estimates of
     every step are bit for bit those the experiment counted (``summary.json`` says so too).
+    An earlier run's files (:data:`ceamcl.outputs.RUN_FILES`) are removed from ``out_dir``
+    first, so it holds this run's only (a ``run.gif`` of a longer earlier run stayed beside
+    this one's ``summary.json``).
     """
     out = ensure_output_dir(out_dir)
+    clear_run_files(out)
     trial = trial_of(record, settings)
     log, result = localise_trial(
         trial, snapshot_every=options.stride, on_start=on_start, on_step=on_step
@@ -188,6 +192,38 @@ def write_trial_outputs(
     )
     files.append(write_json(out / "summary.json", summary))
     return TrialOutputs(trial.algorithm, out, files, same)
+
+
+#: The folder of ``OUT`` that holds each algorithm's re-run, ``OUT/runs/ALGORITHM/``.
+RUNS_FOLDER = "runs"
+
+
+def clear_earlier_runs(out: str | os.PathLike[str]) -> list[Path]:
+    """Remove an earlier experiment's visual outputs from ``OUT/runs/``: in every algorithm's
+    folder the files a run writes (:data:`ceamcl.outputs.RUN_FILES`) and its MCAP files
+    (``*.mcap``, the ``--mcap`` name), then the folders this leaves empty (``runs/`` too).
+    Any other file, and the folders holding one, are left alone. Returns what was removed.
+
+    An experiment calls it when it writes its tables, so ``OUT/runs/`` holds the runs of those
+    tables only: the algorithms this run draws, none when it draws none (an algorithm's folder
+    from an earlier run it did not have stayed whole)."""
+    runs = Path(out) / RUNS_FOLDER
+    if not runs.is_dir():
+        return []
+    gone: list[Path] = []
+    for folder in sorted(p for p in runs.iterdir() if p.is_dir() and not p.is_symlink()):
+        gone += clear_run_files(folder)
+        for mcap in sorted(folder.glob("*.mcap")):
+            if mcap.is_file() or mcap.is_symlink():
+                mcap.unlink()
+                gone.append(mcap)
+        if not any(folder.iterdir()):
+            folder.rmdir()
+            gone.append(folder)
+    if not any(runs.iterdir()):
+        runs.rmdir()
+        gone.append(runs)
+    return gone
 
 
 # ------------------------------------------------------------------ curves over time

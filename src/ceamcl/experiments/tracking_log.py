@@ -324,7 +324,8 @@ def write_tracking(
     tracking: Tracking, prepared: PreparedLog, out_dir: Path, truth_note: str | None = None
 ) -> None:
     """``tracking.csv``, ``tracking.md`` (with ``truth_note``, how well the truth explains its
-    scans on the map), the TUM files and ``ape.png``."""
+    scans on the map), the TUM files and ``ape.png``; an earlier run's ``tracking-*.tum`` of
+    algorithms this run does not have are removed."""
     import matplotlib.pyplot as plt  # lazy: the CLI imports this module to build its parser
 
     write_csv(out_dir / "tracking.csv", tracking_rows(tracking))
@@ -339,9 +340,15 @@ def write_tracking(
         for i, (a, b, _) in enumerate(tracking.doubtful):
             label = "truth doubtful (truth check)" if i == 0 else None
             ax.axvspan(t[a] - t0, t[b] - t0, color="0.85", zorder=0, label=label)
+    tums = {f"tracking-{r.algorithm}.tum" for r in tracking.results}
     for r in tracking.results:
         write_tum(out_dir / f"tracking-{r.algorithm}.tum", r.times, r.estimates)
         ax.plot(r.times - r.times[0], r.position_errors, lw=1, label=r.algorithm)
+    # an earlier run's trajectories of other algorithms (another seed, log or pace) would pass
+    # for this run's beside its groundtruth.tum (evo_ape compares them without a word)
+    for old in out_dir.glob("tracking-*.tum"):
+        if old.name not in tums and (old.is_file() or old.is_symlink()):
+            old.unlink()
     ax.set_yscale("log")
     ax.set_xlabel("time since the start [s]")
     ax.set_ylabel("position error (APE) [m]")
