@@ -217,6 +217,73 @@ def test_a_trials_visual_outputs_replace_an_earlier_runs_files(tmp_path: Path) -
     assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt", "summary.json"]
 
 
+def test_an_output_folder_that_cannot_take_the_results_is_refused_before_the_runs(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A folder where a result file goes, or a folder that cannot be written in fact (root
+    passes ``os.access`` under /sys): a traceback after every run, with ``marked.csv`` already
+    new beside the failed ``trials.csv``. Now one line, before any run."""
+    import ceamcl.cli.common as cli_common
+    from ceamcl.experiments import marked
+
+    def no_runs(*args: object, **kwargs: object) -> None:
+        raise AssertionError("the trials ran")
+
+    monkeypatch.setattr(marked, "run_marked", no_runs)
+    out = tmp_path / "m"
+    (out / "trials.csv").mkdir(parents=True)
+    args = ["experiment", "marked", *_SMOKE, "--algorithms", "mcl", "--max-time", "2"]
+    assert main([*args, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.splitlines() == [
+        f"ceamcl: error: out: {str(out / 'trials.csv')!r} is a folder; experiment marked "
+        "writes a file of that name there"
+    ]
+    assert [p.name for p in out.iterdir()] == ["trials.csv"]
+
+    def read_only(*args: object, **kwargs: object) -> None:
+        raise PermissionError(13, "Permission denied", str(tmp_path / "ro" / "probe"))
+
+    monkeypatch.setattr(cli_common.tempfile, "mkstemp", read_only)
+    assert main([*args, "--out", str(tmp_path / "ro")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("ceamcl: error: out: cannot write into output folder ")
+    assert err.rstrip().endswith(": Permission denied") and len(err.splitlines()) == 1
+    assert not (tmp_path / "ro").exists()  # created by the command: removed again
+
+
+def test_a_failed_final_write_is_one_line_and_leaves_the_earlier_files(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An OSError while the tables were written (a full disk) was a traceback, and the files
+    written before it were new beside old ones. The tables are written aside and moved in:
+    the folder keeps the earlier files whole."""
+    from ceamcl.experiments import figures
+
+    out = tmp_path / "m"
+    out.mkdir()
+    for name in ("marked.csv", "trials.csv", "marked.md", "marked.png"):
+        (out / name).write_text("earlier")
+
+    def full_disk(shares: object, path: Path, *args: object) -> Path:
+        raise OSError(28, "No space left on device", str(path) + ".tmp.png")
+
+    monkeypatch.setattr(figures, "plot_shares", full_disk)
+    args = ["experiment", "marked", *_SMOKE, "--algorithms", "mcl", "--max-time", "1"]
+    assert main([*args, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.splitlines() == [
+        f"ceamcl: error: out: cannot write {str(out / 'marked.png')!r}: No space left on device"
+    ]
+    assert sorted(p.name for p in out.iterdir()) == [
+        "marked.csv",
+        "marked.md",
+        "marked.png",
+        "trials.csv",
+    ]
+    assert all(p.read_text() == "earlier" for p in out.iterdir())
+
+
 def test_cli_errors_are_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = str(tmp_path / "x")
     assert main(["experiment", "table1", "--algorithms", "ekf", "--out", out]) == 2

@@ -69,3 +69,45 @@ def test_output_path_that_is_a_file_is_refused(
         assert err.startswith("ceamcl: error: ") and str(blocker) in err
         assert "Traceback" not in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["file"]  # nothing half-written
+
+
+def test_a_file_error_no_command_caught_is_one_line(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """An OSError about a file (a permission, a folder where a file goes) that reaches the
+    command line is one line naming the file, exit 2; one about no file keeps its traceback."""
+    import ceamcl.cli.soak as soak_cli
+
+    def denied(*args: object, **kwargs: object) -> None:
+        raise PermissionError(13, "Permission denied", "/results/soak.json")
+
+    monkeypatch.setattr(soak_cli, "run_soak", denied)
+    assert main(["soak", "--steps", "10", "--quiet", "--out", str(tmp_path / "s")]) == 2
+    assert capsys.readouterr().err == "ceamcl: error: '/results/soak.json': Permission denied\n"
+
+    def fault(*args: object, **kwargs: object) -> None:
+        raise OSError("no file in this one")
+
+    monkeypatch.setattr(soak_cli, "run_soak", fault)
+    with pytest.raises(OSError, match="no file in this one"):
+        main(["soak", "--steps", "10", "--quiet", "--out", str(tmp_path / "s")])
+    assert not (tmp_path / "s").exists()
+
+
+@pytest.mark.parametrize(("mode", "blocked"), [([], "evaluate.csv"), (["--tracking"], "ape.png")])
+def test_evaluate_log_refuses_a_folder_where_a_result_goes_before_the_runs(
+    mode: list[str], blocked: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The write failed after every run, with a traceback."""
+    from tests.robustness.hostile_cases import box_log_lines, write_lines
+
+    write_lines("box.log", box_log_lines(30, neff=True))(tmp_path)
+    out = tmp_path / "ev"
+    (out / blocked).mkdir(parents=True)
+    args = ["evaluate-log", str(tmp_path / "box.log"), *mode, "--algorithms", "mcl"]
+    assert main([*args, "--executor", "serial", "--quiet", "--out", str(out)]) == 2
+    assert capsys.readouterr().err.splitlines() == [
+        f"ceamcl: error: out: {str(out / blocked)!r} is a folder; evaluate-log writes a file "
+        "of that name there"
+    ]
+    assert [p.name for p in out.iterdir()] == [blocked]

@@ -138,7 +138,8 @@ def _stopped(exc: KeyboardInterrupt) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run one command. Bad input: one line on stderr, exit 2. Ctrl-C: one line, exit 130;
+    """Run one command. Bad input, or a file that cannot be read or written: one line on
+    stderr, exit 2. Ctrl-C: one line, exit 130;
     SIGTERM: one line, exit 143. Either way an output folder the command created is removed
     again."""
     # building the parser imports every command (about 2 s): a signal then ended the process
@@ -176,6 +177,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         ok = True  # a command that returns has written its results (soak exits 1 on a finding)
     except CeamclError as exc:
         print(f"ceamcl: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        if exc.filename is None:  # not about a file: a fault, with its traceback
+            raise
+        # a file that could not be read or written (a permission, a folder where a file
+        # goes, a full disk) where no command turned it into its own message
+        where = repr(str(exc.filename))
+        if exc.filename2 is not None:
+            where += f" -> {str(exc.filename2)!r}"
+        print(f"ceamcl: error: {where}: {exc.strerror or exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as exc:  # Terminated too
         return _stopped(exc)

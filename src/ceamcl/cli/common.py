@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
+import tempfile
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -118,6 +120,37 @@ def algorithm_names(values: Sequence[str] | None) -> list[str] | None:
             "(leave --algorithms out to run all)"
         )
     return names
+
+
+def check_output_files(out: str | os.PathLike[str], names: Iterable[str], command: str) -> None:
+    """Before the runs, refuse an output folder (it exists) that the results could not be
+    written into: one that cannot be written in fact (``os.access`` says yes to root on a
+    read-only file system or under ``/sys``) or one where a folder stands in place of a file
+    ``command`` writes (``names``). Either failed after every run, with a traceback."""
+    folder = Path(out)
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".ceamcl-probe-", dir=folder)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise ConfigError(
+            f"out: cannot write into output folder {str(folder)!r}: {exc.strerror}"
+        ) from None
+    for name in names:
+        target = folder / name
+        if target.is_dir():
+            raise ConfigError(
+                f"out: {str(target)!r} is a folder; {command} writes a file of that name there"
+            )
+
+
+def write_error(exc: OSError, out: str | os.PathLike[str]) -> ConfigError:
+    """An OSError while results were written as a one-line error naming the file (its final
+    name, not the temporary one) and what failed."""
+    name = Path(exc.filename).name if exc.filename else ""
+    name = name.split(".tmp")[0]
+    target = Path(out) / name if name else Path(out)
+    return ConfigError(f"out: cannot write {str(target)!r}: {exc.strerror or exc}")
 
 
 def check_particles(count: int | None, algorithm: str | None = None) -> None:

@@ -12,6 +12,7 @@ from ceamcl import budget
 from ceamcl.cli.common import (
     TrialsProgress,
     algorithm_names,
+    check_output_files,
     check_particles,
     plain_table,
     plural,
@@ -38,6 +39,7 @@ from ceamcl.experiments.log_windows import DEFAULT_WINDOW_M
 from ceamcl.experiments.metrics import DEFAULT_HOLD_M, HOLD_STEPS
 from ceamcl.experiments.tracking_log import DEFAULT_TRACKING_PARTICLES, track_log
 from ceamcl.filters import registry
+from ceamcl.io.results import ensure_output_dir
 from ceamcl.io.truth_check import TruthDoubt
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.replay import PreparedLog, UpdatePace
@@ -174,6 +176,15 @@ def run(args: argparse.Namespace, console: Console) -> int:
     runs = len(algos) if args.tracking else starts * len(algos)
     budget.require("--starts x algorithms", runs, RUN_BYTES, "runs")
     prepared, grid, map_source, pace = open_inputs(args)
+    # a folder that cannot take the results is refused before the runs, not after them
+    ensure_output_dir(args.out)
+    files = (
+        ["tracking.csv", "tracking.md", "groundtruth.tum", "ape.png"]
+        + [f"tracking-{a}.tum" for a in algos]
+        if args.tracking
+        else ["evaluate.csv", "evaluate.md", "errors.png", "success.png"]
+    )
+    check_output_files(args.out, files, "evaluate-log")
     doubt = truth_doubt(prepared, grid)
     if not args.quiet:
         console.print(f"map: {map_source}", markup=False)

@@ -5,6 +5,9 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
+import shutil
+import tempfile
 import time
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, replace
@@ -23,12 +26,14 @@ from ceamcl.cli.common import (
     TrialsProgress,
     add_output_arguments,
     algorithm_names,
+    check_output_files,
     make_progress,
     non_negative_int,
     plain_table,
     plural,
     positive_float,
     positive_int,
+    write_error,
 )
 from ceamcl.errors import ConfigError
 from ceamcl.experiments import delta, kidnapped, marked, table1, tuning
@@ -77,6 +82,8 @@ class Experiment:
     any trial runs.
     ``check_algorithms(names)``: refuses names given with ``--algorithms`` that the
     experiment cannot run (the tuning sweep: the baselines only), before any work.
+    ``files``: the names of the files ``write`` writes into ``--out`` (checked before the
+    runs: a folder in the place of one is refused then, not after every run).
     """
 
     help: str
@@ -93,6 +100,7 @@ class Experiment:
     where: Callable[[argparse.Namespace], str] | None = None
     visuals: bool = True
     check_algorithms: Callable[[Sequence[str]], None] | None = None
+    files: tuple[str, ...] = ()
 
 
 # ---------------------------------------------------------------- the tables printed
@@ -480,6 +488,14 @@ EXPERIMENTS: dict[str, Experiment] = {
         lambda settings, args, progress: table1.run_table1(settings, progress=progress),
         table1_rich,
         table1.write_table1,
+        files=(
+            "table1.csv",
+            "trials.csv",
+            "fig4_error.png",
+            "fig5_step_time.png",
+            "fig6_resources.png",
+            "table1.md",
+        ),
     ),
     "delta": Experiment(
         "Fig. 7: CEAMCL's sample size over time for several delta",
@@ -492,6 +508,7 @@ EXPERIMENTS: dict[str, Experiment] = {
         repeats=lambda args: len(args.deltas or delta.DEFAULT_DELTAS),
         add_arguments=_delta_arguments,
         algorithms=("ceamcl",),
+        files=("delta.csv", "trials.csv", "fig7_delta.png", "delta.md"),
     ),
     "marked": Experiment(
         "marked-hall: share of runs whose final estimate is right",
@@ -499,6 +516,7 @@ EXPERIMENTS: dict[str, Experiment] = {
         lambda settings, args, progress: marked.run_marked(settings, progress=progress),
         marked_rich,
         marked.write_marked,
+        files=("marked.csv", "trials.csv", "marked.png", "marked.md"),
     ),
     "kidnapped": Experiment(
         "kidnapped robot on small-office: recovery rate and time",
@@ -509,6 +527,7 @@ EXPERIMENTS: dict[str, Experiment] = {
         kidnapped_rich,
         kidnapped.write_kidnapped,
         add_arguments=_kidnapped_arguments,
+        files=("kidnapped.csv", "trials.csv", "kidnapped.png", "kidnapped.md"),
     ),
     "tune": Experiment(
         "the tuning sweep behind mcl-tuned, gmcl-tuned, kld-amcl-tuned (docs/tuning.md): "
@@ -523,6 +542,7 @@ EXPERIMENTS: dict[str, Experiment] = {
         default_seed=tuning.TUNING_SEED,
         visuals=False,  # one row per configuration: no run to draw
         check_algorithms=tuning.check_algorithms,
+        files=("tuning.csv", "tuning.md"),
     ),
     "state": Experiment(
         "the localisation state (LOCALISED / AMBIGUOUS / LOST): precision and recall on "
@@ -540,6 +560,7 @@ EXPERIMENTS: dict[str, Experiment] = {
         visuals=False,  # its runs keep their states, not their particles
         count=_state_runs,
         where=lambda args: ", ".join(c.name for c in _state_courses(args)),
+        files=("state.csv", "state_by_scenario.csv", "state.md", "state.png"),
     ),
 }
 
@@ -740,6 +761,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
         runs *= experiment.repeats(args)
     budget.require("--trials x routes x algorithms", runs, RUN_BYTES, "runs")
     ensure_output_dir(args.out)  # fail on an unwritable folder before hours of trials
+    check_output_files(args.out, experiment.files, f"experiment {args.experiment}")
     if not args.quiet:
         console.print(
             f"[bold]{args.experiment}[/] on {place}: {plural(runs, 'run')} "
@@ -750,7 +772,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     with TrialsProgress(console, quiet=args.quiet) as progress:
         result = experiment.run(settings, args, progress)
     meta["wall_time_s"] = round(time.perf_counter() - started, 1)
-    paths = experiment.write(result, args.out, meta)
+    paths = _write_staged(experiment, result, Path(args.out), meta)
     if experiment.visuals:  # OUT/runs/ holds the runs of these tables only
         clear_earlier_runs(args.out)
     if not args.quiet:
@@ -763,6 +785,31 @@ def run(args: argparse.Namespace, console: Console) -> int:
     if outputs.any:
         _write_run_outputs(result.records, settings, args, outputs, console)
     return 0
+
+
+def _write_staged(
+    experiment: Experiment, result: Any, out: Path, meta: dict[str, Any]
+) -> list[Path]:
+    """``experiment.write`` into a new folder inside ``out``, then each file moved over
+    ``out``'s: a write that fails (a full disk, a permission) leaves ``out``'s earlier files
+    as they were instead of some new and some old, and is one line naming the file."""
+    try:
+        staging = Path(tempfile.mkdtemp(prefix=".ceamcl-writing-", dir=out))
+    except OSError as exc:
+        raise write_error(exc, out) from None
+    try:
+        try:
+            paths = experiment.write(result, str(staging), meta)
+        except OSError as exc:
+            raise write_error(exc, out) from None
+        for staged in sorted(staging.iterdir()):
+            try:
+                os.replace(staged, out / staged.name)
+            except OSError as exc:
+                raise write_error(exc, out) from None
+        return [out / p.name for p in paths]
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
 
 
 def _output_options(args: argparse.Namespace) -> OutputOptions:
