@@ -595,3 +595,32 @@ def test_a_runs_progress_bars_say_which_is_the_steps_and_which_the_frames() -> N
     lines = [line for line in sink.getvalue().splitlines() if line.strip()]
     assert any(line.startswith("mcl on room{0}, again: steps") for line in lines), lines
     assert any(line.startswith("mcl on room{0}, again: animation frames") for line in lines)
+
+
+def test_quiet_hides_dasks_large_graph_warning(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``evaluate-log --executor dask --quiet`` printed Dask's six-line "Sending large graph"
+    warning for every batch (each trial carries its map and log window); other warnings stay."""
+    import warnings
+
+    import ceamcl.cli.evaluate_log as evaluate_cli
+    from tests.robustness.hostile_cases import box_log_lines, write_lines
+
+    def submitting(*args: object, **kwargs: object) -> None:
+        warnings.warn("Sending large graph of size 13.85 MiB.", UserWarning, stacklevel=2)
+        warnings.warn("something else", UserWarning, stacklevel=2)
+
+    monkeypatch.setattr(evaluate_cli, "evaluate_log", submitting)
+    write_lines("box.log", box_log_lines(30, neff=True))(tmp_path)
+    argv = ["evaluate-log", str(tmp_path / "box.log"), "--algorithms", "mcl", "--quiet"]
+    with warnings.catch_warnings(record=True) as shown:
+        warnings.simplefilter("always")
+        assert main([*argv, "--out", str(tmp_path / "ev")]) == 0
+    messages = [str(w.message) for w in shown]
+    assert "something else" in messages
+    assert not any("Sending large graph" in m for m in messages)
+    with warnings.catch_warnings(record=True) as caught:  # scoped to the command
+        warnings.simplefilter("default")
+        warnings.warn("Sending large graph of size 1 MiB.", UserWarning, stacklevel=1)
+    assert len(caught) == 1

@@ -7,6 +7,7 @@ import argparse
 import math
 import os
 import tempfile
+import warnings
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -120,6 +121,14 @@ def algorithm_names(values: Sequence[str] | None) -> list[str] | None:
             "(leave --algorithms out to run all)"
         )
     return names
+
+
+def hush_dask_graph_warnings() -> None:
+    """For ``--quiet``: no Dask ``Sending large graph of size ...`` warning (six lines a batch
+    on evaluate-log, whose trials each carry the map and their log window, about 14 MiB: a hint
+    to Dask programmers, not news about the run). :func:`ceamcl.cli.main` scopes the filter to
+    the command."""
+    warnings.filterwarnings("ignore", message="Sending large graph", category=UserWarning)
 
 
 def check_output_files(out: str | os.PathLike[str], names: Iterable[str], command: str) -> None:

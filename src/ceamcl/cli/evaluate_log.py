@@ -14,6 +14,7 @@ from ceamcl.cli.common import (
     algorithm_names,
     check_output_files,
     check_particles,
+    hush_dask_graph_warnings,
     plain_table,
     plural,
     positive_float,
@@ -169,6 +170,8 @@ def _check_mode(args: argparse.Namespace) -> None:
 
 def run(args: argparse.Namespace, console: Console) -> int:
     _check_mode(args)
+    if args.quiet:
+        hush_dask_graph_warnings()
     algos, skipped = registry.resolve(algorithm_names(args.algorithms))
     if not algos:
         raise ConfigError("algorithms: none of the chosen algorithms can run here")

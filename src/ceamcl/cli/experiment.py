@@ -27,6 +27,7 @@ from ceamcl.cli.common import (
     add_output_arguments,
     algorithm_names,
     check_output_files,
+    hush_dask_graph_warnings,
     make_progress,
     non_negative_int,
     plain_table,
@@ -745,6 +746,8 @@ RUN_BYTES = 256 * 1024
 def run(args: argparse.Namespace, console: Console) -> int:
     experiment = EXPERIMENTS[args.experiment]
     check_executor(args.executor, args.workers)  # before any course or log is prepared
+    if args.quiet:
+        hush_dask_graph_warnings()
     settings = _settings(args, console)
     outputs = _output_options(args)  # refuses --mp4 without ffmpeg before the trials
     if outputs.any and not experiment.visuals:
