@@ -24,5 +24,10 @@ class ConfigError(CeamclError, ValueError):
     """A configuration value or command-line argument is out of range or unknown."""
 
 
+class FilterStateError(CeamclError, RuntimeError):
+    """A filter was asked for something before it can give it: stepped or queried before
+    ``initialise_global`` or ``initialise_pose``."""
+
+
 class InputWarning(UserWarning):
     """Input that is accepted but probably not what was meant (the CLI prints one line)."""

@@ -41,6 +41,7 @@ def arranged(scan: LaserScan, poses: NDArray[np.float64], species: NDArray[np.in
     f._next_id = int(species.max()) + 1
     f.competition.dn = {int(s): 0.0 for s in np.unique(species)}
     f._refresh_stats()
+    f._initialised = True  # arranged in place of an initialisation
     return f
 
 

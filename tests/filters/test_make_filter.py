@@ -106,3 +106,37 @@ def test_ceamcl_hypotheses_are_checked_and_capped_by_max_samples() -> None:
     with pytest.raises(ConfigError, match="exceed max_samples 2000"):
         f.initialise_hypotheses(grid.sample_free_poses(700, np.random.default_rng(3)), cov)
     assert len(f.hypotheses()) == 60  # a refusal leaves the filter as it was
+
+
+@pytest.mark.parametrize("algorithm", ["mcl", "gmcl", "kld-amcl", "ceamcl", "mcl-tuned"])
+def test_a_filter_used_before_its_initialisation_says_so(algorithm: str) -> None:
+    """Before initialise_global / initialise_pose, MCL, GMCL and KLD-AMCL reported a certain
+    pose at the map origin (zero covariance, one hypothesis of weight 1) and tracked from
+    there; CEAMCL's first step quietly started a global localisation. Every call now raises
+    one FilterStateError saying what to call first, and an initialisation ends it."""
+    from ceamcl.errors import CeamclError, FilterStateError
+    from ceamcl.motion.odometry import OdometryIncrement
+    from ceamcl.sensors.scan import LaserScan
+
+    grid = get_world("small-office")
+    f = make_filter(algorithm, grid, np.random.default_rng(0), n_particles=200)
+    scan = LaserScan(np.full(181, 2.0), -np.pi / 2, np.pi / 180, 0.02, 8.0)
+    calls = {
+        "step": lambda: f.step(OdometryIncrement(0.1, 0.0, 0.0), scan),
+        "estimate": f.estimate,
+        "hypotheses": f.hypotheses,
+        "state": f.state,
+        "particles": f.particles,
+        "particle_weights": f.particle_weights,
+    }
+    for method, call in calls.items():
+        with pytest.raises(FilterStateError, match=rf"{method}\(\) before the filter was") as info:
+            call()
+        assert "call initialise_global(scan) or initialise_pose(pose, covariance) first" in str(
+            info.value
+        )
+        assert isinstance(info.value, CeamclError)
+    free = grid.sample_free_poses(1, np.random.default_rng(1))[0]
+    f.initialise_pose(free, np.diag([0.01, 0.01, 0.01]))
+    for call in calls.values():
+        call()

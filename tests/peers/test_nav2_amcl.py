@@ -338,3 +338,29 @@ def test_kidnapped_start_is_not_comparable_but_its_recovery_is(tmp_path: Path) -
     }
     assert rows["nav2-amcl"][1] == "not comparable" and rows["mcl"][1].endswith("%")
     assert rows["nav2-amcl"][2].endswith("%")  # recovered: measured
+
+
+@needs_wheel
+def test_the_peer_used_before_its_initialisation_says_so() -> None:
+    """Before an initialisation the peer reported the wheel's pose (0, 0, 0) with a zero
+    covariance and tracked from there, as the other filters did: now the same
+    FilterStateError as theirs."""
+    from ceamcl.errors import FilterStateError
+    from ceamcl.peers.nav2_amcl import make_nav2_amcl
+
+    grid, log, rng = office_log(3)
+    f = make_nav2_amcl(grid, rng)
+    inc = increment_between(log.odometry[0], log.odometry[1])
+    for call in (
+        lambda: f.step(inc, log.scan(1)),
+        f.estimate,
+        f.hypotheses,
+        f.state,
+        f.particles,
+        f.particle_weights,
+    ):
+        with pytest.raises(FilterStateError, match="call initialise_global"):
+            call()
+    f.initialise_pose(log.true_poses[0], np.diag([0.01, 0.01, 0.01]))
+    f.step(inc, log.scan(1))
+    assert np.all(np.isfinite(f.estimate().pose))

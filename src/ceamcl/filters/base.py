@@ -7,10 +7,12 @@ A filter is built with a map, a motion model, a sensor model, a frozen config an
 * ``initialise_pose(pose, covariance)``: pose tracking from a known start;
 * ``step(increment, scan)``: odometry since the last step, then the new scan.
 
-It can be asked, at any time, for ``estimate()`` (the pose it believes), ``hypotheses()`` (every
-distinct pose it still entertains, best first), ``state()`` (LOCALISED, AMBIGUOUS, LOST or
-INITIALISING: whether to trust the pose, :mod:`ceamcl.filters.state`) and ``particles()`` (for
-plotting). Each call
+Once initialised, it can be asked at any time for ``estimate()`` (the pose it believes),
+``hypotheses()`` (every distinct pose it still entertains, best first), ``state()`` (LOCALISED,
+AMBIGUOUS, LOST or INITIALISING: whether to trust the pose, :mod:`ceamcl.filters.state`) and
+``particles()`` (for plotting). Stepping or asking a filter before its first
+``initialise_global`` or ``initialise_pose`` raises :class:`~ceamcl.errors.FilterStateError`
+(a filter built from a map knows nothing of the robot yet). Each call
 to ``initialise_global`` and ``step`` returns the filter's :class:`StepRecord`; the runner
 (:func:`ceamcl.runner.run_filter`) adds what it measures into a :class:`StepDiagnostics`.
 """
@@ -24,6 +26,7 @@ from typing import TYPE_CHECKING, Any, Literal, Protocol
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ceamcl.errors import FilterStateError
 from ceamcl.motion.odometry import OdometryIncrement
 from ceamcl.sensors.scan import LaserScan
 
@@ -181,6 +184,14 @@ class LocalisationFilter(Protocol):
         ...
 
     def particles(self) -> ParticleSnapshot: ...
+
+
+def not_initialised(name: str, method: str) -> FilterStateError:
+    """The error of a filter stepped or queried (``method``) before its first initialisation."""
+    return FilterStateError(
+        f"{name}: {method}() before the filter was initialised; call "
+        "initialise_global(scan) or initialise_pose(pose, covariance) first"
+    )
 
 
 def _available() -> str | None:

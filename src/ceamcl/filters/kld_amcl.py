@@ -56,6 +56,7 @@ from ceamcl.filters.base import (
     ParticleSnapshot,
     PoseEstimate,
     StepRecord,
+    not_initialised,
 )
 from ceamcl.filters.clustering import cluster_hypotheses, pose_cluster_labels
 from ceamcl.filters.headings import HeadingPrior
@@ -392,7 +393,9 @@ class KLDAMCL(ParticleClusterState):
         self.update_when = on_motion(cfg.update_min_d, cfg.update_min_a)
         self.resample_when = every_n(cfg.resample_interval)
         self.recovery = RecoveryAverages(cfg.alpha_slow, cfg.alpha_fast)
-        self.particle_set = ParticleSet.from_poses(np.zeros((cfg.max_particles, 3)))
+        self.particle_set = ParticleSet.from_poses(np.zeros((0, 3)))
+        #: set by the first initialisation; stepping or asking before it is an error
+        self._initialised = False
         self.t = 0
         self.odom = np.zeros(3)  # odometry pose accumulated from the increments
         self.odom_at_update = np.zeros(3)  # odometry pose of the last filter update
@@ -407,6 +410,7 @@ class KLDAMCL(ParticleClusterState):
     # ------------------------------------------------------------------ initialisation
     def _reset(self, ps: ParticleSet) -> None:
         self.particle_set = ps
+        self._initialised = True
         self.recovery.reset()
         self.map_agreement.reset()
         self.t = 0
@@ -456,6 +460,8 @@ class KLDAMCL(ParticleClusterState):
     def step(self, increment: OdometryIncrement, scan: LaserScan | None) -> KLDAMCLRecord:
         """Accumulate the odometry; update with ``scan`` when the update policy (odometry
         thresholds) says so, or the first time after an initialisation."""
+        if not self._initialised:
+            raise not_initialised(self.name, "step")
         check_increment(increment)
         self.t += 1
         if scan is not None:
@@ -537,6 +543,8 @@ class KLDAMCL(ParticleClusterState):
         return self.particle_set.weights
 
     def particle_weights(self) -> NDArray[np.float64]:
+        if not self._initialised:
+            raise not_initialised(self.name, "particle_weights")
         return self.particle_set.weights
 
     def _carried(self, poses: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -553,17 +561,23 @@ class KLDAMCL(ParticleClusterState):
     def hypotheses(self, limit: int | None = None) -> list[Hypothesis]:
         """Clusters of connected occupied bins, heaviest first (amcl's hypotheses), their poses
         carried by the odometry since the last update; only the ``limit`` heaviest when given."""
+        if not self._initialised:
+            raise not_initialised(self.name, "hypotheses")
         ps = self.particle_set
         hyps = cluster_hypotheses(ps.poses, ps.weights, ps.fitness, *self._labels(), limit)
         return [replace(h, pose=self._carried(h.pose[None, :])[0]) for h in hyps]
 
     def estimate(self) -> PoseEstimate:
         """The heaviest cluster's weighted mean and covariance (as amcl publishes)."""
+        if not self._initialised:
+            raise not_initialised(self.name, "estimate")
         best = self.hypotheses(limit=1)[0]
         return PoseEstimate(best.pose, best.covariance)
 
     def particles(self) -> ParticleSnapshot:
         """The particles, carried by the odometry since the last update; labels are clusters."""
+        if not self._initialised:
+            raise not_initialised(self.name, "particles")
         labels, _ = self._labels()
         ps = self.particle_set
         return ParticleSnapshot(self._carried(ps.poses.copy()), self.weights, labels)

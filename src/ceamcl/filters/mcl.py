@@ -29,6 +29,7 @@ from ceamcl.filters.base import (
     ParticleSnapshot,
     PoseEstimate,
     StepRecord,
+    not_initialised,
 )
 from ceamcl.filters.clustering import cluster_hypotheses, cluster_labels
 from ceamcl.filters.headings import HeadingPrior
@@ -116,7 +117,9 @@ class MCL(ParticleClusterState):
         self.sensor = sensor
         self.config = config or MCLConfig()
         self.rng = rng
-        self.particle_set = ParticleSet.from_poses(np.zeros((self.config.n_particles, 3)))
+        self.particle_set = ParticleSet.from_poses(np.zeros((0, 3)))
+        #: set by the first initialisation; stepping or asking before it is an error
+        self._initialised = False
         self.resample_when = ess_below(self.config.resample_ess_fraction)
         self.t = 0
         #: the last scan received, for the state's wall-crossing test (docs/state.md)
@@ -146,8 +149,10 @@ class MCL(ParticleClusterState):
                 scan=scan,
                 search=search_model(self.sensor) if cfg.init_search_with_field else None,
             )
+            self._initialised = True
             return StepRecord(resampled=evaluations > 0, likelihood_evaluations=evaluations)
         self.particle_set = uniform(self.grid, cfg.n_particles, self.rng)
+        self._initialised = True
         return self.correct(prepared)
 
     def initialise_pose(self, pose: ArrayLike, covariance: ArrayLike) -> None:
@@ -155,10 +160,13 @@ class MCL(ParticleClusterState):
         self.t = 0
         self.map_agreement.reset()
         self.particle_set = gaussian(pose, covariance, self.config.n_particles, self.rng)
+        self._initialised = True
 
     # ------------------------------------------------------------------ one step
     def step(self, increment: OdometryIncrement, scan: LaserScan | None) -> StepRecord:
         """Predict with the odometry ``increment``, then :meth:`correct` with ``scan``."""
+        if not self._initialised:
+            raise not_initialised(self.name, "step")
         propagate(self.particle_set, self.motion, increment, self.rng)
         self.t += 1
         if scan is not None:
@@ -194,9 +202,13 @@ class MCL(ParticleClusterState):
         return self.particle_set.weights
 
     def particle_weights(self) -> NDArray[np.float64]:
+        if not self._initialised:
+            raise not_initialised(self.name, "particle_weights")
         return self.particle_set.weights
 
     def estimate(self) -> PoseEstimate:
+        if not self._initialised:
+            raise not_initialised(self.name, "estimate")
         poses, w = self.particle_set.poses, self.weights
         mean = pose_mean(poses, w)
         return PoseEstimate(mean, pose_covariance(poses, w, mean))
@@ -205,10 +217,14 @@ class MCL(ParticleClusterState):
         return cluster_labels(self.particle_set.poses[:, :2], self.config.cluster_cell_m)
 
     def hypotheses(self) -> list[Hypothesis]:
+        if not self._initialised:
+            raise not_initialised(self.name, "hypotheses")
         ps = self.particle_set
         return cluster_hypotheses(ps.poses, ps.weights, ps.fitness, *self._labels())
 
     def particles(self) -> ParticleSnapshot:
+        if not self._initialised:
+            raise not_initialised(self.name, "particles")
         labels, _ = self._labels()
         return ParticleSnapshot(self.particle_set.poses.copy(), self.weights, labels)
 

@@ -39,7 +39,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from ceamcl.filters.base import Hypothesis, PoseEstimate
+from ceamcl.filters.base import Hypothesis, PoseEstimate, not_initialised
 from ceamcl.sensors.map_agreement import EXPLAINED_TOL_M, explained_share
 from ceamcl.sensors.scan import prepare_scan
 from ceamcl.sensors.see_through import readings_through_walls
@@ -480,18 +480,23 @@ class ParticleClusterState:
     its clusters, readings through walls from :func:`wall_crossing` and the map's agreement
     with the last scan. The filter provides the attributes below and ``hypotheses()``."""
 
+    name: str
     particle_set: ParticleSet
     t: int
     grid: OccupancyGrid
     last_scan: LaserScan | None
     map_agreement: MapAgreement
+    _initialised: bool
 
     def hypotheses(self) -> list[Hypothesis]:
         raise NotImplementedError
 
     def state(self, hypotheses: Sequence[Hypothesis] | None = None) -> LocalisationState:
         """Read from the particle clusters (``hypotheses`` when the caller has them already),
-        then the map's agreement with the scans (:class:`MapAgreement`)."""
+        then the map's agreement with the scans (:class:`MapAgreement`). Before the first
+        initialisation: :class:`~ceamcl.errors.FilterStateError`."""
+        if not self._initialised:
+            raise not_initialised(self.name, "state")
         known = hypotheses
         return read_particles(
             self.particle_set,

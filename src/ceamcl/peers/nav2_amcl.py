@@ -61,6 +61,7 @@ from ceamcl.filters.base import (
     ParticleSnapshot,
     PoseEstimate,
     StepRecord,
+    not_initialised,
 )
 from ceamcl.filters.state import LocalisationState, initialising, read_covariance
 from ceamcl.maps.grid import OccupancyGrid
@@ -311,6 +312,8 @@ class Nav2AMCL:
         self._pending: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
         self._fitness = 1.0
         self.t = 0
+        #: set by the first initialisation; stepping or asking before it is an error
+        self._initialised = False
 
     @property
     def seeded(self) -> bool:
@@ -349,6 +352,7 @@ class Nav2AMCL:
         self._pending = None
         mean, cov = self._free_space_gaussian()
         self._set_initial(mean, cov)
+        self._initialised = True
         updated = self._update(scan)
         return self._record(updated)
 
@@ -362,9 +366,13 @@ class Nav2AMCL:
         p = np.asarray(pose, dtype=np.float64).reshape(3).copy()
         cov = np.asarray(covariance, dtype=np.float64).reshape(3, 3).copy()
         self._pending = (p, cov)
+        self._initialised = True
 
     # ------------------------------------------------------------------ one step
     def step(self, increment: OdometryIncrement, scan: LaserScan | None) -> Nav2AMCLRecord:
+        """Accumulate the odometry ``increment``; with ``scan``, one update of the wheel."""
+        if not self._initialised:
+            raise not_initialised(self.name, "step")
         self.t += 1
         self._odom = apply_increment(self._odom, increment.rot1, increment.trans, increment.rot2)[0]
         if self._pending is not None:
@@ -412,12 +420,16 @@ class Nav2AMCL:
     def particle_weights(self) -> NDArray[np.float64]:
         """The wheel hides its particles: ``max_particles`` NaN weights (the runner records
         that upper bound as the particle count and ESS as unknown)."""
+        if not self._initialised:
+            raise not_initialised(self.name, "particle_weights")
         return np.full(self.config.max_particles, np.nan)
 
     # ------------------------------------------------------------------ queries
     def estimate(self) -> PoseEstimate:
         """The wheel's mean pose and covariance (world frame); the pending pose before the
         first scan of pose tracking."""
+        if not self._initialised:
+            raise not_initialised(self.name, "estimate")
         if self._pending is not None:
             p, cov = self._pending
             return PoseEstimate(p.copy(), cov.copy())
@@ -429,6 +441,8 @@ class Nav2AMCL:
 
     def hypotheses(self) -> list[Hypothesis]:
         """The estimate as the only hypothesis; fitness under our beam model for the last scan."""
+        if not self._initialised:
+            raise not_initialised(self.name, "hypotheses")
         est = self.estimate()
         return [
             Hypothesis(
@@ -444,6 +458,8 @@ class Nav2AMCL:
     def state(self, hypotheses: Sequence[Hypothesis] | None = None) -> LocalisationState:
         """From the covariance, as Nav2's users read it today
         (:func:`ceamcl.filters.state.read_covariance`); INITIALISING until the first step."""
+        if not self._initialised:
+            raise not_initialised(self.name, "state")
         if self.t == 0:
             return initialising()
         if self._pending is not None:
@@ -453,6 +469,8 @@ class Nav2AMCL:
     def particles(self) -> ParticleSnapshot:
         """NOT the wheel's particles (its API hides them): ``snapshot_particles`` samples from
         the estimate's Gaussian, drawn with our generator, uniform weights, label 0."""
+        if not self._initialised:
+            raise not_initialised(self.name, "particles")
         est = self.estimate()
         n = self.config.snapshot_particles
         poses = self.rng.multivariate_normal(est.pose, est.covariance, size=n, method="eigh")

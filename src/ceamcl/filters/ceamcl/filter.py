@@ -44,7 +44,13 @@ from numpy.typing import ArrayLike, NDArray
 
 from ceamcl import angles
 from ceamcl.errors import ConfigError
-from ceamcl.filters.base import Algorithm, Hypothesis, ParticleSnapshot, PoseEstimate
+from ceamcl.filters.base import (
+    Algorithm,
+    Hypothesis,
+    ParticleSnapshot,
+    PoseEstimate,
+    not_initialised,
+)
 from ceamcl.filters.ceamcl.anchor import ConfidentPose, DriftEnvelope
 from ceamcl.filters.ceamcl.config import CEAMCLConfig
 from ceamcl.filters.ceamcl.initialisation import (
@@ -130,6 +136,8 @@ class CEAMCL:
         #: the model that scores a search's test poses (``search_with_field``), made once
         self._search: SensorModel | None = None
         self.particle_set = ParticleSet.from_poses(np.zeros((0, 3)))
+        #: set by the first initialisation; stepping or asking before it is an error
+        self._initialised = False
         self.stats: dict[int, SpeciesStats] = {}
         self.competition = Competition()
         self.initial: InitialSpecies | None = None
@@ -197,6 +205,7 @@ class CEAMCL:
         self.events = Events()
         self._evaluations = 0
         self._initialise_from(usable(self.sensor, scan))
+        self._initialised = True
         if self.config.init_is_a_search:  # departure 30
             self._lost_wait = 2 * (self.config.recovery_lost_updates or 0)
         return self._record(reinitialised=False)
@@ -377,6 +386,7 @@ class CEAMCL:
         self.competition = Competition({sid: 0.0})
         self.log_weight = {sid: 0.0}
         self.log_prior = {}
+        self._initialised = True
 
     def initialise_hypotheses(self, poses: ArrayLike, covariance: ArrayLike) -> None:
         """Several hypotheses at once (e.g. the known symmetric images of a start pose): one
@@ -416,10 +426,13 @@ class CEAMCL:
         self.competition = Competition({sid: 0.0 for sid in self.stats})
         self.log_weight = {sid: 0.0 for sid in self.stats}
         self.log_prior = {}
+        self._initialised = True
 
     # ================================================================== one step
     def step(self, increment: OdometryIncrement, scan: LaserScan | None) -> CEAMCLRecord:
         """One step of section 3.5 (see the module docstring)."""
+        if not self._initialised:
+            raise not_initialised(self.name, "step")
         check_increment(increment)  # before any phase changes the particles
         cfg = self.config
         ps = self.particle_set
@@ -1052,6 +1065,8 @@ class CEAMCL:
         (departure 17, ``anchor_envelope_sd``), a species sliding where the map holds little;
         without an envelope, after a recovery and beyond ``recovery_drift_m`` (or
         ``recovery_drift_rad``), another place the recovery proposed (departure 15)."""
+        if not self._initialised:
+            raise not_initialised(self.name, "estimate")
         best = self.fittest()
         if best is None:
             return PoseEstimate(np.zeros(3), np.diag([1e6, 1e6, np.pi**2]))
@@ -1268,6 +1283,8 @@ class CEAMCL:
         return stats, share
 
     def hypotheses(self) -> list[Hypothesis]:
+        if not self._initialised:
+            raise not_initialised(self.name, "hypotheses")
         if self._read is not None:  # read this step; fresh arrays, as a new read gives
             return [
                 replace(h, pose=h.pose.copy(), covariance=h.covariance.copy())
@@ -1293,6 +1310,8 @@ class CEAMCL:
         step. AMBIGUOUS, the anchor's place and the leader's, where the species read LOCALISED
         but departure 18 holds the estimate at the anchor (the estimate is not the leader's
         place: two places fit the scan)."""
+        if not self._initialised:
+            raise not_initialised(self.name, "state")
         read = self._species_state(hypotheses)
         at, _, share, unvouched = self._held
         if at != self.t or share is None or read.state is not State.LOCALISED:
@@ -1337,6 +1356,8 @@ class CEAMCL:
     def particle_weights(self) -> NDArray[np.float64]:
         """Each particle's in-species weight times its species' share, normalised (measured
         by the runner at every step, so no :class:`Hypothesis` is built for it)."""
+        if not self._initialised:
+            raise not_initialised(self.name, "particle_weights")
         weights = np.zeros(self.particle_set.n)
         stats, share = self._ranked_shares()
         for s, w in zip(stats, share, strict=True):
@@ -1347,6 +1368,8 @@ class CEAMCL:
         return weights
 
     def particles(self) -> ParticleSnapshot:
+        if not self._initialised:
+            raise not_initialised(self.name, "particles")
         ps = self.particle_set
         return ParticleSnapshot(ps.poses.copy(), self.particle_weights(), ps.labels.copy())
 
