@@ -157,3 +157,28 @@ def test_demo_mp4_without_ffmpeg_is_a_one_line_error(
     err = capsys.readouterr().err
     assert err.startswith("ceamcl: error: mp4:") and "ffmpeg" in err
     assert not (tmp_path / "o").exists()  # failed before the run
+
+
+def test_run_files_and_outputs_create_their_folder(tmp_path: Path) -> None:
+    """docs/outputs.md and docs/architecture.md call write_outputs / write_run_files with a
+    folder that does not exist yet: both failed with FileNotFoundError (the animation after
+    rendering every frame). They create it, with its parents."""
+    from ceamcl.outputs import write_run_files
+
+    result, grid, log = short_run()
+    visual = tmp_path / "a" / "b"
+    files = write_outputs(result, grid, visual, OutputOptions(gif=False, report=True), log=log)
+    assert files == [visual / "report.html"] and files[0].stat().st_size > 0
+    run = tmp_path / "c" / "d"
+    write_run_files(result, grid, run, {"seed": 7}, title="t", log=log)
+    assert {p.name for p in run.iterdir()} >= {"trajectory.tum", "diagnostics.csv", "summary.json"}
+
+
+def test_a_failing_command_keeps_a_folder_a_library_call_created(tmp_path: Path) -> None:
+    """The library's writers create their folder as the CLI's do, and a command that fails
+    removes the folders it created: not one made by a library call before it."""
+    from ceamcl.io.results import ensure_output_dir
+
+    made = ensure_output_dir(tmp_path / "library" / "out")
+    assert main(["world", "symmetric-hall"]) == 2  # fails: no output given
+    assert made.is_dir()

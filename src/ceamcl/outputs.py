@@ -25,7 +25,12 @@ from typing import Any
 from ceamcl.errors import ConfigError
 from ceamcl.filters.ceamcl.records import species_of
 from ceamcl.io.mcap_export import ScanLog, write_mcap
-from ceamcl.io.results import write_diagnostics_csv, write_json, write_species_csv
+from ceamcl.io.results import (
+    ensure_output_dir,
+    write_diagnostics_csv,
+    write_json,
+    write_species_csv,
+)
 from ceamcl.io.tum import write_tum
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.runner import RunResult
@@ -156,7 +161,9 @@ def write_outputs(
     title: str = "",
     on_frame: Callable[[int, int], None] | None = None,
 ) -> list[Path]:
-    """Write the requested outputs; returns the files written.
+    """Write the requested outputs; returns the files written. ``out_dir`` (and its parents)
+    is created when an output goes into it (animation, report); the MCAP file's folder must
+    exist.
 
     ``log``: the robot log the run replayed (for the scans in the MCAP file; anything with
     ``len()`` and ``scan(k)``); ``summary``: the run's summary (shown in the report);
@@ -169,6 +176,8 @@ def write_outputs(
     )
     out = Path(out_dir)
     written: list[Path] = []
+    if options.gif or options.mp4 or options.report:
+        ensure_output_dir(out)
     if options.gif or options.mp4:
         from ceamcl.viz.animation import animate_run  # matplotlib: see write_run_files
 
@@ -244,16 +253,17 @@ def write_run_files(
 ) -> list[Path]:
     """The files of one run, as ``ceamcl demo`` and ``ceamcl run`` write them.
 
-    With ``out_dir``: ``trajectory.tum``, ``groundtruth.tum`` (where the run has a truth),
-    ``diagnostics.csv``, ``run.png``, ``species.csv`` and ``species.png`` (filters with
-    species) and ``summary.json``, after removing an earlier run's files from ``out_dir``
-    (:data:`RUN_FILES`). ``outputs`` (:class:`OutputOptions`) adds the visual
-    outputs (without ``out_dir`` only the MCAP file, a path of its own); ``log`` gives the MCAP
-    file its scans, ``on_frame(i, total)`` reports the animation's progress. Returns the
-    visual outputs written.
+    With ``out_dir`` (created with its parents when missing): ``trajectory.tum``,
+    ``groundtruth.tum`` (where the run has a truth), ``diagnostics.csv``, ``run.png``,
+    ``species.csv`` and ``species.png`` (filters with species) and ``summary.json``, after
+    removing an earlier run's files from ``out_dir`` (:data:`RUN_FILES`). ``outputs``
+    (:class:`OutputOptions`) adds the visual outputs (without ``out_dir`` only the MCAP file, a
+    path of its own); ``log`` gives the MCAP file its scans, ``on_frame(i, total)`` reports the
+    animation's progress. Returns the visual outputs written.
     """
     out = None if out_dir is None else Path(out_dir)
     if out is not None:
+        ensure_output_dir(out)
         clear_run_files(out)
         # matplotlib (~0.7 s to import) only when a figure is drawn: the CLI imports this
         # module to parse its options.

@@ -162,6 +162,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         console.width = CONSOLE_COLUMNS  # a pipe or a file: tables of 100 columns, not 80
     limits = args.memory_budget or Budget.default()
     ok = False
+    created.forget()  # folders a library call made earlier in this process are not ours
     try:
         own_ctrl_c = getattr(args, "handles_ctrl_c", False)
         with interrupt.guard(not own_ctrl_c), budget.use(limits), warnings.catch_warnings():
