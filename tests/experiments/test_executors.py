@@ -6,6 +6,9 @@ from __future__ import annotations
 import functools
 import math
 import operator
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 
@@ -94,3 +97,28 @@ def test_a_worker_that_dies_is_one_line_naming_what_happened() -> None:
     """A worker killed (out of memory) gave a 23-line BrokenProcessPool traceback."""
     with open_executor("local", 1) as ex, pytest.raises(TrialError, match="a worker process died"):
         map_trials(ex, _die, [1, 2], label="trials", quiet=True)
+
+
+def test_a_script_without_a_main_guard_is_told_about_it(tmp_path: Path) -> None:
+    """docs/experiments.md's examples, run as scripts without an ``if __name__ ==
+    "__main__":`` guard, died in every spawned worker (which imports the script again and
+    opens a pool of its own) and the error pointed to memory only: it names the guard too."""
+    script = tmp_path / "trials.py"
+    script.write_text(
+        "import operator\n"
+        "from ceamcl.experiments.executors import map_trials, open_executor\n"
+        "with open_executor('local', workers=1) as ex:\n"
+        "    print(map_trials(ex, operator.neg, [1, 2], label='my trials', quiet=True))\n"
+    )
+    proc = subprocess.run(
+        [sys.executable, str(script)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+        cwd=tmp_path,
+    )
+    assert proc.returncode != 0
+    last = proc.stderr.strip().splitlines()[-1]
+    assert last.startswith("ceamcl.experiments.executors.TrialError: my trials: a worker")
+    assert "'spawn'" in last and 'if __name__ == "__main__":' in last

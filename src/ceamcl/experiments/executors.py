@@ -260,11 +260,16 @@ def map_trials(
                 if isinstance(exc, CeamclError):
                     raise TrialError(f"trial {name} failed: {exc}") from exc
                 if isinstance(exc, BrokenProcessPool):
-                    # a worker died (killed, out of memory): every pending trial gets this
-                    # error, so the one named is only the first to surface
+                    # a worker died (killed, out of memory; or, from a script without a
+                    # __main__ guard, at its start: spawn re-imports the script, which then
+                    # opens an executor of its own): every pending trial gets this error, so
+                    # the one named is only the first to surface
                     raise TrialError(
                         f"{label}: a worker process died while the trials ran (killed, or out "
-                        "of memory? --memory-budget and --workers bound what they may take); "
+                        "of memory? --memory-budget and --workers bound what they may take; "
+                        "from a Python script: workers start with 'spawn', which imports the "
+                        "script again, so its code must sit under "
+                        "'if __name__ == \"__main__\":'); "
                         f"the first trial to report it was {name}"
                     ) from exc
                 exc.add_note(f"(in trial {name} of {label})")
