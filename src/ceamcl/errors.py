@@ -7,6 +7,8 @@ message and a non-zero exit, without a traceback.
 
 from __future__ import annotations
 
+import numpy as np
+
 
 class CeamclError(Exception):
     """Base class of every error this package raises on bad input."""
@@ -27,6 +29,26 @@ class ConfigError(CeamclError, ValueError):
 class FilterStateError(CeamclError, RuntimeError):
     """A filter was asked for something before it can give it: stepped or queried before
     ``initialise_global`` or ``initialise_pose``."""
+
+
+class InputTypeError(CeamclError, TypeError):
+    """An argument of the wrong type: a seed where a ``numpy.random.Generator`` is expected, an
+    array where a ``LaserScan`` is."""
+
+
+def _type_name(t: type) -> str:
+    return "None" if t is type(None) else t.__name__
+
+
+def check_rng(rng: object, name: str = "rng") -> None:
+    """Refuse anything but a ``numpy.random.Generator`` (a seed, ``None``, a ``RandomState``
+    failed deep inside the first call that drew from it)."""
+    if not isinstance(rng, np.random.Generator):
+        got = _type_name(type(rng))
+        raise InputTypeError(
+            f"{name}: expected numpy.random.Generator, got {got}; "
+            "use numpy.random.default_rng(seed)"
+        )
 
 
 class InputWarning(UserWarning):

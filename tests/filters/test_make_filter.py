@@ -140,3 +140,29 @@ def test_a_filter_used_before_its_initialisation_says_so(algorithm: str) -> None
     f.initialise_pose(free, np.diag([0.01, 0.01, 0.01]))
     for call in calls.values():
         call()
+
+
+RNG_MESSAGE = (
+    r"^rng: expected numpy.random.Generator, got {}; use numpy.random.default_rng\(seed\)$"
+)
+
+
+@pytest.mark.parametrize(
+    ("rng", "got"), [(3, "int"), (None, "None"), (np.random.RandomState(0), "RandomState")]
+)
+def test_a_seed_where_a_generator_belongs_is_refused_at_once(rng: object, got: str) -> None:
+    """A seed, None or a RandomState was accepted and failed at the first draw, deep inside
+    ('int' object has no attribute 'integers'): refused, with the fix, by make_filter and by
+    every filter's constructor."""
+    from ceamcl.errors import InputTypeError
+    from ceamcl.filters import KLDAMCL
+    from ceamcl.motion.odometry import OdometryMotionModel
+    from ceamcl.sensors import LikelihoodFieldModel
+
+    grid = get_world("small-office")
+    for algorithm in ("ceamcl", "mcl", "gmcl", "kld-amcl"):
+        with pytest.raises(InputTypeError, match=RNG_MESSAGE.format(got)):
+            make_filter(algorithm, grid, rng)  # type: ignore[arg-type]
+    for cls in (CEAMCL, MCL, GMCL, KLDAMCL):
+        with pytest.raises(TypeError, match=RNG_MESSAGE.format(got)):
+            cls(grid, OdometryMotionModel(), LikelihoodFieldModel(grid), rng=rng)  # type: ignore[arg-type]

@@ -364,3 +364,12 @@ def test_the_peer_used_before_its_initialisation_says_so() -> None:
     f.initialise_pose(log.true_poses[0], np.diag([0.01, 0.01, 0.01]))
     f.step(inc, log.scan(1))
     assert np.all(np.isfinite(f.estimate().pose))
+
+
+@needs_wheel
+def test_the_peer_refuses_a_seed_for_a_generator() -> None:
+    from ceamcl.errors import InputTypeError
+    from ceamcl.peers.nav2_amcl import make_nav2_amcl
+
+    with pytest.raises(InputTypeError, match=r"rng: expected numpy\.random\.Generator, got int"):
+        make_nav2_amcl(get_scenario("office").grid(), 3)  # type: ignore[arg-type]

@@ -190,3 +190,20 @@ def test_simulation_config_validation() -> None:
         SimulationConfig(random_reading_prob=1.5)
     with pytest.raises(ValueError):
         SimulationConfig(range_sigma_m=-0.1)
+
+
+@pytest.mark.parametrize(("rng", "got"), [(1, "int"), (None, "None")])
+def test_simulate_refuses_a_seed_for_a_generator(rng: object, got: str) -> None:
+    """``scenario.simulate(1)`` failed inside the odometry model ('int' object has no
+    attribute 'standard_normal'); the simulator and free-space sampling say what to pass."""
+    from ceamcl.errors import InputTypeError
+
+    sc = paper_scenario(start_room=0, world="symmetric-hall")
+    message = rf"^rng: expected numpy.random.Generator, got {got}; use numpy.random.default_rng"
+    for call in (
+        lambda: sc.simulate(rng),  # type: ignore[arg-type]
+        lambda: Simulator(sc.grid()).run(sc.true_path(), rng),  # type: ignore[arg-type]
+        lambda: sc.grid().sample_free_poses(3, rng),  # type: ignore[arg-type]
+    ):
+        with pytest.raises(InputTypeError, match=message):
+            call()

@@ -49,7 +49,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ceamcl.errors import ConfigError
+from ceamcl.errors import ConfigError, check_rng
 from ceamcl.filters.base import (
     Algorithm,
     Hypothesis,
@@ -381,6 +381,7 @@ class KLDAMCL(ParticleClusterState):
         *,
         rng: np.random.Generator,
     ) -> None:
+        check_rng(rng)
         self.grid = grid
         self.motion = motion
         self.config = config or KLDAMCLConfig()

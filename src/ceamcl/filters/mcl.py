@@ -23,6 +23,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ceamcl.errors import check_rng
 from ceamcl.filters.base import (
     Algorithm,
     Hypothesis,
@@ -112,6 +113,7 @@ class MCL(ParticleClusterState):
         *,
         rng: np.random.Generator,
     ) -> None:
+        check_rng(rng)
         self.grid = grid
         self.motion = motion
         self.sensor = sensor

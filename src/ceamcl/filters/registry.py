@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from ceamcl.errors import ConfigError
+from ceamcl.errors import ConfigError, check_rng
 from ceamcl.filters import gmcl, kld_amcl, mcl
 from ceamcl.filters.base import Algorithm, LocalisationFilter
 from ceamcl.filters.ceamcl import filter as ceamcl_filter
@@ -220,6 +220,7 @@ def make_filter(
     preset's ``max_beams`` and ``temper``), then ``sensor_settings`` given here on top.
     """
     spec = get(algorithm)
+    check_rng(rng)
     if n_particles is not None:
         # a whole number (numpy's too), not a bool: 100.5 passed and failed later in a reshape
         whole = isinstance(n_particles, int | np.integer) and not isinstance(n_particles, bool)

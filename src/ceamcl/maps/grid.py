@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ceamcl.angles import wrap
-from ceamcl.errors import MapFormatError
+from ceamcl.errors import MapFormatError, check_rng
 from ceamcl.maps.distance import distance_cells, distance_from_squared, squared_distance_cells
 
 T = TypeVar("T")
@@ -226,6 +226,7 @@ class OccupancyGrid:
     # ------------------------------------------------------------------ sampling
     def sample_free_poses(self, n: int, rng: np.random.Generator) -> NDArray[np.float64]:
         """``n`` poses uniform over free space (uniform in area) with uniform headings."""
+        check_rng(rng)
         if n < 0:
             raise ValueError(f"n: expected a non-negative count, got {n}")
         cells = self.free_cells

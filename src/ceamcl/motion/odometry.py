@@ -26,6 +26,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ceamcl.angles import diff, wrap
+from ceamcl.errors import check_rng
 
 MIN_TRANSLATION_FOR_ROT1_M = 0.01
 
@@ -129,6 +130,7 @@ class OdometryMotionModel:
         rng: np.random.Generator,
     ) -> NDArray[np.float64]:
         """New poses ``(N, 3)``: each input pose moved by a noisy copy of ``increment``."""
+        check_rng(rng)
         p = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
         n = p.shape[0]
         v_rot1, v_trans, v_rot2 = increment.variances(self.noise)
@@ -152,6 +154,7 @@ def synthetic_odometry(
     ``kidnapped_at`` the robot is lifted and carried: the wheels do not turn, so the odometry
     stays where it was while the truth jumps.
     """
+    check_rng(rng)
     truth = np.asarray(true_poses, dtype=np.float64).reshape(-1, 3)
     model = OdometryMotionModel(noise)
     odom = np.empty_like(truth)

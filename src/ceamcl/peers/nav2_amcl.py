@@ -54,7 +54,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ceamcl import peers
 from ceamcl.angles import wrap
-from ceamcl.errors import ConfigError
+from ceamcl.errors import ConfigError, check_rng
 from ceamcl.filters.base import (
     Algorithm,
     Hypothesis,
@@ -283,6 +283,7 @@ class Nav2AMCL:
         *,
         rng: np.random.Generator,
     ) -> None:
+        check_rng(rng)
         amcl = _amcl()
         self._amcl = amcl
         self.grid = grid

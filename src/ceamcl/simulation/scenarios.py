@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from ceamcl.errors import ConfigError
+from ceamcl.errors import ConfigError, check_rng
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.maps.worlds import (
     HALL_SIZE_M,
@@ -88,6 +88,7 @@ class Scenario:
 
     def simulate(self, rng: np.random.Generator, grid: OccupancyGrid | None = None) -> SimulatedLog:
         """Run the simulator along the route (truth is deterministic; noise comes from ``rng``)."""
+        check_rng(rng)
         g = grid if grid is not None else self.grid()
         path, k = self._drive()
         return Simulator(g, self.config).run(path, rng, kidnapped_at=() if k is None else (k,))

@@ -21,6 +21,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ceamcl.angles import diff, wrap
+from ceamcl.errors import check_rng
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryNoise, synthetic_odometry
 from ceamcl.sensors.raycast import cast_rays
@@ -143,12 +144,14 @@ class Simulator:
         At the steps in ``kidnapped_at`` the robot is lifted and carried: the wheels do not
         turn, so the odometry stays where it was while the truth jumps.
         """
+        check_rng(rng)
         return synthetic_odometry(
             true_poses, self.config.odometry_noise, rng, kidnapped_at=kidnapped_at
         )
 
     def scans(self, true_poses: ArrayLike, rng: np.random.Generator) -> NDArray[np.float64]:
         """Noisy ranges ``(T, n_beams)`` seen from the true poses."""
+        check_rng(rng)
         cfg = self.config
         laser = cfg.laser
         lp = laser_poses(true_poses, laser.pose)
@@ -172,6 +175,7 @@ class Simulator:
     ) -> SimulatedLog:
         """Simulate a path; ``kidnapped_at`` lists steps where the truth jumps unseen by the
         odometry (see :meth:`noisy_odometry`)."""
+        check_rng(rng)
         truth = np.asarray(true_poses, dtype=np.float64).reshape(-1, 3)
         kidnapped = tuple(sorted(int(k) for k in kidnapped_at))
         if any(not 0 < k < truth.shape[0] for k in kidnapped):

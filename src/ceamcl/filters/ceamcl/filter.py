@@ -43,7 +43,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ceamcl import angles
-from ceamcl.errors import ConfigError
+from ceamcl.errors import ConfigError, check_rng
 from ceamcl.filters.base import (
     Algorithm,
     Hypothesis,
@@ -128,6 +128,7 @@ class CEAMCL:
         *,
         rng: np.random.Generator,
     ) -> None:
+        check_rng(rng)
         self.grid = grid
         self.motion = motion
         self.sensor = sensor
