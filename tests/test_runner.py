@@ -3,6 +3,8 @@ particle count and ESS; the filter's own record rides along."""
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from ceamcl.filters import KLDAMCLRecord, StepRecord, make_filter
@@ -62,3 +64,30 @@ def test_runner_records_the_state_of_every_step_in_the_diagnostics_rows() -> Non
     assert res.diagnostics[0].row()["state"] == "INITIALISING"
     assert res.diagnostics[-1].row()["state"] == "LOCALISED"
     assert 0.0 <= float(res.diagnostics[-1].row()["state_confidence"]) <= 1.0
+
+
+def test_run_filter_names_a_wrong_argument_in_one_line() -> None:
+    """``run_filter(f, None)`` said "object of type 'NoneType' has no len()" and
+    ``run_filter(grid, log)`` "'OccupancyGrid' object has no attribute 'initialise_global'"."""
+    import pytest
+
+    from ceamcl.errors import ConfigError, InputTypeError
+
+    sc = office_scenario()
+    grid = sc.grid()
+    log = sc.simulate(np.random.default_rng(1), grid)
+    f = make_filter("mcl", grid, np.random.default_rng(2), n_particles=50)
+    bad: Any = None
+    cases: list[tuple[tuple[Any, Any], dict[str, Any], str]] = [
+        ((f, bad), {}, r"^log: expected a robot log .* got None$"),
+        ((f, log.ranges), {}, r"^log: expected a robot log .* got ndarray$"),
+        ((grid, log), {}, r"^f: expected a localisation filter .* got OccupancyGrid$"),
+        ((f, log), {"on_step": 3}, r"^on_step: expected a function or None, got int$"),
+        ((f, log), {"snapshot_every": 2.5}, r"^snapshot_every: expected int, got float$"),
+        ((f, log), {"initial_pose": np.zeros(3)}, r"^initial_pose: expected \(pose, covariance"),
+    ]
+    for args, kwargs, message in cases:
+        with pytest.raises(InputTypeError, match=message):
+            run_filter(*args, **kwargs)
+    with pytest.raises(ConfigError, match="snapshot_every: expected a count >= 0, got -1"):
+        run_filter(f, log, snapshot_every=-1)

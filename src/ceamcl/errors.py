@@ -40,6 +40,23 @@ def _type_name(t: type) -> str:
     return "None" if t is type(None) else t.__name__
 
 
+def type_name(value: object) -> str:
+    """The name of ``value``'s type as a message shows it (``None`` for None)."""
+    return _type_name(type(value))
+
+
+def wrong_type(
+    value: object, expected: type | tuple[type, ...], name: str, hint: str = ""
+) -> InputTypeError:
+    """The error of argument ``name`` holding ``value`` where ``expected`` was wanted: one line
+    naming the argument, the type expected, the type given and ``hint``."""
+    wanted = " or ".join(
+        _type_name(t) for t in (expected if isinstance(expected, tuple) else (expected,))
+    )
+    got = _type_name(type(value))
+    return InputTypeError(f"{name}: expected {wanted}, got {got}" + (f"; {hint}" if hint else ""))
+
+
 def check_rng(rng: object, name: str = "rng") -> None:
     """Refuse anything but a ``numpy.random.Generator`` (a seed, ``None``, a ``RandomState``
     failed deep inside the first call that drew from it)."""

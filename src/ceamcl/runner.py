@@ -14,6 +14,7 @@ from functools import partial
 import numpy as np
 from numpy.typing import NDArray
 
+from ceamcl.errors import ConfigError, InputTypeError, type_name, wrong_type
 from ceamcl.filters.base import (
     Hypothesis,
     LocalisationFilter,
@@ -165,6 +166,50 @@ def _start_tracking(
     return f.step(OdometryIncrement(0.0, 0.0, 0.0), scan)
 
 
+#: What :func:`run_filter` calls on a filter (and ``initialise_global``, or ``initialise_pose``
+#: with an initial pose) and on a log.
+_FILTER_METHODS = ("step", "estimate", "hypotheses", "state", "particles", "particle_weights")
+_LOG_ATTRIBUTES = ("times", "odometry", "scan", "__len__")
+
+
+def _check_run_arguments(
+    f: object,
+    log: object,
+    on_step: object,
+    snapshot_every: object,
+    update_when: object,
+    initial_pose: object,
+) -> None:
+    """:func:`run_filter`'s arguments, each refused in one line naming it."""
+    start = "initialise_global" if initial_pose is None else "initialise_pose"
+    if not all(callable(getattr(f, m, None)) for m in (start, *_FILTER_METHODS)):
+        raise InputTypeError(
+            f"f: expected a localisation filter (ceamcl.filters.make_filter(name, grid, rng)), "
+            f"got {type_name(f)}"
+        )
+    if not all(hasattr(log, a) for a in _LOG_ATTRIBUTES):
+        raise InputTypeError(
+            "log: expected a robot log with times, odometry and scan(k) "
+            "(ceamcl.io.logs.open_log(path), Scenario.simulate(rng)), "
+            f"got {type_name(log)}"
+        )
+    for name, value in (("on_step", on_step), ("update_when", update_when)):
+        if value is not None and not callable(value):
+            raise InputTypeError(f"{name}: expected a function or None, got {type_name(value)}")
+    if not isinstance(snapshot_every, int | np.integer) or isinstance(snapshot_every, bool):
+        raise wrong_type(snapshot_every, int, "snapshot_every")
+    if snapshot_every < 0:
+        raise ConfigError(f"snapshot_every: expected a count >= 0, got {snapshot_every}")
+    if initial_pose is not None and (
+        not isinstance(initial_pose, tuple | list) or len(initial_pose) != 2
+    ):
+        raise InputTypeError(
+            "initial_pose: expected (pose, covariance) or None, got "
+            f"{type_name(initial_pose)}"
+            + (f" of {len(initial_pose)}" if isinstance(initial_pose, tuple | list) else "")
+        )
+
+
 def run_filter(
     f: LocalisationFilter,
     log: RobotLog,
@@ -192,6 +237,7 @@ def run_filter(
     ``on_step(k)`` is called after each step (progress bars hook in here);
     ``snapshot_every > 0`` keeps the particles every that many steps (for animations).
     """
+    _check_run_arguments(f, log, on_step, snapshot_every, update_when, initial_pose)
     n = len(log)
     if n == 0:
         raise ValueError("run_filter: the log has no entries")

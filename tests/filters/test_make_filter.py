@@ -166,3 +166,32 @@ def test_a_seed_where_a_generator_belongs_is_refused_at_once(rng: object, got: s
     for cls in (CEAMCL, MCL, GMCL, KLDAMCL):
         with pytest.raises(TypeError, match=RNG_MESSAGE.format(got)):
             cls(grid, OdometryMotionModel(), LikelihoodFieldModel(grid), rng=rng)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("algorithm", ["mcl", "gmcl", "kld-amcl", "ceamcl"])
+def test_wrong_argument_types_are_named_before_the_filter_changes(algorithm: str) -> None:
+    """An ndarray for a scan, a tuple for an increment or an occupancy array for a grid gave
+    AttributeErrors from inside the library ('numpy.ndarray' object has no attribute
+    'n_beams', 'tuple' object has no attribute 'rot1', ... no attribute 'derived')."""
+    from ceamcl.errors import InputTypeError
+    from ceamcl.motion.odometry import OdometryIncrement
+    from ceamcl.sensors.scan import LaserScan
+
+    grid = get_world("small-office")
+    with pytest.raises(InputTypeError, match=r"^grid: expected OccupancyGrid, got ndarray; load"):
+        make_filter(algorithm, np.zeros((10, 10)), np.random.default_rng(0))  # type: ignore[arg-type]
+    f = make_filter(algorithm, grid, np.random.default_rng(0), n_particles=200)
+    ranges = np.full(181, 2.0)
+    for bad in (ranges, None):
+        with pytest.raises(InputTypeError, match=r"^scan: expected LaserScan, got \w+; wrap"):
+            f.initialise_global(bad)  # type: ignore[arg-type]
+    scan = LaserScan(ranges, -np.pi / 2, np.pi / 180, 0.02, 8.0)
+    f.initialise_global(scan)
+    t = f.t  # type: ignore[attr-defined]
+    for increment in ((0.1, 0.0, 0.0), np.array([0.1, 0.0, 0.0])):
+        with pytest.raises(InputTypeError, match=r"^increment: expected OdometryIncrement, got"):
+            f.step(increment, scan)  # type: ignore[arg-type]
+    with pytest.raises(InputTypeError, match=r"^scan: expected LaserScan or None, got ndarray"):
+        f.step(OdometryIncrement(0.1, 0.0, 0.0), ranges)  # type: ignore[arg-type]
+    assert f.t == t  # type: ignore[attr-defined]  # refused before any change
+    f.step(OdometryIncrement(0.1, 0.0, 0.0), None)

@@ -203,3 +203,22 @@ def test_noise_parameters_are_validated() -> None:
         OdometryNoise(0.1, 0.1, -0.1, 0.1)
     with pytest.raises(ValueError, match="alpha1"):
         OdometryNoise(float("nan"), 0.1, 0.1, 0.1)
+
+
+@pytest.mark.parametrize(
+    ("previous", "current", "message"),
+    [
+        ([0, 0], [1, 1], r"previous: expected an odometry pose \(x, y, theta\), got 2 value"),
+        ([0, 0, 0], [1, 1, 0, 0], r"current: expected an odometry pose .* got 4 value"),
+        ([0, 0, 0], "abc", r"current: expected an odometry pose \(x, y, theta\), got str"),
+    ],
+)
+def test_increment_between_names_a_pose_that_is_not_three_numbers(
+    previous: object, current: object, message: str
+) -> None:
+    """[0, 0] gave 'IndexError: index 2 is out of bounds for axis 0 with size 2'."""
+    from ceamcl.errors import ConfigError
+
+    with pytest.raises(ConfigError, match=message):
+        increment_between(previous, current)  # type: ignore[arg-type]
+    assert increment_between(np.array([[0.0, 0.0, 0.0]]), (1, 0, 0)).trans == 1.0

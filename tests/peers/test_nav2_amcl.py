@@ -373,3 +373,17 @@ def test_the_peer_refuses_a_seed_for_a_generator() -> None:
 
     with pytest.raises(InputTypeError, match=r"rng: expected numpy\.random\.Generator, got int"):
         make_nav2_amcl(get_scenario("office").grid(), 3)  # type: ignore[arg-type]
+
+
+@needs_wheel
+def test_the_peer_names_a_wrong_argument_type() -> None:
+    from ceamcl.errors import InputTypeError
+    from ceamcl.peers.nav2_amcl import make_nav2_amcl
+
+    grid, log, rng = office_log(3)
+    f = make_nav2_amcl(grid, rng)
+    with pytest.raises(InputTypeError, match=r"^scan: expected LaserScan, got ndarray"):
+        f.initialise_global(log.ranges[0])  # type: ignore[arg-type]
+    f.initialise_global(log.scan(0))
+    with pytest.raises(InputTypeError, match=r"^increment: expected OdometryIncrement, got tuple"):
+        f.step((0.1, 0.0, 0.0), log.scan(1))  # type: ignore[arg-type]

@@ -26,13 +26,13 @@ from typing import TYPE_CHECKING, Any, Literal, Protocol
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ceamcl.errors import FilterStateError
+from ceamcl.errors import FilterStateError, wrong_type
+from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryIncrement
 from ceamcl.sensors.scan import LaserScan
 
 if TYPE_CHECKING:
     from ceamcl.filters.state import LocalisationState
-    from ceamcl.maps.grid import OccupancyGrid
     from ceamcl.motion.odometry import OdometryMotionModel
     from ceamcl.sensors.base import SensorModel
 
@@ -192,6 +192,42 @@ def not_initialised(name: str, method: str) -> FilterStateError:
         f"{name}: {method}() before the filter was initialised; call "
         "initialise_global(scan) or initialise_pose(pose, covariance) first"
     )
+
+
+_INCREMENT_HINT = (
+    "use ceamcl.motion.increment_between(odom_prev, odom_now) or "
+    "OdometryIncrement(rot1, trans, rot2)"
+)
+_SCAN_HINT = (
+    "wrap the ranges in ceamcl.sensors.LaserScan(ranges, angle_min, angle_increment, "
+    "range_min, range_max)"
+)
+
+
+def check_step_arguments(increment: object, scan: object) -> None:
+    """``step(increment, scan)``'s types: an :class:`OdometryIncrement` and a
+    :class:`LaserScan` or ``None`` (two ``isinstance`` tests, before the filter changes)."""
+    if not isinstance(increment, OdometryIncrement):
+        raise wrong_type(increment, OdometryIncrement, "increment", _INCREMENT_HINT)
+    if scan is not None and not isinstance(scan, LaserScan):
+        raise wrong_type(scan, (LaserScan, type(None)), "scan", _SCAN_HINT)
+
+
+def check_scan(scan: object) -> None:
+    """``initialise_global(scan)``'s type: a :class:`LaserScan`."""
+    if not isinstance(scan, LaserScan):
+        raise wrong_type(scan, LaserScan, "scan", _SCAN_HINT)
+
+
+def check_grid(grid: object) -> None:
+    """A filter's map: an :class:`OccupancyGrid` (not its occupancy array)."""
+    if not isinstance(grid, OccupancyGrid):
+        raise wrong_type(
+            grid,
+            OccupancyGrid,
+            "grid",
+            "load one with ceamcl.maps.ros_io.load_map(path) or ceamcl.maps.worlds.get_world(name)",
+        )
 
 
 def _available() -> str | None:

@@ -56,6 +56,9 @@ from ceamcl.filters.base import (
     ParticleSnapshot,
     PoseEstimate,
     StepRecord,
+    check_grid,
+    check_scan,
+    check_step_arguments,
     not_initialised,
 )
 from ceamcl.filters.clustering import cluster_hypotheses, pose_cluster_labels
@@ -381,6 +384,7 @@ class KLDAMCL(ParticleClusterState):
         *,
         rng: np.random.Generator,
     ) -> None:
+        check_grid(grid)
         check_rng(rng)
         self.grid = grid
         self.motion = motion
@@ -425,6 +429,7 @@ class KLDAMCL(ParticleClusterState):
         """``max_particles`` poses uniform over free space, then a (forced) update with ``scan``;
         with ``init_test_poses``, ``max_particles`` resampled from that many test poses
         weighted by ``scan`` (which counts as the first update)."""
+        check_scan(scan)
         cfg = self.config
         self.last_scan = scan
         if cfg.init_test_poses == 0:
@@ -463,6 +468,7 @@ class KLDAMCL(ParticleClusterState):
         thresholds) says so, or the first time after an initialisation."""
         if not self._initialised:
             raise not_initialised(self.name, "step")
+        check_step_arguments(increment, scan)
         check_increment(increment)
         self.t += 1
         if scan is not None:

@@ -30,6 +30,9 @@ from ceamcl.filters.base import (
     ParticleSnapshot,
     PoseEstimate,
     StepRecord,
+    check_grid,
+    check_scan,
+    check_step_arguments,
     not_initialised,
 )
 from ceamcl.filters.clustering import cluster_hypotheses, cluster_labels
@@ -113,6 +116,7 @@ class MCL(ParticleClusterState):
         *,
         rng: np.random.Generator,
     ) -> None:
+        check_grid(grid)
         check_rng(rng)
         self.grid = grid
         self.motion = motion
@@ -133,6 +137,7 @@ class MCL(ParticleClusterState):
     def initialise_global(self, scan: LaserScan) -> StepRecord:
         """Particles uniform over free space, weighted by ``scan``; with ``init_test_poses``,
         resampled from that many test poses weighted by ``scan`` instead."""
+        check_scan(scan)
         self.t = 0
         self.map_agreement.reset()
         self.last_scan = scan
@@ -169,6 +174,7 @@ class MCL(ParticleClusterState):
         """Predict with the odometry ``increment``, then :meth:`correct` with ``scan``."""
         if not self._initialised:
             raise not_initialised(self.name, "step")
+        check_step_arguments(increment, scan)
         propagate(self.particle_set, self.motion, increment, self.rng)
         self.t += 1
         if scan is not None:

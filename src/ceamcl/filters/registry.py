@@ -22,7 +22,7 @@ import numpy as np
 
 from ceamcl.errors import ConfigError, check_rng
 from ceamcl.filters import gmcl, kld_amcl, mcl
-from ceamcl.filters.base import Algorithm, LocalisationFilter
+from ceamcl.filters.base import Algorithm, LocalisationFilter, check_grid
 from ceamcl.filters.ceamcl import filter as ceamcl_filter
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryMotionModel, OdometryNoise
@@ -220,6 +220,7 @@ def make_filter(
     preset's ``max_beams`` and ``temper``), then ``sensor_settings`` given here on top.
     """
     spec = get(algorithm)
+    check_grid(grid)
     check_rng(rng)
     if n_particles is not None:
         # a whole number (numpy's too), not a bool: 100.5 passed and failed later in a reshape

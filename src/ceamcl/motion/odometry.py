@@ -26,7 +26,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ceamcl.angles import diff, wrap
-from ceamcl.errors import check_rng
+from ceamcl.errors import ConfigError, check_rng
 
 MIN_TRANSLATION_FOR_ROT1_M = 0.01
 
@@ -84,10 +84,26 @@ class OdometryIncrement:
         )
 
 
+def _odometry_pose(pose: ArrayLike, name: str) -> NDArray[np.float64]:
+    """``pose`` as three numbers ``(x, y, theta)``; a one-line error naming ``name`` else."""
+    try:
+        p = np.asarray(pose, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ConfigError(
+            f"{name}: expected an odometry pose (x, y, theta), got {type(pose).__name__}"
+        ) from None
+    if p.size != 3:
+        raise ConfigError(
+            f"{name}: expected an odometry pose (x, y, theta), got {p.size} value(s) "
+            f"(shape {p.shape})"
+        )
+    return p.reshape(3)
+
+
 def increment_between(previous: ArrayLike, current: ArrayLike) -> OdometryIncrement:
     """Decompose the motion between two odometry poses ``(x, y, theta)`` (eq. 5.34-5.36)."""
-    p = np.asarray(previous, dtype=np.float64)
-    c = np.asarray(current, dtype=np.float64)
+    p = _odometry_pose(previous, "previous")
+    c = _odometry_pose(current, "current")
     dx, dy = c[0] - p[0], c[1] - p[1]
     trans = float(np.hypot(dx, dy))
     if trans >= MIN_TRANSLATION_FOR_ROT1_M:

@@ -61,6 +61,9 @@ from ceamcl.filters.base import (
     ParticleSnapshot,
     PoseEstimate,
     StepRecord,
+    check_grid,
+    check_scan,
+    check_step_arguments,
     not_initialised,
 )
 from ceamcl.filters.state import LocalisationState, initialising, read_covariance
@@ -283,6 +286,7 @@ class Nav2AMCL:
         *,
         rng: np.random.Generator,
     ) -> None:
+        check_grid(grid)
         check_rng(rng)
         amcl = _amcl()
         self._amcl = amcl
@@ -349,6 +353,7 @@ class Nav2AMCL:
         Particles can land in walls or off the map; the beam model then gives them little
         weight.
         """
+        check_scan(scan)
         self.t = 0
         self._pending = None
         mean, cov = self._free_space_gaussian()
@@ -374,6 +379,7 @@ class Nav2AMCL:
         """Accumulate the odometry ``increment``; with ``scan``, one update of the wheel."""
         if not self._initialised:
             raise not_initialised(self.name, "step")
+        check_step_arguments(increment, scan)
         self.t += 1
         self._odom = apply_increment(self._odom, increment.rot1, increment.trans, increment.rot2)[0]
         if self._pending is not None:

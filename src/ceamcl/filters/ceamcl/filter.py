@@ -49,6 +49,9 @@ from ceamcl.filters.base import (
     Hypothesis,
     ParticleSnapshot,
     PoseEstimate,
+    check_grid,
+    check_scan,
+    check_step_arguments,
     not_initialised,
 )
 from ceamcl.filters.ceamcl.anchor import ConfidentPose, DriftEnvelope
@@ -128,6 +131,7 @@ class CEAMCL:
         *,
         rng: np.random.Generator,
     ) -> None:
+        check_grid(grid)
         check_rng(rng)
         self.grid = grid
         self.motion = motion
@@ -199,6 +203,7 @@ class CEAMCL:
     # ================================================================== initialisation
     def initialise_global(self, scan: LaserScan) -> CEAMCLRecord:
         """Initial species generation (section 3.1) from the first scan."""
+        check_scan(scan)
         self.t = 0
         self.map_agreement.reset()
         self.last_scan = scan
@@ -434,6 +439,7 @@ class CEAMCL:
         """One step of section 3.5 (see the module docstring)."""
         if not self._initialised:
             raise not_initialised(self.name, "step")
+        check_step_arguments(increment, scan)
         check_increment(increment)  # before any phase changes the particles
         cfg = self.config
         ps = self.particle_set
