@@ -43,3 +43,14 @@ def test_the_sdist_holds_the_docs_and_ros_and_no_fragment_of_the_tests(
         "ros/tf2_msgs/msg/TFMessage.msg",
     } <= held
     assert not [f for f in held if "__pycache__" in f]
+
+
+def test_the_licence_is_declared_as_an_spdx_expression() -> None:
+    """``license = { text = "MIT" }`` made every build warn that the table is deprecated (an
+    error from 2027-02-18); the SPDX string with ``license-files`` needs setuptools >= 77."""
+    import tomllib
+
+    meta = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))
+    assert meta["project"]["license"] == "MIT"
+    assert meta["project"]["license-files"] == ["LICENSE"]
+    assert "setuptools>=77" in meta["build-system"]["requires"]
