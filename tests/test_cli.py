@@ -624,3 +624,16 @@ def test_quiet_hides_dasks_large_graph_warning(
         warnings.simplefilter("default")
         warnings.warn("Sending large graph of size 1 MiB.", UserWarning, stacklevel=1)
     assert len(caught) == 1
+
+
+def test_run_demo_defaults_to_the_algorithm_of_ceamcl_demo() -> None:
+    """``run_demo()`` ran MCL where ``ceamcl demo`` runs CEAMCL, though the docs present it as
+    the command in Python."""
+    import inspect
+
+    from ceamcl.cli import build_parser
+    from ceamcl.demo import DEFAULT_ALGORITHM, run_demo
+
+    args = build_parser().parse_args(["demo"])
+    assert args.algorithm == DEFAULT_ALGORITHM == "ceamcl"
+    assert inspect.signature(run_demo).parameters["algorithm"].default == args.algorithm

@@ -3,7 +3,7 @@
 Everything ``ceamcl demo`` does is here as a library call::
 
     from ceamcl.demo import run_demo
-    outcome = run_demo("mcl", world="symmetric-hall", seed=3, out="demo-out")
+    outcome = run_demo("ceamcl", world="symmetric-hall", seed=3, out="demo-out")
 """
 
 from __future__ import annotations
@@ -151,8 +151,12 @@ def summarise(result: RunResult, log: SimulatedLog, **context: Any) -> dict[str,
     return summary
 
 
+#: The algorithm of ``ceamcl demo`` and of :func:`run_demo` when none is named.
+DEFAULT_ALGORITHM = "ceamcl"
+
+
 def run_demo(
-    algorithm: str = "mcl",
+    algorithm: str = DEFAULT_ALGORITHM,
     *,
     world: str = "symmetric-hall",
     scenario: str = "paper",
@@ -166,7 +170,8 @@ def run_demo(
     outputs: OutputOptions | None = None,
     on_frame: Callable[[int, int], None] | None = None,
 ) -> DemoOutcome:
-    """Simulate ``scenario`` on ``world`` and localise globally with ``algorithm``.
+    """Simulate ``scenario`` on ``world`` and localise globally with ``algorithm`` (by default
+    :data:`DEFAULT_ALGORITHM`, CEAMCL, as ``ceamcl demo``).
 
     With ``out`` set, writes ``summary.json``, ``trajectory.tum``, ``groundtruth.tum``,
     ``diagnostics.csv`` and ``run.png`` there. ``on_start(total_steps)`` and ``on_step(k)``

@@ -21,12 +21,10 @@ from ceamcl.cli.common import (
     print_written,
     require_available,
 )
-from ceamcl.demo import run_demo
+from ceamcl.demo import DEFAULT_ALGORITHM, run_demo
 from ceamcl.experiments.common import pct
 from ceamcl.filters import registry
 from ceamcl.outputs import OutputOptions
-
-DEFAULT_ALGORITHM = "ceamcl"
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
