@@ -195,3 +195,33 @@ def test_wrong_argument_types_are_named_before_the_filter_changes(algorithm: str
         f.step(OdometryIncrement(0.1, 0.0, 0.0), ranges)  # type: ignore[arg-type]
     assert f.t == t  # type: ignore[attr-defined]  # refused before any change
     f.step(OdometryIncrement(0.1, 0.0, 0.0), None)
+
+
+PROTOCOL_METHODS = (
+    "initialise_global",
+    "initialise_pose",
+    "step",
+    "estimate",
+    "hypotheses",
+    "state",
+    "particles",
+    "particle_weights",
+)
+
+
+def test_the_interface_and_every_filter_document_their_methods() -> None:
+    """``help(f.step)`` said nothing: the protocol's methods had no docstrings, nor MCL's
+    and GMCL's estimate, hypotheses, particles and particle_weights, CEAMCL's hypotheses
+    and particles or KLD-AMCL's particle_weights."""
+    import inspect
+
+    from ceamcl.filters import KLDAMCL
+    from ceamcl.filters.base import LocalisationFilter
+
+    for method in PROTOCOL_METHODS:
+        doc = inspect.getdoc(getattr(LocalisationFilter, method)) or ""
+        assert "FilterStateError" in doc or method.startswith("initialise"), method
+        assert len(doc) > 100, method
+    for cls in (MCL, GMCL, KLDAMCL, CEAMCL):
+        for method in PROTOCOL_METHODS:
+            assert inspect.getdoc(getattr(cls, method)), f"{cls.__name__}.{method}"

@@ -158,32 +158,91 @@ class StepDiagnostics:
 
 
 class LocalisationFilter(Protocol):
-    """The one interface of MCL, GMCL, CEAMCL and KLD-AMCL."""
+    """The one interface of MCL, GMCL, CEAMCL, KLD-AMCL and the Nav2 peer.
 
+    Build a filter (:func:`ceamcl.filters.make_filter`), initialise it once with
+    :meth:`initialise_global` or :meth:`initialise_pose`, then call :meth:`step` with each
+    odometry increment and scan; ask :meth:`estimate`, :meth:`hypotheses`, :meth:`state` or
+    :meth:`particles` whenever needed. Every call but the two initialisations raises
+    :class:`~ceamcl.errors.FilterStateError` before the first initialisation; arguments of
+    the wrong type raise :class:`~ceamcl.errors.InputTypeError` before the filter changes.
+    """
+
+    #: the algorithm's registered name (``"ceamcl"``, ``"mcl-tuned"``, ...)
     name: str
 
-    def initialise_global(self, scan: LaserScan) -> StepRecord: ...
+    def initialise_global(self, scan: LaserScan) -> StepRecord:
+        """Global localisation: forget everything and start from ``scan`` alone, the robot
+        anywhere in the map's free space (particles or species spread over the places that fit
+        the scan). May be called again at any time to start over.
 
-    def initialise_pose(self, pose: ArrayLike, covariance: ArrayLike) -> None: ...
+        ``scan``: a :class:`~ceamcl.sensors.scan.LaserScan` (with no usable beam the start is
+        spread over free space). Returns the filter's :class:`StepRecord` of the
+        initialisation (its likelihood evaluations, whether it resampled).
+        """
+        ...
 
-    def step(self, increment: OdometryIncrement, scan: LaserScan | None) -> StepRecord: ...
+    def initialise_pose(self, pose: ArrayLike, covariance: ArrayLike) -> None:
+        """Pose tracking: forget everything and start around a known pose.
+
+        ``pose``: ``(x, y, theta)`` in the map's world frame (m, rad); ``covariance``: its
+        ``3 x 3`` covariance (finite, symmetric, positive semi-definite), from which the
+        particles are drawn (our filters refuse other values with
+        :class:`~ceamcl.errors.ConfigError`). No scan is used: the next :meth:`step` weighs the
+        first one.
+        """
+        ...
+
+    def step(self, increment: OdometryIncrement, scan: LaserScan | None) -> StepRecord:
+        """One filter update: predict with the odometry ``increment`` since the last step
+        (:func:`ceamcl.motion.increment_between` of two odometry poses), then correct with
+        ``scan``.
+
+        ``scan=None`` (no scan at this step), or a scan with no usable beam, only predicts: the
+        weights stay as they are. Returns the filter's own :class:`StepRecord` subclass
+        (``reinitialised=True`` when the filter had to start over). Before the first
+        initialisation: :class:`~ceamcl.errors.FilterStateError`; a NaN or absurd increment:
+        :class:`~ceamcl.errors.LogFormatError`, before any state changes.
+        """
+        ...
 
     def particle_weights(self) -> NDArray[np.float64]:
         """Normalised weights of the particles the filter holds now (the runner's particle
-        count and ESS); NaN weights when the filter cannot show them (the Nav2 peer)."""
+        count and ESS); NaN weights when the filter cannot show them (the Nav2 peer).
+        Before the first initialisation: :class:`~ceamcl.errors.FilterStateError`."""
         ...
 
-    def estimate(self) -> PoseEstimate: ...
+    def estimate(self) -> PoseEstimate:
+        """The pose the filter believes now and its covariance: a :class:`PoseEstimate` of
+        ``(x, y, theta)`` and a ``3 x 3`` matrix, in the map's world frame. In a symmetric
+        world it is one of several equally good places; :meth:`hypotheses` lists them all
+        and :meth:`state` says whether to trust it. Before the first initialisation:
+        :class:`~ceamcl.errors.FilterStateError`."""
+        ...
 
-    def hypotheses(self) -> list[Hypothesis]: ...
+    def hypotheses(self) -> list[Hypothesis]:
+        """Every distinct pose the filter still entertains, heaviest first: CEAMCL's species,
+        the particle clusters of the other filters, the estimate alone for the Nav2 peer.
+        Each :class:`Hypothesis` has a pose, covariance, particle count, weight (the weights
+        sum to 1) and fitness for the last scan. Before the first initialisation:
+        :class:`~ceamcl.errors.FilterStateError`."""
+        ...
 
     def state(self, hypotheses: Sequence[Hypothesis] | None = None) -> LocalisationState:
-        """Whether to trust the pose (:mod:`ceamcl.filters.state`); only observes the filter.
+        """Whether to trust the pose (:mod:`ceamcl.filters.state`): LOCALISED, AMBIGUOUS,
+        LOST or INITIALISING (not yet stepped since the initialisation), with a confidence
+        and the reason in words; only observes the filter.
         ``hypotheses``: this filter's :meth:`hypotheses` now, when the caller already has
-        them (they are not computed twice)."""
+        them (they are not computed twice). Before the first initialisation:
+        :class:`~ceamcl.errors.FilterStateError`."""
         ...
 
-    def particles(self) -> ParticleSnapshot: ...
+    def particles(self) -> ParticleSnapshot:
+        """A copy of the particles for plotting: poses ``(N, 3)``, normalised weights and a
+        label each (species for CEAMCL, cluster otherwise; the Nav2 peer, which hides its
+        particles, gives samples of its estimate). Before the first initialisation:
+        :class:`~ceamcl.errors.FilterStateError`."""
+        ...
 
 
 def not_initialised(name: str, method: str) -> FilterStateError:

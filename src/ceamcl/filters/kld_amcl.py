@@ -550,6 +550,7 @@ class KLDAMCL(ParticleClusterState):
         return self.particle_set.weights
 
     def particle_weights(self) -> NDArray[np.float64]:
+        """The particles' normalised weights (:meth:`LocalisationFilter.particle_weights`)."""
         if not self._initialised:
             raise not_initialised(self.name, "particle_weights")
         return self.particle_set.weights

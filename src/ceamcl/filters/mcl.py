@@ -210,11 +210,14 @@ class MCL(ParticleClusterState):
         return self.particle_set.weights
 
     def particle_weights(self) -> NDArray[np.float64]:
+        """The particles' normalised weights (:meth:`LocalisationFilter.particle_weights`)."""
         if not self._initialised:
             raise not_initialised(self.name, "particle_weights")
         return self.particle_set.weights
 
     def estimate(self) -> PoseEstimate:
+        """The weighted mean of all particles (circular mean heading) and their weighted
+        covariance; in a symmetric world it can fall between modes (:meth:`hypotheses`)."""
         if not self._initialised:
             raise not_initialised(self.name, "estimate")
         poses, w = self.particle_set.poses, self.weights
@@ -225,12 +228,15 @@ class MCL(ParticleClusterState):
         return cluster_labels(self.particle_set.poses[:, :2], self.config.cluster_cell_m)
 
     def hypotheses(self) -> list[Hypothesis]:
+        """The particle clusters (connected cells of ``cluster_cell_m`` in x-y), heaviest
+        first, each with its weighted mean, covariance, mass and mean fitness."""
         if not self._initialised:
             raise not_initialised(self.name, "hypotheses")
         ps = self.particle_set
         return cluster_hypotheses(ps.poses, ps.weights, ps.fitness, *self._labels())
 
     def particles(self) -> ParticleSnapshot:
+        """A copy of the particles, their normalised weights and cluster labels."""
         if not self._initialised:
             raise not_initialised(self.name, "particles")
         labels, _ = self._labels()

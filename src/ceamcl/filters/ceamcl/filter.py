@@ -1290,6 +1290,9 @@ class CEAMCL:
         return stats, share
 
     def hypotheses(self) -> list[Hypothesis]:
+        """The species, heaviest first: each one's mean pose, covariance and size, its share
+        of the accumulated evidence (the weights sum to 1) and its fitness for the last scan
+        (docs/ceamcl.md)."""
         if not self._initialised:
             raise not_initialised(self.name, "hypotheses")
         if self._read is not None:  # read this step; fresh arrays, as a new read gives
@@ -1375,6 +1378,7 @@ class CEAMCL:
         return weights
 
     def particles(self) -> ParticleSnapshot:
+        """A copy of the samples, their weights (:meth:`particle_weights`) and species ids."""
         if not self._initialised:
             raise not_initialised(self.name, "particles")
         ps = self.particle_set
