@@ -387,3 +387,23 @@ def test_the_peer_names_a_wrong_argument_type() -> None:
     f.initialise_global(log.scan(0))
     with pytest.raises(InputTypeError, match=r"^increment: expected OdometryIncrement, got tuple"):
         f.step((0.1, 0.0, 0.0), log.scan(1))  # type: ignore[arg-type]
+
+
+def test_the_peer_checks_its_initial_pose_and_increments_as_every_filter() -> None:
+    # The wrapper took a NaN pose, a 2 x 2 covariance (reshape error) and NaN odometry without
+    # a word, where the filters refuse them naming the field.
+    from ceamcl.errors import CeamclError, ConfigError
+    from ceamcl.motion.odometry import OdometryIncrement
+    from ceamcl.peers.nav2_amcl import make_nav2_amcl
+
+    grid, log, rng = office_log(3)
+    f = make_nav2_amcl(grid, rng)
+    with pytest.raises(ConfigError, match=r"^pose: expected three finite numbers"):
+        f.initialise_pose([np.nan, 0.0, 0.0], np.eye(3))
+    with pytest.raises(ConfigError, match=r"^covariance: expected a finite 3 x 3 matrix"):
+        f.initialise_pose(log.true_poses[0], np.eye(2))
+    with pytest.raises(ConfigError, match=r"^covariance: expected a positive semi-definite"):
+        f.initialise_pose(log.true_poses[0], -np.eye(3))
+    f.initialise_pose(log.true_poses[0], np.zeros((3, 3)))  # every particle on the pose: fine
+    with pytest.raises(CeamclError, match=r"^odometry increment: expected finite"):
+        f.step(OdometryIncrement(float("nan"), 0.1, 0.0), log.scan(1))

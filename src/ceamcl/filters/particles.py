@@ -115,14 +115,12 @@ class ParticleSet:
 
 
 # ---------------------------------------------------------------------- initialisation
-def gaussian_poses(
-    pose: ArrayLike, covariance: ArrayLike, n: int, rng: np.random.Generator
-) -> NDArray[np.float64]:
-    """``n`` poses from ``N(pose, covariance)``, headings wrapped.
-
-    Draws exactly what ``rng.multivariate_normal(..., method="cholesky")`` draws for a positive
-    definite covariance; a positive semi-definite one (e.g. all zeros: every particle on the
-    pose) is factored by its eigen-decomposition instead of failing.
+def check_pose_and_covariance(
+    pose: ArrayLike, covariance: ArrayLike
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """An initial pose and its covariance as arrays, and a factor ``L`` with ``L L^T`` the
+    covariance (Cholesky; for a positive semi-definite one, e.g. all zeros, from its
+    eigen-decomposition).
 
     Raises:
         ConfigError: ``pose`` is not three finite numbers, or ``covariance`` not a finite,
@@ -146,6 +144,22 @@ def gaussian_poses(
                 f"covariance: expected a positive semi-definite matrix, eigenvalues {d.tolist()}"
             ) from None
         factor = u * np.sqrt(np.clip(d, 0.0, None))
+    return mean, cov, np.asarray(factor, dtype=np.float64)
+
+
+def gaussian_poses(
+    pose: ArrayLike, covariance: ArrayLike, n: int, rng: np.random.Generator
+) -> NDArray[np.float64]:
+    """``n`` poses from ``N(pose, covariance)``, headings wrapped.
+
+    Draws exactly what ``rng.multivariate_normal(..., method="cholesky")`` draws for a positive
+    definite covariance; a positive semi-definite one (e.g. all zeros: every particle on the
+    pose) is factored by its eigen-decomposition instead of failing.
+
+    Raises:
+        ConfigError: as :func:`check_pose_and_covariance`.
+    """
+    mean, _, factor = check_pose_and_covariance(pose, covariance)
     out = mean + np.dot(rng.standard_normal((n, 3)), factor.T)
     out[:, 2] = wrap(out[:, 2])
     return np.asarray(out, dtype=np.float64)

@@ -66,6 +66,7 @@ from ceamcl.filters.base import (
     check_step_arguments,
     not_initialised,
 )
+from ceamcl.filters.particles import check_increment, check_pose_and_covariance
 from ceamcl.filters.state import LocalisationState, initialising, read_covariance
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryIncrement, OdometryNoise, apply_increment
@@ -368,10 +369,9 @@ class Nav2AMCL:
         The wheel's first update after ``set_initial_pose`` ignores the odometry, so the pose is
         handed over with the first scan, moved by the odometry seen until then.
         """
+        p, cov, _ = check_pose_and_covariance(pose, covariance)  # as every filter checks them
         self.t = 0
-        p = np.asarray(pose, dtype=np.float64).reshape(3).copy()
-        cov = np.asarray(covariance, dtype=np.float64).reshape(3, 3).copy()
-        self._pending = (p, cov)
+        self._pending = (p.copy(), cov.copy())
         self._initialised = True
 
     # ------------------------------------------------------------------ one step
@@ -380,6 +380,7 @@ class Nav2AMCL:
         if not self._initialised:
             raise not_initialised(self.name, "step")
         check_step_arguments(increment, scan)
+        check_increment(increment)  # NaN or kilometre jumps: refused as by every filter
         self.t += 1
         self._odom = apply_increment(self._odom, increment.rot1, increment.trans, increment.rot2)[0]
         if self._pending is not None:
