@@ -186,6 +186,7 @@ def test_the_runs_folder_holds_the_runs_of_the_latest_experiment_only(tmp_path: 
         "run.gif",
         "x.mcap",
         "summary.json",
+        ".ceamcl-run",  # what the run wrote: what a later experiment may remove
     }
     assert (out / "runs" / "kld-amcl" / "x.mcap").is_file()
     (out / "runs" / "mcl" / "notes.txt").write_text("mine")
@@ -193,6 +194,7 @@ def test_the_runs_folder_holds_the_runs_of_the_latest_experiment_only(tmp_path: 
     assert {p.name for p in (out / "runs" / "mcl").iterdir()} == {
         "report.html",
         "summary.json",
+        ".ceamcl-run",
         "notes.txt",  # not a file of the command's: left alone
     }
     summary = json.loads((out / "runs" / "mcl" / "summary.json").read_text())
@@ -214,7 +216,36 @@ def test_a_trials_visual_outputs_replace_an_earlier_runs_files(tmp_path: Path) -
     (tmp_path / "notes.txt").write_text("mine")
     done = write_trial_outputs(record, settings, tmp_path, OutputOptions.none())
     assert done.same_as_record
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt", "summary.json"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        ".ceamcl-run",
+        "notes.txt",
+        "summary.json",
+    ]
+
+
+def test_clearing_earlier_runs_removes_only_what_a_run_listed(tmp_path: Path) -> None:
+    """Every ``*.mcap`` and every file named like a run output in any ``OUT/runs/*/`` was
+    removed (a ROS 2 bag kept there with it), and a symbolic link ``runs`` was followed: only
+    the files a re-run listed in its marker go now."""
+    from ceamcl.experiments.common import RUN_MARKER, clear_earlier_runs
+
+    runs = tmp_path / "runs"
+    (runs / "mcl").mkdir(parents=True)
+    (runs / "mcl" / "run.gif").write_bytes(b"GIF89a")
+    (runs / "mcl" / "x.mcap").write_bytes(b"mcap")
+    (runs / "mcl" / RUN_MARKER).write_text("run.gif\nx.mcap\n../elsewhere\n")
+    (tmp_path / "elsewhere").write_text("outside the folder: not touched")
+    (runs / "bags").mkdir()
+    (runs / "bags" / "drive.mcap").write_bytes(b"a bag")
+    (runs / "bags" / "summary.json").write_text("{}")
+    gone = clear_earlier_runs(tmp_path)
+    assert sorted(p.name for p in gone) == [RUN_MARKER, "mcl", "run.gif", "x.mcap"]
+    assert sorted(p.name for p in (runs / "bags").iterdir()) == ["drive.mcap", "summary.json"]
+    assert (tmp_path / "elsewhere").is_file()
+    linked = tmp_path / "linked"
+    linked.mkdir()
+    (linked / "runs").symlink_to(runs, target_is_directory=True)
+    assert clear_earlier_runs(linked) == []
 
 
 def test_an_output_folder_that_cannot_take_the_results_is_refused_before_the_runs(

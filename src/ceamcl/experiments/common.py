@@ -155,6 +155,7 @@ def write_trial_outputs(
     this one's ``summary.json``).
     """
     out = ensure_output_dir(out_dir)
+    _clear_marked(out)
     clear_run_files(out)
     trial = trial_of(record, settings)
     log, result = localise_trial(
@@ -191,36 +192,54 @@ def write_trial_outputs(
         on_frame=on_frame,
     )
     files.append(write_json(out / "summary.json", summary))
+    write_text(out / RUN_MARKER, "".join(f"{Path(f).name}\n" for f in files))
     return TrialOutputs(trial.algorithm, out, files, same)
 
 
 #: The folder of ``OUT`` that holds each algorithm's re-run, ``OUT/runs/ALGORITHM/``.
 RUNS_FOLDER = "runs"
+#: The list of the files a re-run wrote into its folder, one name a line: what a later
+#: experiment may remove there, and nothing else (a user's files, a bag's ``.mcap``, stay).
+RUN_MARKER = ".ceamcl-run"
+
+
+def _clear_marked(folder: Path) -> list[Path]:
+    """The files ``folder``'s :data:`RUN_MARKER` lists (plain files, by name, inside
+    ``folder``), then the marker; nothing without a marker."""
+    marker = folder / RUN_MARKER
+    if not marker.is_file() or marker.is_symlink():
+        return []
+    gone: list[Path] = []
+    for name in marker.read_text(errors="replace").splitlines():
+        f = folder / name
+        if name and Path(name).name == name and (f.is_file() or f.is_symlink()):
+            f.unlink()
+            gone.append(f)
+    marker.unlink()
+    return [*gone, marker]
 
 
 def clear_earlier_runs(out: str | os.PathLike[str]) -> list[Path]:
-    """Remove an earlier experiment's visual outputs from ``OUT/runs/``: in every algorithm's
-    folder the files a run writes (:data:`ceamcl.outputs.RUN_FILES`) and its MCAP files
-    (``*.mcap``, the ``--mcap`` name), then the folders this leaves empty (``runs/`` too).
-    Any other file, and the folders holding one, are left alone. Returns what was removed.
+    """Remove an earlier experiment's visual outputs from ``OUT/runs/``: in each folder the
+    files its re-run listed in :data:`RUN_MARKER` (the run files and the ``--mcap`` file it
+    wrote), then the folders this leaves empty (``runs/`` too). A folder without the marker, a
+    symbolic link, and any file the marker does not list are left alone. Returns what was
+    removed.
 
     An experiment calls it when it writes its tables, so ``OUT/runs/`` holds the runs of those
     tables only: the algorithms this run draws, none when it draws none (an algorithm's folder
     from an earlier run it did not have stayed whole)."""
     runs = Path(out) / RUNS_FOLDER
-    if not runs.is_dir():
+    if runs.is_symlink() or not runs.is_dir():
         return []
     gone: list[Path] = []
     for folder in sorted(p for p in runs.iterdir() if p.is_dir() and not p.is_symlink()):
-        gone += clear_run_files(folder)
-        for mcap in sorted(folder.glob("*.mcap")):
-            if mcap.is_file() or mcap.is_symlink():
-                mcap.unlink()
-                gone.append(mcap)
-        if not any(folder.iterdir()):
+        cleared = _clear_marked(folder)
+        gone += cleared
+        if cleared and not any(folder.iterdir()):
             folder.rmdir()
             gone.append(folder)
-    if not any(runs.iterdir()):
+    if gone and not any(runs.iterdir()):
         runs.rmdir()
         gone.append(runs)
     return gone
