@@ -204,6 +204,23 @@ def test_the_runs_folder_holds_the_runs_of_the_latest_experiment_only(tmp_path: 
     assert [p.name for p in (out / "runs" / "mcl").iterdir()] == ["notes.txt"]
 
 
+def test_an_interrupt_while_drawing_the_runs_keeps_the_finished_tables(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The tables are written, then the runs re-run for --gif: Ctrl-C there removed the --out
+    folder the command had created, tables included. Once the tables are in, it stays."""
+    import ceamcl.cli.experiment as experiment_cli
+
+    def interrupted(*args: object, **kwargs: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(experiment_cli, "_write_run_outputs", interrupted)
+    out = tmp_path / "new" / "m"
+    args = ["experiment", "marked", *_SMOKE, "--max-time", "1", "--algorithms", "mcl", "--gif"]
+    assert main([*args, "--out", str(out)]) == 130
+    assert (out / "marked.csv").is_file() and (out / "trials.csv").is_file()
+
+
 def test_a_trials_visual_outputs_replace_an_earlier_runs_files(tmp_path: Path) -> None:
     """``write_trial_outputs`` into a folder with an earlier run's files (``run.gif``) left them
     beside its own ``summary.json``; it removes them first, as ``write_run_files`` does."""

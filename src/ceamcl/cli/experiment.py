@@ -776,6 +776,9 @@ def run(args: argparse.Namespace, console: Console) -> int:
         result = experiment.run(settings, args, progress)
     meta["wall_time_s"] = round(time.perf_counter() - started, 1)
     paths = _write_staged(experiment, result, Path(args.out), meta)
+    # OUT holds finished tables now: an interrupted or failed re-run for the visual outputs
+    # must not remove the folder the command created (ceamcl.io.created)
+    created.forget()
     if experiment.visuals:  # OUT/runs/ holds the runs of these tables only
         clear_earlier_runs(args.out)
     if not args.quiet:
