@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from ceamcl.filters.ceamcl import CEAMCL, CEAMCLConfig
-from ceamcl.filters.ceamcl.filter import _look_around_offsets
+from ceamcl.filters.ceamcl.filter import _look_around_offsets, look_around_reach
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.maps.worlds import get_world
 from ceamcl.motion.odometry import (
@@ -118,3 +118,18 @@ def test_the_look_around_grid_covers_its_reach() -> None:
         (round(x, 9), round(y, 9)) for x, y in offsets[:, :2]
     }
     assert len(offsets) == len({tuple(o) for o in offsets.round(9)})  # no pose twice
+
+
+def test_a_step_backwards_widens_the_heading_search_no_more_than_a_step_forwards() -> None:
+    # A reversing step is rot1 = pi (5 mm back, turning 0.05 rad): read as |rot1| + |rot2| it
+    # was a turn of 2 pi and the search spread its headings to the maximum.
+    cfg = CEAMCLConfig()
+    here = np.array([1.0, 2.0, 0.4])
+    ahead = here + np.array([0.005 * np.cos(0.4), 0.005 * np.sin(0.4), 0.05])
+    behind = here + np.array([-0.005 * np.cos(0.4), -0.005 * np.sin(0.4), 0.05])
+    back = increment_between(here, behind)
+    assert back.rot1 == np.pi
+    assert look_around_reach(cfg, back) == pytest.approx(
+        look_around_reach(cfg, increment_between(here, ahead))
+    )
+    assert look_around_reach(cfg, back)[1] < 3.0 * cfg.look_around_rad

@@ -665,9 +665,7 @@ class CEAMCL:
             return 0
         top = int(idx[np.argmax(ps.loglik[idx])])
         centre = self._peaks.get(sid, ps.poses[top])
-        turn = sum(increment.turns)  # a step backwards (rot1 = pi) is no turn
-        radius = min(cfg.look_around_max_m, reach + cfg.look_around_gain * increment.trans)
-        spread = min(3.0 * cfg.look_around_rad, cfg.look_around_rad + cfg.look_around_gain * turn)
+        radius, spread = look_around_reach(cfg, increment)
         offsets = _look_around_offsets(
             radius, cfg.look_around_step_m, spread, cfg.look_around_step_rad
         )
@@ -1426,6 +1424,18 @@ HOLD_RADIUS_M = 0.8
 HOLD_STEP_M = 0.1
 HOLD_RAD = 0.2
 HOLD_STEP_RAD = 0.05
+
+
+def look_around_reach(cfg: CEAMCLConfig, increment: OdometryIncrement) -> tuple[float, float]:
+    """How far the look-around searches around a species' peak: ``look_around_m`` plus the gain
+    times the step's travel (at most ``look_around_max_m``), and ``look_around_rad`` plus the
+    gain times its turn (at most three times ``look_around_rad``). The turn is the motion
+    model's (:attr:`OdometryIncrement.turns`): a step backwards, ``rot1`` = pi, is no turn."""
+    assert cfg.look_around_m is not None
+    radius = min(cfg.look_around_max_m, cfg.look_around_m + cfg.look_around_gain * increment.trans)
+    turn = sum(increment.turns)
+    spread = min(3.0 * cfg.look_around_rad, cfg.look_around_rad + cfg.look_around_gain * turn)
+    return radius, spread
 
 
 def _look_around_offsets(
