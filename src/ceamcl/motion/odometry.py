@@ -10,11 +10,11 @@ component is perturbed by zero-mean Gaussian noise whose *variance* is
     rot2:  alpha1 * rot2^2 + alpha2 * trans^2
 
 As in ROS amcl's differential model, the rotation noise uses the smaller of ``rot1`` and
-``rot1 - pi`` (a robot driving backwards has not really turned by pi), and for translations
-under 1 cm, where the direction of travel is meaningless, ``rot1`` is taken as 0 (forwards) or
-pi (backwards) by the sign of the displacement along the old heading: a reversing robot whose
-odometry is read at every scan moves in steps that small, and a ``rot1`` of 0 would carry it
-forwards by as much as it backed up.
+``rot1 - pi`` (a robot driving backwards has not really turned by pi). For translations under
+1 cm, where the direction of travel is meaningless, amcl takes ``rot1`` as 0; here it is 0
+(forwards) or pi (backwards) by the sign of the displacement along the old heading: a
+reversing robot whose odometry is read at every scan moves in steps that small, and a ``rot1``
+of 0 would carry it forwards by as much as it backed up.
 """
 
 from __future__ import annotations
@@ -66,16 +66,19 @@ class OdometryIncrement:
 
     @property
     def turns(self) -> tuple[float, float]:
-        """How far the robot really turned in ``rot1`` and ``rot2``: each rotation or its
-        difference to pi, whichever is smaller (driving backwards is ``rot1`` = pi, no turn;
-        module docstring). What the noise grows with, and what a turn measures."""
-        r1 = min(abs(float(diff(self.rot1, 0.0))), abs(float(diff(self.rot1, np.pi))))
-        r2 = min(abs(float(diff(self.rot2, 0.0))), abs(float(diff(self.rot2, np.pi))))
-        return r1, r2
+        """How far the robot turned before and after its travel, in radians: a travel
+        backwards (``rot1`` nearer pi than 0) is no turn, so ``rot1`` counts from pi and
+        ``rot2`` from -pi then; the two add up to the change of heading. (Not the noise's
+        fold of :meth:`variances`, which also reads a ``rot2`` near pi as small.)"""
+        back = abs(float(diff(self.rot1, np.pi))) < abs(float(diff(self.rot1, 0.0)))
+        shift = np.pi if back else 0.0
+        return abs(float(diff(self.rot1, shift))), abs(float(diff(self.rot2, -shift)))
 
     def variances(self, noise: OdometryNoise) -> tuple[float, float, float]:
-        """Variances of the three components under ``noise`` (Table 5.6)."""
-        r1, r2 = self.turns
+        """Variances of the three components under ``noise`` (Table 5.6; each rotation folded
+        as Nav2's differential model folds it: the smaller of it and its difference to pi)."""
+        r1 = min(abs(float(diff(self.rot1, 0.0))), abs(float(diff(self.rot1, np.pi))))
+        r2 = min(abs(float(diff(self.rot2, 0.0))), abs(float(diff(self.rot2, np.pi))))
         t = self.trans
         return (
             noise.alpha1 * r1**2 + noise.alpha2 * t**2,
