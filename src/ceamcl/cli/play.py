@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 
 from rich.console import Console
+from rich.markup import escape
 
 from ceamcl.cli.common import (
     make_progress,
@@ -124,7 +125,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
         )
         console.print(f"map: {map_source}", markup=False)
     frames = ros_play.Frames(args.map_frame, args.odom_frame, args.base_frame, args.laser_frame)
-    progress = make_progress(f"[bold]play[/] {log.name}", console, quiet=args.quiet)
+    progress = make_progress(f"[bold]play[/] {escape(log.name)}", console, quiet=args.quiet)
     with progress:
         task = progress.add_task("scans", total=len(log))
         played = ros_play.play(

@@ -8,6 +8,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 from rich.text import Text
 
@@ -424,7 +425,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
                 f"{n.alpha1:g}, {n.alpha2:g}, {n.alpha3:g}, {n.alpha4:g} (seed {args.seed})"
             )
     progress = make_progress(
-        f"[bold]{args.algorithm}[/] on {prepared.log.name}", console, quiet=args.quiet
+        f"[bold]{args.algorithm}[/] on {escape(prepared.log.name)}", console, quiet=args.quiet
     )
     with progress:
         bar = RunProgress(progress, "scans")
