@@ -150,9 +150,11 @@ def test_param_max_range_that_is_not_a_positive_finite_number_names_its_line(
     with pytest.raises(
         LogFormatError,
         match=rf"run\.log:2: PARAM robot_front_laser_max: expected a positive finite number of "
-        rf"metres, got '{value}'",
+        rf"metres, got '{value}' \(--max-range sets the maximum instead\)",
     ):
         read_carmen(write(tmp_path, lines))
+    # --max-range replaces the parameter, as docs/real-data.md says
+    assert read_carmen(write(tmp_path, lines), max_range_m=8.0).range_max[0] == 8.0
     # the rear laser's parameter is the rear laser's business
     lines[1] = f"PARAM robot_rear_laser_max {value}"
     assert read_carmen(write(tmp_path, lines)).range_max[0] == 80.0

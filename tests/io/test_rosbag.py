@@ -250,12 +250,28 @@ def test_a_scan_range_max_that_is_not_a_positive_finite_number_is_named(
     """range_max: inf passed the reader's check (only > 0) and failed later as 'scan:
     range_max: expected a positive finite number, got inf', naming no bag or topic."""
     bag = write_bag(tmp_path / "run.bag", True, range_max=range_max)
+    expected = (
+        r"range_max inf: expected a finite number of metres \(--max-range sets"
+        if range_max == float("inf")
+        else r"expected 0 <= range_min < range_max, got range_min=0\.1.*, range_max="
+        + str(range_max)
+    )
     with pytest.raises(
-        LogFormatError,
-        match=r"run\.bag: /scan: scan 0 \(t=0\.150 s\): expected 0 <= range_min < range_max, "
-        r"range_max a finite number of metres, got range_min=0\.1.*, range_max=" + str(range_max),
+        LogFormatError, match=r"run\.bag: /scan: scan 0 \(t=0\.150 s\): " + expected
     ):
         open_log(bag)
+    if range_max == float("inf"):  # what --max-range is for: the bag's own maximum is replaced
+        assert np.all(open_log(bag, max_range_m=8.0).range_max == 8.0)
+
+
+def test_a_log_that_starts_with_nul_bytes_is_a_carmen_log_with_binary_data(tmp_path: Path) -> None:
+    """A log zero-filled after a crash was sent to the bag reader ('Unrecognized storage
+    format .log'): only a .mcap or .db3 file is looked at as a ROS 2 bag's storage."""
+    p = tmp_path / "run.log"
+    p.write_bytes(b"\0\0\0\0" + b"FLASER 0 0 0 0 0 0 0 0 nohost 0\n")
+    assert log_format(p) == "carmen"
+    with pytest.raises(LogFormatError, match=r"run\.log:1: binary data \(NUL bytes\)"):
+        open_log(p)
 
 
 @pytest.mark.parametrize("mcap", [True, False], ids=["mcap", "db3"])

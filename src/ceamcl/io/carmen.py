@@ -642,12 +642,14 @@ def read_carmen(
             reversed_increments = int(np.count_nonzero(forward_steps(robot) < -MOVE_M))
         mount = np.zeros((n, 3))
 
-    default_max = _param_max_range(params, param_lines, laser, p)
     per_msg = np.asarray(stream.max_range, dtype=np.float64)
     if max_range_m is not None:
         range_max = np.full(n, float(max_range_m))
-    else:
+    elif np.isnan(per_msg).any():  # old-style messages: the PARAM (checked only when used)
+        default_max = _param_max_range(params, param_lines, laser, p)
         range_max = np.where(np.isnan(per_msg), default_max, per_msg)
+    else:
+        range_max = per_msg
 
     lengths = np.array([r.size for r in stream.ranges], dtype=np.intp)
     offsets = np.concatenate([[0], np.cumsum(lengths)]).astype(np.intp)
@@ -699,6 +701,6 @@ def _param_max_range(
     if not (math.isfinite(value) and value > 0):
         raise LogFormatError(
             f"{path}:{lines[key]}: PARAM {key}: expected a positive finite number of metres, "
-            f"got {params[key]!r}"
+            f"got {params[key]!r} (--max-range sets the maximum instead)"
         )
     return value

@@ -85,7 +85,8 @@ def log_format(path: str | os.PathLike[str]) -> LogFormat:
         raise LogFormatError(f"{p}: cannot read the log: {exc.strerror or exc}") from None
     if head.startswith(b"#ROSBAG V2.0") or p.suffix == ".bag":
         return "ros1"
-    if head.startswith(ROS2_STORAGE_MAGIC.get(p.suffix, b"\0\0")):
+    magic = ROS2_STORAGE_MAGIC.get(p.suffix)
+    if magic is not None and head.startswith(magic):
         return "ros2"  # a ROS 2 bag's storage file out of its folder (rosbag.read_bag)
     return "carmen"
 
@@ -128,4 +129,12 @@ def open_log(
                 f"{lowest:g} m in {path}; expected a larger maximum"
             )
         log = replace(log, range_max=np.full(len(log), float(max_range_m)))
+    bad = np.flatnonzero(~np.isfinite(log.range_max))
+    if bad.size:  # the bag's own (rosbag.read_bag lets inf through for --max-range to set)
+        k = int(bad[0])
+        raise LogFormatError(
+            f"{path}: {log.info.get('scan_topic', 'scan')}: scan {k} (t={log.times[k]:.3f} s): "
+            f"range_max {log.range_max[k]}: expected a finite number of metres "
+            "(--max-range sets the maximum instead)"
+        )
     return log

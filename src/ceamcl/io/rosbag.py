@@ -257,11 +257,12 @@ def _read(
                 f"{p}: scan {k}: expected finite angle_min and angle_increment, got "
                 f"angle_min={m[k, 0]}, angle_increment={m[k, 1]}"
             )
-        if not (m[k, 3] > 0 and 0 <= m[k, 2] < m[k, 3] and np.isfinite(m[k, 3])):
+        # an infinite range_max passes here: --max-range may set it (io.logs.open_log
+        # refuses what is left non-finite)
+        if not (m[k, 3] > 0 and 0 <= m[k, 2] < m[k, 3]):
             raise LogFormatError(
                 f"{p}: {scan_conns[0].topic}: scan {k} (t={t[k]:.3f} s): expected "
-                f"0 <= range_min < range_max, range_max a finite number of metres, got "
-                f"range_min={m[k, 2]}, range_max={m[k, 3]}"
+                f"0 <= range_min < range_max, got range_min={m[k, 2]}, range_max={m[k, 3]}"
             )
     mount = np.array([links.get((base_frame, f), (0.0, 0.0, 0.0)) for f in frames])
     offsets = np.concatenate([[0], np.cumsum([r.size for r in ranges])]).astype(np.intp)
