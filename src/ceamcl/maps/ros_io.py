@@ -305,16 +305,24 @@ def _read_image(
             f"{where} (key 'image'): expected a regular image file, got {_file_kind(image_path)}"
         )
     try:
-        with _PILLOW_LIMIT_OFF:
+        try:
+            with warnings.catch_warnings():
+                # the budget below decides what is too large, not Pillow's warning threshold
+                warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+                img = Image.open(image_path)  # reads the header only
+        except Image.DecompressionBombError:
             # The budget below decides what is too large, not Pillow's decompression-bomb
             # guard: Image.open refuses over 2 x MAX_IMAGE_PIXELS (179 M pixels), a 700 m
-            # square map at 5 cm that Nav2 loads. open() reads only the header.
-            saved = Image.MAX_IMAGE_PIXELS
-            Image.MAX_IMAGE_PIXELS = None
-            try:
-                img = Image.open(image_path)
-            finally:
-                Image.MAX_IMAGE_PIXELS = saved
+            # square map at 5 cm that Nav2 loads. Only for such a map, the guard is lifted for
+            # the moment of this header read (it is process-wide: a lock keeps two map loads
+            # from undoing each other).
+            with _PILLOW_LIMIT_OFF:
+                saved = Image.MAX_IMAGE_PIXELS
+                Image.MAX_IMAGE_PIXELS = None
+                try:
+                    img = Image.open(image_path)
+                finally:
+                    Image.MAX_IMAGE_PIXELS = saved
         with img:
             w, h = img.size  # from the header: checked before the pixels are decoded
             budget.require(
