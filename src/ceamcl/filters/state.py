@@ -486,6 +486,8 @@ class ParticleClusterState:
     grid: OccupancyGrid
     last_scan: LaserScan | None
     map_agreement: MapAgreement
+    #: optional: a filter that keeps it is refused before its initialisation; one that does
+    #: not (a subclass written to docs/architecture.md) is read as it stands
     _initialised: bool
 
     def hypotheses(self) -> list[Hypothesis]:
@@ -495,8 +497,8 @@ class ParticleClusterState:
         """Read from the particle clusters (``hypotheses`` when the caller has them already),
         then the map's agreement with the scans (:class:`MapAgreement`). Before the first
         initialisation: :class:`~ceamcl.errors.FilterStateError`."""
-        if not self._initialised:
-            raise not_initialised(self.name, "state")
+        if not getattr(self, "_initialised", True):
+            raise not_initialised(getattr(self, "name", type(self).__name__), "state")
         known = hypotheses
         return read_particles(
             self.particle_set,
