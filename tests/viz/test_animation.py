@@ -197,3 +197,24 @@ def test_animate_run_and_save_frame_write_files(tmp_path: Path) -> None:
     with Image.open(png) as im:
         assert im.format == "PNG" and im.size == (800, 450)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["frame.png", "run.gif"]
+
+
+def test_an_animation_the_memory_budget_cannot_hold_is_refused_naming_a_stride_that_fits(
+    tmp_path: Path,
+) -> None:
+    # every frame is held until the GIF is written: 2,727 frames of intel raw at every scan
+    # peaked at 5.2 GB whatever the budget
+    from ceamcl import budget
+    from ceamcl.viz.animation import FRAME_BYTES
+
+    result, grid, _ = short_run("mcl")
+    n = len(frame_steps(result, 10))
+    assert n >= 3
+    with budget.use(budget.Budget((n - 1) * FRAME_BYTES)):
+        with pytest.raises(
+            budget.BudgetError,
+            match=rf"run\.gif/run\.mp4 at --stride 10 \(--stride 20 or more would fit\): {n} "
+            "animation frames would need",
+        ):
+            animate_run(result, grid, tmp_path, stride=10)
+    assert not any(tmp_path.iterdir())

@@ -31,6 +31,7 @@ from matplotlib.collections import LineCollection
 from numpy.typing import NDArray
 from PIL import Image
 
+from ceamcl import budget
 from ceamcl.filters.base import ParticleSnapshot
 from ceamcl.filters.ceamcl.competition import living_domain
 from ceamcl.filters.ceamcl.records import CEAMCLRecord, species_of
@@ -442,6 +443,12 @@ def _pipe_to_ffmpeg(exe: str, frames: list[NDArray[np.uint8]], fps: float, out: 
         raise RuntimeError(f"write_mp4: ffmpeg failed: {err.strip()}")
 
 
+#: Memory a rendered frame holds until the animation is written: the 800 x 450 RGB image and
+#: its palette copy, with Pillow's and matplotlib's overhead (measured 2026-11-30: 1.75 MB a
+#: frame; `--every-scan --gif` on intel raw, 2,727 frames, peaked at 5.2 GB before this check).
+FRAME_BYTES = 2 << 20
+
+
 def animate_run(
     result: RunResult,
     grid: OccupancyGrid,
@@ -454,9 +461,23 @@ def animate_run(
     title: str = "",
     on_frame: Callable[[int, int], None] | None = None,
 ) -> list[Path]:
-    """Render the run once and write ``run.gif`` and/or ``run.mp4`` into ``out_dir``."""
+    """Render the run once and write ``run.gif`` and/or ``run.mp4`` into ``out_dir``.
+
+    Every frame is held until the files are written (the GIF's palette is shared): their
+    number is checked against the memory budget first (:data:`FRAME_BYTES` each), and a run
+    too long for it is refused, naming the ``--stride`` that would fit."""
     if not (gif or mp4):
         return []
+    n = len(frame_steps(result, stride))
+    fits = max(1, budget.current().memory_bytes // FRAME_BYTES)
+    if n > fits:
+        need = stride * -(-n // fits)  # a stride about that many times coarser fits
+        budget.require(
+            f"run.gif/run.mp4 at --stride {stride} (--stride {need} or more would fit)",
+            n,
+            FRAME_BYTES,
+            "animation frames",
+        )
     frames = list(render_frames(result, grid, stride=stride, title=title, on_frame=on_frame))
     out = Path(out_dir)
     written = []
