@@ -218,3 +218,25 @@ def test_an_animation_the_memory_budget_cannot_hold_is_refused_naming_a_stride_t
         ):
             animate_run(result, grid, tmp_path, stride=10)
     assert not any(tmp_path.iterdir())
+
+
+def test_the_gifs_palette_keeps_every_species_colour(tmp_path: Path) -> None:
+    # a median cut of a few frames merged small species into the map's greys: blue and cyan
+    # species came out grey in run.gif
+    import matplotlib.colors
+
+    from ceamcl.viz.animation import SPECIES_COLOURS
+
+    rng = np.random.default_rng(0)
+    frames = []
+    for _ in range(5):
+        f = rng.integers(90, 170, (120, 200, 3), dtype=np.uint8)  # many greys and tints
+        for i, c in enumerate(SPECIES_COLOURS):
+            f[2:4, 2 + 4 * i : 4 + 4 * i] = [round(255 * v) for v in matplotlib.colors.to_rgb(c)]
+        frames.append(f)
+    path = write_gif(frames, tmp_path / "run.gif", fps=5.0)
+    with Image.open(path) as im:
+        back = np.asarray(im.convert("RGB"))
+    for i, c in enumerate(SPECIES_COLOURS):
+        want = [round(255 * v) for v in matplotlib.colors.to_rgb(c)]
+        assert back[2, 2 + 4 * i].tolist() == want, c

@@ -353,9 +353,17 @@ def render_frames(
 
 
 def _palette_image(samples: list[NDArray[np.uint8]]) -> Image.Image:
-    """One 256-colour palette for the whole GIF, from a few frames side by side."""
+    """One 256-colour palette for the whole GIF: the species' colours exactly (a median cut
+    of a few frames merged small species into the map's greys: blue and cyan species came out
+    grey), then a median cut of the sampled frames side by side for the rest."""
+    fixed = [tuple(round(255 * v) for v in matplotlib.colors.to_rgb(c)) for c in SPECIES_COLOURS]
     strip = np.concatenate(samples, axis=1)
-    return Image.fromarray(strip).quantize(256, method=Image.Quantize.MEDIANCUT)
+    cut = Image.fromarray(strip).quantize(256 - len(fixed), method=Image.Quantize.MEDIANCUT)
+    rest = (cut.getpalette() or [])[: 3 * (256 - len(fixed))]
+    palette = [v for rgb in fixed for v in rgb] + rest
+    image = Image.new("P", (1, 1))
+    image.putpalette(palette + [0] * (768 - len(palette)))
+    return image
 
 
 def write_gif(
@@ -366,7 +374,7 @@ def write_gif(
         raise ValueError("write_gif: no frames")
     if not fps > 0:
         raise ValueError(f"fps: expected > 0, got {fps}")
-    picks = sorted({0, len(frames) // 3, 2 * len(frames) // 3, len(frames) - 1})
+    picks = sorted({round(i * (len(frames) - 1) / 11) for i in range(12)})  # up to 12 frames
     palette = _palette_image([frames[i] for i in picks])
     images = [
         Image.fromarray(f).quantize(palette=palette, dither=Image.Dither.NONE) for f in frames
