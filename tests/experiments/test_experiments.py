@@ -421,3 +421,14 @@ def test_an_interrupted_write_leaves_the_old_file_and_no_temporary_one(tmp_path:
         write_csv(path, [{"a": 2.0}, {"a": Interrupting()}])
     assert _read_csv(path) == [{"a": "1"}]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["t.csv"]
+
+
+def test_fig5_leaves_the_global_initialisation_out_of_the_time_per_iteration() -> None:
+    """Fig. 5 plotted step 0, the global initialisation (about 42 ms), as the first
+    iteration, where the tables leave it out of the step times."""
+    from ceamcl.experiments.table1 import step_time_curves
+
+    settings = ExperimentSettings(paper_course().select([0]), ("mcl",), trials=1, max_time_s=1.0)
+    result = run_table1(settings, quiet=True)
+    (c,) = step_time_curves(result)
+    assert np.isnan(c.centre[0]) and np.all(np.isfinite(c.centre[1:]))

@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ceamcl.experiments.common import (
     PRECISION_DEFINITIONS,
@@ -133,7 +134,15 @@ def error_curves(result: Table1Result) -> tuple[list[Curve], list[Curve]]:
 
 
 def step_time_curves(result: Table1Result) -> list[Curve]:
-    return [curve(a, rs, lambda r: r.step_ms) for a, rs in result.by_algorithm().items()]
+    """Fig. 5's time per iteration: step 0, the global initialisation, is left out (NaN), as
+    the tables' step times leave it out (its cost is the evaluations' column)."""
+    return [curve(a, rs, _iteration_ms) for a, rs in result.by_algorithm().items()]
+
+
+def _iteration_ms(record: TrialRecord) -> NDArray[np.float64]:
+    ms = np.asarray(record.step_ms, dtype=np.float64).copy()
+    ms[:1] = np.nan
+    return ms
 
 
 def sample_curves(result: Table1Result) -> tuple[list[Curve], list[Curve]]:
