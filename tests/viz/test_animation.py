@@ -240,3 +240,19 @@ def test_the_gifs_palette_keeps_every_species_colour(tmp_path: Path) -> None:
     for i, c in enumerate(SPECIES_COLOURS):
         want = [round(255 * v) for v in matplotlib.colors.to_rgb(c)]
         assert back[2, 2 + 4 * i].tolist() == want, c
+
+
+def test_a_real_logs_epoch_clock_is_shown_as_time_since_the_first_step() -> None:
+    # intel's scans are stamped about 9.76e8 s: run.gif's header read "t = 976054476.3 s",
+    # species.png's axis "+9.7605e8", and report.html's chart and label disagreed
+    from dataclasses import replace
+
+    from ceamcl.viz.report import replay_data
+
+    result, grid, _ = short_run("mcl")
+    late = replace(result, times=result.times + 976_054_476.0)
+    frames = replay_frames(late, SNAPSHOT_EVERY)
+    assert frames[0].time == 0.0
+    assert frames[-1].time == pytest.approx(result.times[frames[-1].step] - result.times[0])
+    data = replay_data(late, grid, stride=SNAPSHOT_EVERY)
+    assert data["times"][0] == 0.0 and data["frames"][0]["t"] == 0.0

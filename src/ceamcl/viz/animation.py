@@ -131,7 +131,7 @@ def replay_frames(result: RunResult, stride: int = 5) -> list[ReplayFrame]:
         frames.append(
             ReplayFrame(
                 step=k,
-                time=float(result.times[k]),
+                time=float(result.times[k] - result.times[0]),  # since the first step
                 particles=snap,
                 ellipses=living_domains(snap),
                 estimate=result.estimates[k],
@@ -231,7 +231,7 @@ class _Renderer:
         )
 
         n, r = series(result)
-        t = result.times
+        t = result.times - result.times[0]  # as the frames' header: since the first step
         self.ax_n = self.fig.add_subplot(gs[0, 1])
         self.ax_n.plot(t, n, "-", color="0.6", lw=1)
         self.ax_n.set_ylabel("sample size", fontsize=8)
@@ -257,7 +257,7 @@ class _Renderer:
             self.ax_r.plot(t, counts, "-", color="0.6", lw=1)
             self.ax_r.set_ylim(0, max(float(counts.max()) * 1.08, 1.0))
             r = counts
-        self.ax_r.set_xlabel("time [s]", fontsize=8)
+        self.ax_r.set_xlabel("time since the first step [s]", fontsize=8)
         self.ax_r.grid(alpha=0.3)
         self.ax_r.tick_params(labelsize=7)
         (self.r_live,) = self.ax_r.plot([], [], "g-", lw=2, animated=True)

@@ -169,8 +169,9 @@ def plot_run(
 def plot_species(result: RunResult, path: str | os.PathLike[str], title: str = "") -> Path:
     """``species.png`` (the paper's Fig. 6): total sample size and total resources over time,
     and the size of each species that lived long (at most :data:`MAX_SPECIES_DRAWN`, the
-    longest-lived; the rest are counted in the panel's title), broken at restarts."""
-    t = result.times
+    longest-lived; the rest are counted in the panel's title), broken at restarts. Time is
+    seconds since the first step (a real log's clock is its epoch, 9.76e8 s on intel)."""
+    t = result.times - result.times[0]
     total_n, total_r = series(result)
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
     ax1.plot(t, total_n, "k-", lw=2, label="total sample size")
@@ -195,7 +196,7 @@ def plot_species(result: RunResult, path: str | os.PathLike[str], title: str = "
             color=cmap(life.species_id % 10),
             label=f"species {life.species_id}" if len(lives) <= 12 else None,
         )
-    ax2.set_xlabel("time [s]")
+    ax2.set_xlabel("time since the first step [s]")
     ax2.set_ylabel("samples per species")
     ax2.grid(alpha=0.3)
     if len(drawn) < len(lives):

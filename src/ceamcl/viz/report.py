@@ -104,7 +104,7 @@ def replay_data(
             "height": grid.height,
             "bounds": list(grid.bounds),
         },
-        "times": _round(result.times, 3),
+        "times": _round(result.times - result.times[0], 3),  # since the first step, as "t"
         # a raw log's truth is known at its paired scans only: null elsewhere (NaN is no JSON)
         "truth": None if result.truth is None else _poses_or_null(result.truth, 3),
         "estimates": _round(result.estimates, 3),
