@@ -300,13 +300,22 @@ class _Renderer:
         domain_colours = _colours(frame.ellipses[:, 0].astype(np.int64))
         self.domains.set_color(domain_colours)  # type: ignore[arg-type]
         self.estimate.set_data([frame.estimate[0]], [frame.estimate[1]])
-        if frame.truth is not None and self.truth_xy is not None:
+        if self.truth_xy is not None:
+            # the path through the steps with truth so far (a raw log's truth is known at its
+            # paired scans only: drawn with its gaps, the path vanished), the ring where the
+            # truth is known at this step
+            seen = self.truth_xy[: k + 1]
+            seen = seen[np.isfinite(seen).all(axis=1)]
+            self.truth_path.set_data(seen[:, 0], seen[:, 1])
+        if frame.truth is not None and np.all(np.isfinite(frame.truth)):
             x, y, th = frame.truth
             self.truth.set_data([x], [y])
             r0, r1 = 0.25, 0.75  # from the ring outwards
             c, s = np.cos(th), np.sin(th)
             self.truth_heading.set_data([x + r0 * c, x + r1 * c], [y + r0 * s, y + r1 * s])
-            self.truth_path.set_data(self.truth_xy[: k + 1, 0], self.truth_xy[: k + 1, 1])
+        else:
+            self.truth.set_data([], [])
+            self.truth_heading.set_data([], [])
         self.n_live.set_data(self.t[: k + 1], self.n_series[: k + 1])
         self.r_live.set_data(self.t[: k + 1], self.r_series[: k + 1])
         n_species = int(np.unique(snap.labels).size)
