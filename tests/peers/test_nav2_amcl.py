@@ -400,6 +400,9 @@ def test_the_peer_checks_its_initial_pose_and_increments_as_every_filter() -> No
     f = make_nav2_amcl(grid, rng)
     with pytest.raises(ConfigError, match=r"^pose: expected three finite numbers"):
         f.initialise_pose([np.nan, 0.0, 0.0], np.eye(3))
+    with pytest.raises(ConfigError, match=r"^pose: .*got array") as info:
+        f.initialise_pose(np.full((3, 3), np.nan), np.eye(3))
+    assert "\n" not in str(info.value)  # one line, even for an array's repr
     with pytest.raises(ConfigError, match=r"^covariance: expected a finite 3 x 3 matrix"):
         f.initialise_pose(log.true_poses[0], np.eye(2))
     with pytest.raises(ConfigError, match=r"^covariance: expected a positive semi-definite"):

@@ -128,7 +128,8 @@ def check_pose_and_covariance(
     """
     mean = np.asarray(pose, dtype=np.float64).reshape(-1)
     if mean.shape != (3,) or not np.all(np.isfinite(mean)):
-        raise ConfigError(f"pose: expected three finite numbers (x, y, theta), got {pose!r}")
+        shown = " ".join(repr(pose).split())  # one line, even for an array's repr
+        raise ConfigError(f"pose: expected three finite numbers (x, y, theta), got {shown}")
     cov = np.asarray(covariance, dtype=np.float64)
     if cov.shape != (3, 3) or not np.all(np.isfinite(cov)):
         raise ConfigError(f"covariance: expected a finite 3 x 3 matrix, got shape {cov.shape}")
