@@ -31,27 +31,25 @@ from ceamcl.filters import registry
 from ceamcl.outputs import DEFAULT_FPS, DEFAULT_STRIDE
 
 
-def non_negative_int(text: str) -> int:
-    """argparse type: a whole number >= 0, with a clear message otherwise."""
+def _whole_number(text: str, lowest: int, wanted: str) -> int:
     try:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a non-negative number, got {value}")
+    if value < lowest:
+        raise argparse.ArgumentTypeError(f"expected {wanted}, got {value}")
     return value
+
+
+def non_negative_int(text: str) -> int:
+    """argparse type: a whole number >= 0, with a clear message otherwise."""
+    return _whole_number(text, 0, "a non-negative number")
 
 
 def positive_int(text: str) -> int:
     """argparse type: a whole number >= 1 (a negative one is answered as 0 is, not with
     "non-negative", which 0 would satisfy)."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive whole number, got {value}")
-    return value
+    return _whole_number(text, 1, "a positive whole number")
 
 
 def positive_float(text: str) -> float:
