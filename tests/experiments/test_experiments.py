@@ -432,3 +432,31 @@ def test_fig5_leaves_the_global_initialisation_out_of_the_time_per_iteration() -
     result = run_table1(settings, quiet=True)
     (c,) = step_time_curves(result)
     assert np.isnan(c.centre[0]) and np.all(np.isfinite(c.centre[1:]))
+
+
+def test_an_algorithm_has_one_colour_in_every_figure_whatever_the_order_listed() -> None:
+    """With --algorithms mcl ceamcl, CEAMCL was orange in one panel of fig6 and blue in the
+    other: colours followed the list's order."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ceamcl.experiments.common import Curve
+    from ceamcl.experiments.figures import _draw, algorithm_colour
+
+    t = np.arange(3.0)
+
+    def drawn(labels: list[str]) -> dict[str, str]:
+        fig, ax = plt.subplots()
+        _draw(ax, [Curve(a, t, t, t, t) for a in labels])
+        colours = {str(line.get_label()): str(line.get_color()) for line in ax.get_lines()}
+        plt.close(fig)
+        return colours
+
+    two = drawn(["mcl", "ceamcl"])
+    assert two == drawn(["ceamcl", "mcl"])
+    three = drawn(["gmcl", "ceamcl", "mcl"])
+    assert {a: three[a] for a in two} == two and len(set(three.values())) == 3
+    assert algorithm_colour("ceamcl") != algorithm_colour("mcl")
+    assert drawn(["delta 20", "delta 80"]) == {"delta 20": "C0", "delta 80": "C1"}

@@ -36,9 +36,18 @@ def _save(fig: plt.Figure, path: str | os.PathLike[str]) -> Path:
     return out
 
 
+def algorithm_colour(name: str, fallback: int = 0) -> str:
+    """The colour an algorithm has in every figure: by its place in the registry, whatever
+    order ``--algorithms`` listed it in (CEAMCL was blue in one panel of fig6 and orange in
+    the other); a label that is no algorithm takes the ``fallback`` index."""
+    names = registry.names()
+    return f"C{(names.index(name) if name in names else fallback) % 10}"
+
+
 def _draw(ax: Axes, curves: Sequence[Curve], *, band: bool = True) -> None:
-    for c in curves:
-        (line,) = ax.plot(c.times, c.centre, label=c.label, lw=1.4)
+    for i, c in enumerate(curves):
+        colour = algorithm_colour(c.label, i)
+        (line,) = ax.plot(c.times, c.centre, label=c.label, lw=1.4, color=colour)
         if band:
             ax.fill_between(c.times, c.low, c.high, color=line.get_color(), alpha=0.15, lw=0)
     ax.grid(alpha=0.3)
@@ -170,14 +179,13 @@ def plot_evaluation(ev: Evaluation, out_dir: Path) -> None:
     ``success.png``: success rate per algorithm."""
     algos = [row["algorithm"] for row in ev.table]
     fig, ax = plt.subplots(figsize=(8, 5))
-    cmap = plt.get_cmap("tab10")
     for i, algo in enumerate(algos):
         rs = [r for r in ev.results if r.algorithm == algo]
         t, err, going = errors_over_time([(r.elapsed_s, r.position_errors) for r in rs])
         live = going > 0  # points where some run of this algorithm is still going
         q1, med, q3 = np.nanpercentile(err[:, live], [25, 50, 75], axis=0)
-        ax.plot(t[live], med, color=cmap(i), label=algo)
-        ax.fill_between(t[live], q1, q3, color=cmap(i), alpha=0.2)
+        ax.plot(t[live], med, color=algorithm_colour(algo, i), label=algo)
+        ax.fill_between(t[live], q1, q3, color=algorithm_colour(algo, i), alpha=0.2)
     ax.axhline(POSITION_TOL_M, color="k", ls=":", lw=1, label=f"{POSITION_TOL_M} m")
     ax.set_yscale("log")
     ax.set_xlabel("time since the window's start [s] (runs leave as their windows end)")
@@ -191,7 +199,7 @@ def plot_evaluation(ev: Evaluation, out_dir: Path) -> None:
     rates = [
         100 * row["success_rate"] if ok else 0.0 for row, ok in zip(ev.table, shown, strict=True)
     ]
-    ax.bar(algos, rates, color=[cmap(i) for i in range(len(algos))])
+    ax.bar(algos, rates, color=[algorithm_colour(a, i) for i, a in enumerate(algos)])
     for i, ok in enumerate(shown):
         if not ok:
             ax.text(
