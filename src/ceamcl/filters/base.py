@@ -253,6 +253,13 @@ def not_initialised(name: str, method: str) -> FilterStateError:
     )
 
 
+def require_initialised(f: object, method: str) -> None:
+    """:func:`not_initialised` raised when filter ``f`` is not initialised yet (its
+    ``_initialised`` flag; a filter without the flag counts as initialised)."""
+    if not getattr(f, "_initialised", True):
+        raise not_initialised(getattr(f, "name", type(f).__name__), method)
+
+
 _INCREMENT_HINT = (
     "use ceamcl.motion.increment_between(odom_prev, odom_now) or "
     "OdometryIncrement(rot1, trans, rot2)"

@@ -59,7 +59,7 @@ from ceamcl.filters.base import (
     check_grid,
     check_scan,
     check_step_arguments,
-    not_initialised,
+    require_initialised,
 )
 from ceamcl.filters.clustering import cluster_hypotheses, pose_cluster_labels
 from ceamcl.filters.headings import HeadingPrior
@@ -466,8 +466,7 @@ class KLDAMCL(ParticleClusterState):
     def step(self, increment: OdometryIncrement, scan: LaserScan | None) -> KLDAMCLRecord:
         """Accumulate the odometry; update with ``scan`` when the update policy (odometry
         thresholds) says so, or the first time after an initialisation."""
-        if not self._initialised:
-            raise not_initialised(self.name, "step")
+        require_initialised(self, "step")
         check_step_arguments(increment, scan)
         check_increment(increment)
         self.t += 1
@@ -551,8 +550,7 @@ class KLDAMCL(ParticleClusterState):
 
     def particle_weights(self) -> NDArray[np.float64]:
         """The particles' normalised weights (:meth:`LocalisationFilter.particle_weights`)."""
-        if not self._initialised:
-            raise not_initialised(self.name, "particle_weights")
+        require_initialised(self, "particle_weights")
         return self.particle_set.weights
 
     def _carried(self, poses: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -569,23 +567,20 @@ class KLDAMCL(ParticleClusterState):
     def hypotheses(self, limit: int | None = None) -> list[Hypothesis]:
         """Clusters of connected occupied bins, heaviest first (amcl's hypotheses), their poses
         carried by the odometry since the last update; only the ``limit`` heaviest when given."""
-        if not self._initialised:
-            raise not_initialised(self.name, "hypotheses")
+        require_initialised(self, "hypotheses")
         ps = self.particle_set
         hyps = cluster_hypotheses(ps.poses, ps.weights, ps.fitness, *self._labels(), limit)
         return [replace(h, pose=self._carried(h.pose[None, :])[0]) for h in hyps]
 
     def estimate(self) -> PoseEstimate:
         """The heaviest cluster's weighted mean and covariance (as amcl publishes)."""
-        if not self._initialised:
-            raise not_initialised(self.name, "estimate")
+        require_initialised(self, "estimate")
         best = self.hypotheses(limit=1)[0]
         return PoseEstimate(best.pose, best.covariance)
 
     def particles(self) -> ParticleSnapshot:
         """The particles, carried by the odometry since the last update; labels are clusters."""
-        if not self._initialised:
-            raise not_initialised(self.name, "particles")
+        require_initialised(self, "particles")
         labels, _ = self._labels()
         ps = self.particle_set
         return ParticleSnapshot(self._carried(ps.poses.copy()), self.weights, labels)

@@ -33,7 +33,7 @@ from ceamcl.filters.base import (
     check_grid,
     check_scan,
     check_step_arguments,
-    not_initialised,
+    require_initialised,
 )
 from ceamcl.filters.clustering import cluster_hypotheses, cluster_labels
 from ceamcl.filters.headings import HeadingPrior
@@ -172,8 +172,7 @@ class MCL(ParticleClusterState):
     # ------------------------------------------------------------------ one step
     def step(self, increment: OdometryIncrement, scan: LaserScan | None) -> StepRecord:
         """Predict with the odometry ``increment``, then :meth:`correct` with ``scan``."""
-        if not self._initialised:
-            raise not_initialised(self.name, "step")
+        require_initialised(self, "step")
         check_step_arguments(increment, scan)
         propagate(self.particle_set, self.motion, increment, self.rng)
         self.t += 1
@@ -211,15 +210,13 @@ class MCL(ParticleClusterState):
 
     def particle_weights(self) -> NDArray[np.float64]:
         """The particles' normalised weights (:meth:`LocalisationFilter.particle_weights`)."""
-        if not self._initialised:
-            raise not_initialised(self.name, "particle_weights")
+        require_initialised(self, "particle_weights")
         return self.particle_set.weights
 
     def estimate(self) -> PoseEstimate:
         """The weighted mean of all particles (circular mean heading) and their weighted
         covariance; in a symmetric world it can fall between modes (:meth:`hypotheses`)."""
-        if not self._initialised:
-            raise not_initialised(self.name, "estimate")
+        require_initialised(self, "estimate")
         poses, w = self.particle_set.poses, self.weights
         mean = pose_mean(poses, w)
         return PoseEstimate(mean, pose_covariance(poses, w, mean))
@@ -230,15 +227,13 @@ class MCL(ParticleClusterState):
     def hypotheses(self) -> list[Hypothesis]:
         """The particle clusters (connected cells of ``cluster_cell_m`` in x-y), heaviest
         first, each with its weighted mean, covariance, mass and mean fitness."""
-        if not self._initialised:
-            raise not_initialised(self.name, "hypotheses")
+        require_initialised(self, "hypotheses")
         ps = self.particle_set
         return cluster_hypotheses(ps.poses, ps.weights, ps.fitness, *self._labels())
 
     def particles(self) -> ParticleSnapshot:
         """A copy of the particles, their normalised weights and cluster labels."""
-        if not self._initialised:
-            raise not_initialised(self.name, "particles")
+        require_initialised(self, "particles")
         labels, _ = self._labels()
         return ParticleSnapshot(self.particle_set.poses.copy(), self.weights, labels)
 

@@ -39,7 +39,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from ceamcl.filters.base import Hypothesis, PoseEstimate, not_initialised
+from ceamcl.filters.base import Hypothesis, PoseEstimate, require_initialised
 from ceamcl.sensors.map_agreement import EXPLAINED_TOL_M, explained_share
 from ceamcl.sensors.scan import prepare_scan
 from ceamcl.sensors.see_through import readings_through_walls
@@ -497,8 +497,7 @@ class ParticleClusterState:
         """Read from the particle clusters (``hypotheses`` when the caller has them already),
         then the map's agreement with the scans (:class:`MapAgreement`). Before the first
         initialisation: :class:`~ceamcl.errors.FilterStateError`."""
-        if not getattr(self, "_initialised", True):
-            raise not_initialised(getattr(self, "name", type(self).__name__), "state")
+        require_initialised(self, "state")
         known = hypotheses
         return read_particles(
             self.particle_set,

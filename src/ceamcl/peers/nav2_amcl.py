@@ -64,7 +64,7 @@ from ceamcl.filters.base import (
     check_grid,
     check_scan,
     check_step_arguments,
-    not_initialised,
+    require_initialised,
 )
 from ceamcl.filters.particles import check_increment, check_pose_and_covariance
 from ceamcl.filters.state import LocalisationState, initialising, read_covariance
@@ -377,8 +377,7 @@ class Nav2AMCL:
     # ------------------------------------------------------------------ one step
     def step(self, increment: OdometryIncrement, scan: LaserScan | None) -> Nav2AMCLRecord:
         """Accumulate the odometry ``increment``; with ``scan``, one update of the wheel."""
-        if not self._initialised:
-            raise not_initialised(self.name, "step")
+        require_initialised(self, "step")
         check_step_arguments(increment, scan)
         check_increment(increment)  # NaN or kilometre jumps: refused as by every filter
         self.t += 1
@@ -428,16 +427,14 @@ class Nav2AMCL:
     def particle_weights(self) -> NDArray[np.float64]:
         """The wheel hides its particles: ``max_particles`` NaN weights (the runner records
         that upper bound as the particle count and ESS as unknown)."""
-        if not self._initialised:
-            raise not_initialised(self.name, "particle_weights")
+        require_initialised(self, "particle_weights")
         return np.full(self.config.max_particles, np.nan)
 
     # ------------------------------------------------------------------ queries
     def estimate(self) -> PoseEstimate:
         """The wheel's mean pose and covariance (world frame); the pending pose before the
         first scan of pose tracking."""
-        if not self._initialised:
-            raise not_initialised(self.name, "estimate")
+        require_initialised(self, "estimate")
         if self._pending is not None:
             p, cov = self._pending
             return PoseEstimate(p.copy(), cov.copy())
@@ -449,8 +446,7 @@ class Nav2AMCL:
 
     def hypotheses(self) -> list[Hypothesis]:
         """The estimate as the only hypothesis; fitness under our beam model for the last scan."""
-        if not self._initialised:
-            raise not_initialised(self.name, "hypotheses")
+        require_initialised(self, "hypotheses")
         est = self.estimate()
         return [
             Hypothesis(
@@ -466,8 +462,7 @@ class Nav2AMCL:
     def state(self, hypotheses: Sequence[Hypothesis] | None = None) -> LocalisationState:
         """From the covariance, as Nav2's users read it today
         (:func:`ceamcl.filters.state.read_covariance`); INITIALISING until the first step."""
-        if not self._initialised:
-            raise not_initialised(self.name, "state")
+        require_initialised(self, "state")
         if self.t == 0:
             return initialising()
         if self._pending is not None:
@@ -477,8 +472,7 @@ class Nav2AMCL:
     def particles(self) -> ParticleSnapshot:
         """NOT the wheel's particles (its API hides them): ``snapshot_particles`` samples from
         the estimate's Gaussian, drawn with our generator, uniform weights, label 0."""
-        if not self._initialised:
-            raise not_initialised(self.name, "particles")
+        require_initialised(self, "particles")
         est = self.estimate()
         n = self.config.snapshot_particles
         poses = self.rng.multivariate_normal(est.pose, est.covariance, size=n, method="eigh")

@@ -52,7 +52,7 @@ from ceamcl.filters.base import (
     check_grid,
     check_scan,
     check_step_arguments,
-    not_initialised,
+    require_initialised,
 )
 from ceamcl.filters.ceamcl.anchor import ConfidentPose, DriftEnvelope
 from ceamcl.filters.ceamcl.config import CEAMCLConfig
@@ -437,8 +437,7 @@ class CEAMCL:
     # ================================================================== one step
     def step(self, increment: OdometryIncrement, scan: LaserScan | None) -> CEAMCLRecord:
         """One step of section 3.5 (see the module docstring)."""
-        if not self._initialised:
-            raise not_initialised(self.name, "step")
+        require_initialised(self, "step")
         check_step_arguments(increment, scan)
         check_increment(increment)  # before any phase changes the particles
         cfg = self.config
@@ -1070,8 +1069,7 @@ class CEAMCL:
         (departure 17, ``anchor_envelope_sd``), a species sliding where the map holds little;
         without an envelope, after a recovery and beyond ``recovery_drift_m`` (or
         ``recovery_drift_rad``), another place the recovery proposed (departure 15)."""
-        if not self._initialised:
-            raise not_initialised(self.name, "estimate")
+        require_initialised(self, "estimate")
         best = self.fittest()
         if best is None:
             return PoseEstimate(np.zeros(3), np.diag([1e6, 1e6, np.pi**2]))
@@ -1291,8 +1289,7 @@ class CEAMCL:
         """The species, heaviest first: each one's mean pose, covariance and size, its share
         of the accumulated evidence (the weights sum to 1) and its fitness for the last scan
         (docs/ceamcl.md)."""
-        if not self._initialised:
-            raise not_initialised(self.name, "hypotheses")
+        require_initialised(self, "hypotheses")
         if self._read is not None:  # read this step; fresh arrays, as a new read gives
             return [
                 replace(h, pose=h.pose.copy(), covariance=h.covariance.copy())
@@ -1318,8 +1315,7 @@ class CEAMCL:
         step. AMBIGUOUS, the anchor's place and the leader's, where the species read LOCALISED
         but departure 18 holds the estimate at the anchor (the estimate is not the leader's
         place: two places fit the scan)."""
-        if not self._initialised:
-            raise not_initialised(self.name, "state")
+        require_initialised(self, "state")
         read = self._species_state(hypotheses)
         at, _, share, unvouched = self._held
         if at != self.t or share is None or read.state is not State.LOCALISED:
@@ -1364,8 +1360,7 @@ class CEAMCL:
     def particle_weights(self) -> NDArray[np.float64]:
         """Each particle's in-species weight times its species' share, normalised (measured
         by the runner at every step, so no :class:`Hypothesis` is built for it)."""
-        if not self._initialised:
-            raise not_initialised(self.name, "particle_weights")
+        require_initialised(self, "particle_weights")
         weights = np.zeros(self.particle_set.n)
         stats, share = self._ranked_shares()
         for s, w in zip(stats, share, strict=True):
@@ -1377,8 +1372,7 @@ class CEAMCL:
 
     def particles(self) -> ParticleSnapshot:
         """A copy of the samples, their weights (:meth:`particle_weights`) and species ids."""
-        if not self._initialised:
-            raise not_initialised(self.name, "particles")
+        require_initialised(self, "particles")
         ps = self.particle_set
         return ParticleSnapshot(ps.poses.copy(), self.particle_weights(), ps.labels.copy())
 
