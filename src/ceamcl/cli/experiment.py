@@ -808,6 +808,8 @@ def _write_staged(
             paths = experiment.write(result, str(staging), meta)
         except OSError as exc:
             raise write_error(exc, out) from None
+        # ``files`` was checked before the runs: it must name what ``write`` writes
+        assert {p.name for p in staging.iterdir()} <= set(experiment.files), experiment.files
         for staged in sorted(staging.iterdir()):
             try:
                 os.replace(staged, out / staged.name)
