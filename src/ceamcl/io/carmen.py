@@ -542,7 +542,7 @@ def read_carmen(
         raise ConfigError(f"odometry-sign: expected auto or recorded, got {odometry_sign!r}")
     with_pose, raw = _Stream(), _Stream()
     odom: list[tuple[float, float, float, float, float]] = []
-    untimed_odom: list[int] = []  # the line of the first ODOM without a timestamp, if any
+    untimed_odom: int | None = None  # the line of the first ODOM without a timestamp
     counts: Counter[str] = Counter()
     skipped: Counter[str] = Counter()
     params: dict[str, str] = {}
@@ -558,8 +558,8 @@ def read_carmen(
             if held > budget.current().memory_bytes:  # ODOM lines are kept too
                 budget.require(f"{p}:{msg.line}: odometry kept", len(odom) + 1, ODOM_BYTES, "ODOM")
             odom.append((msg.timestamp, msg.x, msg.y, msg.theta, msg.tv))
-            if math.isnan(msg.timestamp) and not untimed_odom:
-                untimed_odom.append(msg.line)
+            if math.isnan(msg.timestamp) and untimed_odom is None:
+                untimed_odom = msg.line
         elif isinstance(msg, CarmenParam):
             counts["PARAM"] += 1
             params[msg.name] = msg.value
@@ -620,9 +620,9 @@ def read_carmen(
                 "scans carry no pose and take the robot's from ODOM at their time; expected "
                 "timestamp host logger_timestamp after the remissions"
             )
-        if untimed_odom:
+        if untimed_odom is not None:
             raise LogFormatError(
-                f"{p}:{untimed_odom[0]}: ODOM line without a timestamp: the RAWLASER{laser} "
+                f"{p}:{untimed_odom}: ODOM line without a timestamp: the RAWLASER{laser} "
                 "scans take the robot's pose from ODOM at their time; expected a timestamp "
                 "after x y theta tv rv accel on every ODOM line"
             )
