@@ -427,6 +427,8 @@ def run_summary(
             "raw_scans": p.n_raw,
             "clock_offset_s": p.clock_offset_s,
             "max_time_residual_s": p.max_time_residual_s,
+            # False: the timestamps could not check the pairs (ranges and order alone)
+            "times_used": p.times_used,
             # the truth is the raw robot's pose: moved where the two logs' laser mounts differ
             "mount_moved_pairs": p.mount_moved,
             "mount_shift_m": p.mount_shift_m,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import warnings
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -148,6 +149,27 @@ def test_logs_of_different_runs_are_refused_naming_both_files() -> None:
         pair_truth(raw, other)
 
 
+def test_timestamps_too_coarse_to_check_leave_ranges_and_order() -> None:
+    # The corrected log prints its times to ten thousand seconds (every scan "1.01893e+09"):
+    # no twin lies within 0.5 s of any clock offset, yet the ranges name each twin. A robot
+    # standing still repeats a scan: its first repeat after the last pair is where it stood.
+    rng = np.random.default_rng(3)
+    scans = [list(np.round(rng.uniform(0.5, 10, 6), 2)) for _ in range(12)]
+    scans[5] = scans[6] = scans[4]  # standing still at scans 4-6
+    raw = make_log(scans, [1018931783.43 + 0.37 * k for k in range(12)], "raw")
+    kept = [0, 2, 4, 7, 8, 11]
+    corrected = make_log([scans[k] for k in kept], [1.01893e09] * len(kept), "corrected")
+    p = pair_truth(raw, corrected)
+    assert not p.times_used
+    assert p.raw_index.tolist() == kept
+    assert "paired by ranges and order alone" in p.summary()
+    # with usable times the same log is checked by them
+    timed = make_log([scans[k] for k in kept], [0.37 * k for k in kept], "corrected")
+    q = pair_truth(raw, timed)
+    assert q.times_used and q.raw_index.tolist() == kept
+    assert "clock offset" in q.summary()
+
+
 def test_twins_at_the_wrong_time_are_not_paired() -> None:
     a, b = [1.0, 2.0], [3.0, 4.0]
     raw = make_log([a, b, b], [0.0, 1.0, 2.0], "raw")
@@ -181,11 +203,22 @@ def test_every_corrected_scan_of_the_shared_logs_has_its_raw_twin(
     assert p.mount_moved == (n_corrected if raw_name == "fr079.clf.gz" else 0)
     assert p.mount_shift_m == pytest.approx(0.04 if raw_name == "fr079.clf.gz" else 0.0, abs=1e-4)
     assert np.all(np.diff(p.raw_index) > 0)
+    assert p.times_used
     # twins have the same ranges
     for k in (0, p.n_matched // 2, p.n_matched - 1):
         np.testing.assert_allclose(
             raw.ranges(int(p.raw_index[k])), corrected.ranges(int(p.truth_index[k])), atol=5e-4
         )
+    # The same corrected log with GMapping's coarse absolute timestamps (Belgioioso's .gfs.log
+    # prints 1.01893e+09: ten thousand seconds a step), and with no clock at all: the same pairs.
+    epoch = 1.0e9 + float(raw.times[0])
+    coarse = [float(f"{epoch + t:g}") for t in corrected.times]
+    assert len(set(coarse)) <= 2
+    for times in (coarse, [0.0] * len(corrected)):
+        q = pair_truth(raw, replace(corrected, times=np.asarray(times)))
+        assert not q.times_used and "ranges and order alone" in q.summary()
+        assert q.raw_index.tolist() == p.raw_index.tolist()
+        assert q.truth_index.tolist() == p.truth_index.tolist()
 
 
 def _flaser_log(path: Path, scans: list[list[float]], times: list[float], neff: bool) -> Path:

@@ -21,6 +21,15 @@ Pairing, in order:
    key that comes after the last pair and lies closest in offset-corrected time, if within
    ``time_tol_s``. A robot standing still repeats a scan; the time decides which repeat it is.
 
+**Timestamps that cannot check.** Some corrected logs print their timestamps too coarsely to
+check anything (GMapping's ``.gfs.log`` of the Belgioioso castle writes ``1.01893e+09``: ten
+thousand seconds a step) or on another clock. When more than half of the corrected scans whose
+ranges name exactly one raw scan lie beyond ``time_tol_s`` of the clock offset (with usable
+timestamps: none of 910 on intel, none of 4,791 on fr079), the timestamps are not used: each
+corrected scan is paired with the first raw scan of the same key after the last pair, ranges
+and order alone (a repeat is a robot standing still, so the first repeat is where it stood).
+The summary says so (``TruthPairing.times_used``).
+
 The result says how many scans matched; the filter then reads the raw log's odometry and every
 scan, and is scored at the matched scans, where the corrected pose is the truth.
 
@@ -74,6 +83,8 @@ class TruthPairing:
     truth_poses: the raw log's robot pose at each pair (module docstring, "whose pose").
     clock_offset_s: raw time minus corrected time, as estimated (median over the run).
     max_time_residual_s: the largest ``|raw_t - offset - truth_t|`` among the pairs.
+    times_used: the timestamps checked the pairs; ``False`` when they could not (module
+        docstring, "Timestamps that cannot check"): paired by ranges and order alone.
     mount_moved: pairs whose two laser mounts differ, where the truth was moved by them.
     mount_shift_m: the largest distance the truth was moved (0 when none).
     suggested_mount: the laser's position ``(x, y)`` on the robot that the corrected poses and
@@ -90,6 +101,7 @@ class TruthPairing:
     truth_poses: NDArray[np.float64]
     clock_offset_s: float
     max_time_residual_s: float
+    times_used: bool = True
     mount_moved: int = 0
     mount_shift_m: float = 0.0
     suggested_mount: tuple[float, float] | None = None
@@ -116,10 +128,17 @@ class TruthPairing:
         if suggested:
             rx, ry = self.raw_mount
             suggested += f", where the raw log says ({rx:.3f}, {ry:.3f})"
+        clock = (
+            f"clock offset {self.clock_offset_s:.3f} s, largest residual "
+            f"{self.max_time_residual_s:.3f} s"
+            if self.times_used
+            else "paired by ranges and order alone: the timestamps of most scans with a unique "
+            f"twin disagree with the clock offset by more than {DEFAULT_TIME_TOL_S} s, too "
+            "coarse or of another clock"
+        )
         return (
             f"{self.n_matched} of {self.n_truth} scans of {self.truth_path} matched among "
-            f"{self.n_raw} scans of {self.raw_path} (clock offset {self.clock_offset_s:.3f} s, "
-            f"largest residual {self.max_time_residual_s:.3f} s{moved}{suggested})"
+            f"{self.n_raw} scans of {self.raw_path} ({clock}{moved}{suggested})"
         )
 
     def mount_suggestion(self) -> str:
@@ -217,6 +236,11 @@ def pair_truth(
     order = np.argsort(anchor_t, kind="stable")
     offsets = np.interp(truth_t, anchor_t[order], smooth[order])
     offset = float(np.median(diffs))
+    # the timestamps check the pairs only where they agree for most unique twins (docstring)
+    times_used = True
+    if unique:
+        late = np.abs(diffs - np.interp(anchor_t, anchor_t[order], smooth[order])) > time_tol_s
+        times_used = bool(np.count_nonzero(late) * 2 <= late.size)
 
     pairs_raw: list[int] = []
     pairs_truth: list[int] = []
@@ -227,8 +251,8 @@ def pair_truth(
         if candidates.size == 0:
             continue
         residual = np.abs(raw_t[candidates] - offsets[j] - truth_t[j])
-        best = int(np.argmin(residual))
-        if residual[best] > time_tol_s:
+        best = int(np.argmin(residual)) if times_used else 0
+        if times_used and residual[best] > time_tol_s:
             continue
         last = int(candidates[best])
         pairs_raw.append(last)
@@ -260,6 +284,7 @@ def pair_truth(
         truth_poses=poses,
         clock_offset_s=offset,
         max_time_residual_s=max(residuals),
+        times_used=times_used,
         mount_moved=int(np.count_nonzero(moved)),
         mount_shift_m=float(shift.max()) if shift.size else 0.0,
         suggested_mount=suggested,
