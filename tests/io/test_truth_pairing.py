@@ -113,6 +113,19 @@ def test_the_truth_is_the_raw_robots_pose_where_the_lasers_sit_apart() -> None:
     np.testing.assert_allclose(q.truth_poses[1], corrected.poses[1] + [0.0, 0.04, 0.0])
 
 
+def test_a_corrected_log_whose_robot_pose_is_its_odometry_gives_its_laser_pose() -> None:
+    # Some GMapping logs keep the raw odometry as the FLASER line's robot pose: the "mount" is
+    # metres long, the truth is the corrected laser pose all the same, and the summary says
+    # what the second pose is.
+    scans = [[1.0, 2.0], [3.0, 4.0], [5.0, 6.0]]
+    raw = make_log(scans, [0.0, 1.0, 2.0], "raw")
+    corrected = make_log(scans, [0.0, 1.0, 2.0], "corrected", mount=(4.0, -3.0, 0.0))
+    p = pair_truth(raw, corrected)
+    np.testing.assert_allclose(p.truth_poses, laser_poses(corrected.poses, corrected.laser_mount))
+    assert p.mount_shift_m == pytest.approx(5.0)
+    assert "odometry, not a laser mount" in p.summary()
+
+
 def test_equal_mounts_keep_the_corrected_pose_bit_for_bit() -> None:
     scans = [[1.0, 2.0], [3.0, 4.0]]
     raw = make_log(scans, [10.0, 11.0], "raw", mount=(0.2, 0.0, 0.0))

@@ -72,6 +72,9 @@ from ceamcl.sensors.scan import laser_poses
 DEFAULT_DECIMALS = 3
 #: A pair's timestamps may differ from the estimated clock offset by at most this much.
 DEFAULT_TIME_TOL_S = 0.5
+#: A corrected log whose robot pose lies farther than this from its laser pose keeps something
+#: else there (GMapping's logs of some buildings: the raw odometry); the truth is the laser pose.
+LASER_MOUNT_MAX_M = 1.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -124,6 +127,13 @@ class TruthPairing:
             if self.mount_moved
             else ""
         )
+        if self.mount_moved and self.mount_shift_m > LASER_MOUNT_MAX_M:
+            # a corrected log whose FLASER lines keep the raw odometry as the robot pose
+            moved = (
+                f"; the truth is the corrected log's laser pose, moved to the raw log's robot "
+                f"(its robot pose lies up to {self.mount_shift_m:.3f} m from its laser pose at "
+                f"{self.mount_moved} pairs: odometry, not a laser mount)"
+            )
         suggested = self.mount_suggestion()
         if suggested:
             rx, ry = self.raw_mount
