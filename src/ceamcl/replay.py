@@ -395,6 +395,8 @@ def run_summary(
         "odometry_source": ODOMETRY_SOURCES[prepared.odometry],
         "repaired_times": int(log.info.get("repaired_times", 0)),
         "odometry_sign": log.info.get("odometry_sign", "as recorded"),
+        # set when the laser's no-return value was read from its readings (ACES: 50 m)
+        "max_range_from": log.info.get("max_range_from", "the log or --max-range"),
         "map": map_source,
         "map_size_m": list(grid.size_m),
         "map_free_area_m2": grid.free_area_m2,

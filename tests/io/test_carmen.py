@@ -139,6 +139,39 @@ def test_param_sets_max_range_and_rear_laser_is_selectable(tmp_path: Path) -> No
     assert read_carmen(path, max_range_m=8.0).range_max[0] == 8.0
 
 
+def _aces_like(rng: np.random.Generator, no_return: float, scans: int = 20) -> list[str]:
+    """FLASER lines of 180 readings: measured distances up to 45 m, a fifth of them the
+    laser's no-return value (ACES writes 50.00 m and states no maximum)."""
+    lines = []
+    for k in range(scans):
+        r = np.round(rng.uniform(0.2, 45.0, 180), 2)
+        r[rng.random(180) < 0.2] = no_return
+        ranges = " ".join(f"{v:.2f}" for v in r)
+        lines.append(f"FLASER 180 {ranges} {k} 0 0 {k} 0 0 {k}.0 nohost {k}.0")
+    return lines
+
+
+def test_a_no_return_value_below_80_m_is_read_from_the_readings(tmp_path: Path) -> None:
+    rng = np.random.default_rng(5)
+    path = write(tmp_path, _aces_like(rng, 50.0))
+    log = read_carmen(path)
+    assert log.range_max[0] == 50.0  # not CARMEN's 80 m: 50.00 is "no return", not a wall
+    assert "taken as the laser's no-return value" in log.info["max_range_from"]
+    scan = log.scan(0)
+    assert np.count_nonzero(scan.ranges >= scan.range_max) > 20
+    # what the log or the user states wins
+    stated = write(tmp_path, ["PARAM robot_front_laser_max 60", *_aces_like(rng, 50.0)], "p.log")
+    assert read_carmen(stated).range_max[0] == 60.0
+    assert read_carmen(path, max_range_m=70.0).range_max[0] == 70.0
+    # a largest reading that is a measured distance (few, as its neighbours) changes nothing
+    far = _aces_like(rng, 0.5)  # 0.5 m readings pile up below the top, not at it
+    plain = read_carmen(write(tmp_path, far, name="plain.log"))
+    assert plain.range_max[0] == 80.0 and "max_range_from" not in plain.info
+    # Radish's no-return values above 80 m are no-return under the default already
+    radish = read_carmen(write(tmp_path, _aces_like(rng, 81.91), name="radish.log"))
+    assert radish.range_max[0] == 80.0 and "max_range_from" not in radish.info
+
+
 @pytest.mark.parametrize("value", ["-1", "0", "nan", "inf", "-inf", "far"])
 def test_param_max_range_that_is_not_a_positive_finite_number_names_its_line(
     tmp_path: Path, value: str

@@ -302,6 +302,9 @@ def print_truth(console: Console, prepared: Any, doubt: TruthDoubt | None = None
             f"odometry: the log's recorded odometry; scored at the {prepared.pairing.n_matched} "
             f"of {len(prepared.log)} scans with truth"
         )
+    no_return = prepared.log.info.get("max_range_from")
+    if no_return:
+        console.print(f"laser: {no_return}", markup=False)
     sign = prepared.log.info.get("odometry_sign")
     if sign:
         console.print(f"odometry: {sign} (--odometry-sign recorded reads it as recorded)")

@@ -26,7 +26,10 @@ line, the message name first, fields separated by white space. This module reads
     (or ``robot_rear_laser_max``) line overrides it. The sensor reports "no return" with a
     reading at or beyond that maximum (81.91 m, 81.83 m in the Radish logs); such readings
     are kept as they are and a :class:`~ceamcl.sensors.scan.LaserScan` classifies them as
-    max-range readings.
+    max-range readings. Some lasers report no return *below* 80 m (ACES: 50.00 m) and their
+    logs say nothing of it: without a PARAM, when the log's largest reading recurs as no
+    real distance does (:func:`no_return_reading`), it is the maximum, and ``info``
+    (``max_range_from``) says so.
 
 ``ROBOTLASER<id> type start_angle fov resolution max_range accuracy remission_mode n r_1..r_n
 m e_1..e_m lx ly ltheta x y theta tv rv forward_safety side_safety turn_axis timestamp host
@@ -79,6 +82,7 @@ from ceamcl.pose import relative_poses
 
 __all__ = [
     "CARMEN_DEFAULT_MAX_RANGE_M",
+    "NO_RETURN_MIN_COUNT",
     "CarmenComment",
     "CarmenLaser",
     "CarmenOdometry",
@@ -87,6 +91,7 @@ __all__ = [
     "guess_angle_increment",
     "guess_fov",
     "iter_carmen",
+    "no_return_reading",
     "read_carmen",
 ]
 
@@ -643,11 +648,23 @@ def read_carmen(
         mount = np.zeros((n, 3))
 
     per_msg = np.asarray(stream.max_range, dtype=np.float64)
+    max_range_from = ""
     if max_range_m is not None:
         range_max = np.full(n, float(max_range_m))
     elif np.isnan(per_msg).any():  # old-style messages: the PARAM (checked only when used)
         default_max = _param_max_range(params, param_lines, laser, p)
-        range_max = np.where(np.isnan(per_msg), default_max, per_msg)
+        old_style = np.isnan(per_msg)
+        if _param_key(laser) not in params:
+            sentinel = no_return_reading(
+                [r for r, old in zip(stream.ranges, old_style, strict=True) if old]
+            )
+            if sentinel is not None and sentinel[0] < default_max:
+                default_max, times_seen = sentinel
+                max_range_from = (
+                    f"{times_seen} readings of exactly {default_max:g} m, the log's largest, "
+                    "taken as the laser's no-return value (--max-range sets another)"
+                )
+        range_max = np.where(old_style, default_max, per_msg)
     else:
         range_max = per_msg
 
@@ -663,6 +680,8 @@ def read_carmen(
         "params": params,
         "scan_lines": np.asarray(stream.lines, dtype=np.int64),  # for errors naming the line
     }
+    if max_range_from:
+        info["max_range_from"] = max_range_from
     if unsigned:
         assert sign is not None
         info["odometry_sign"] = (
@@ -684,6 +703,48 @@ def read_carmen(
     )
 
 
+#: A log's largest reading is its laser's no-return value when it occurs at least this many
+#: times ...
+NO_RETURN_MIN_COUNT = 100
+#: ... and this many times as often as any other reading within ``NO_RETURN_BAND_M`` below it
+#: (ACES: 11,139 readings of 50.00 m, at most 3 of any value in the metre below; the Radish
+#: logs' 81.83 and 81.91 m likewise).
+NO_RETURN_RATIO = 20
+NO_RETURN_BAND_M = 1.0
+#: ... among a laser's measurements: at least this many distinct readings below it (a log
+#: of one repeated value says nothing about which value means "no return").
+NO_RETURN_MIN_DISTINCT = 100
+
+
+def no_return_reading(ranges: list[NDArray[np.float64]]) -> tuple[float, int] | None:
+    """The value a laser writes for "no return", found in its readings: the largest finite
+    reading, when it recurs (:data:`NO_RETURN_MIN_COUNT`, :data:`NO_RETURN_RATIO`) as a
+    measured distance does not, among many measured distances
+    (:data:`NO_RETURN_MIN_DISTINCT`); with its count. ``None``: no such value."""
+    if not ranges:
+        return None
+    r = np.concatenate(ranges)
+    r = r[np.isfinite(r) & (r > 0.0)]
+    if r.size == 0:
+        return None
+    top = float(r.max())
+    count = int(np.count_nonzero(r == top))
+    if count < NO_RETURN_MIN_COUNT:
+        return None
+    if np.unique(r[r < top]).size < NO_RETURN_MIN_DISTINCT:
+        return None
+    below = r[(r < top) & (r >= top - NO_RETURN_BAND_M)]
+    if below.size:
+        _, counts = np.unique(below, return_counts=True)
+        if count < NO_RETURN_RATIO * int(counts.max()):
+            return None
+    return top, count
+
+
+def _param_key(laser: int) -> str | None:
+    return {1: "robot_front_laser_max", 2: "robot_rear_laser_max"}.get(laser)
+
+
 def _param_max_range(
     params: dict[str, str], lines: dict[str, int], laser: int, path: Path
 ) -> float:
@@ -691,7 +752,7 @@ def _param_max_range(
     if the log sets it, else CARMEN's 80 m. A value that is not a positive finite number is
     an error naming its line (``-1`` or ``nan`` fell back to 80 m, ``inf`` failed later
     naming no file)."""
-    key = {1: "robot_front_laser_max", 2: "robot_rear_laser_max"}.get(laser)
+    key = _param_key(laser)
     if key is None or key not in params:
         return CARMEN_DEFAULT_MAX_RANGE_M
     try:
