@@ -32,6 +32,7 @@ ONE_ROUND: dict[str, Any] = {
     "init_refine_share": 0.0,
     "test_pose_headings": None,
     "recovery_test_poses_per_m2": None,
+    "recovery_n_test": None,  # recoveries searched as the first search did (10^6 on fr079)
     "recovery_prior": 1e-6,
 }
 

@@ -869,13 +869,45 @@ def test_the_anchors_place_competes_when_it_fits_as_well_as_a_far_leader(seed: i
     assert len(f.hypotheses()) == 1
 
 
+def test_a_recovery_scores_at_most_its_budget_of_test_poses() -> None:
+    """``recovery_n_test``: a recovery runs inside one update, so its search is bounded
+    whatever the map's area; below the bound it searches as the first search does (the shared
+    logs' maps and the hall never reach it)."""
+    default = CEAMCLConfig()
+    assert default.recovery_n_test is not None
+    hall = paper_course().grid().free_area_m2
+    first = default.initialisation
+    again = default.recovery_initialisation
+    assert again.test_pose_count(hall) == first.test_pose_count(hall)  # 150 a m^2, unbound
+    campus = 16_800.0  # the hospital campus of docs/real-data.md
+    assert first.test_pose_count(campus) > 3 * default.recovery_n_test
+    assert (
+        again.test_pose_count(campus)
+        + again.refine_count(again.test_pose_count(campus)) * again.refine_per_pose
+        <= default.recovery_n_test
+    )
+    # a recovery in the hall spends no more than the bound lets it
+    spent = {}
+    for cap in (None, 5_000):
+        f, _, tracked = tracked_then_recovered(0, replace(default, recovery_n_test=cap))
+        spent[cap] = f._evaluations
+        assert f.hypotheses()[0].label == tracked  # the tracked species keeps the lead
+    assert spent[5_000] < spent[None] - 20_000
+    with pytest.raises(ValueError, match="recovery_n_test"):
+        CEAMCLConfig(recovery_n_test=0)
+
+
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_a_recovery_searches_the_map_at_its_own_density(seed: int) -> None:
     """``recovery_test_poses_per_m2`` (docs/ceamcl.md, "a cheaper recovery"): a recovery's
     second opinion searches as the global initialisation does unless told a density of its
     own (departure 28), and at a third of it still proposes every other room's look-alike
     (where a kidnapped robot would be) beside the tracked species it keeps."""
-    assert CEAMCLConfig().recovery_initialisation == CEAMCLConfig().initialisation
+    default = CEAMCLConfig()
+    # at most recovery_n_test test poses (the longest update's bound), else as the first search
+    assert default.recovery_n_test is not None
+    capped = replace(default.initialisation, n_test=default.recovery_n_test)
+    assert default.recovery_initialisation == capped
     initial = CEAMCLConfig().initialisation.test_poses_per_m2
     assert initial is not None
     spent = {}

@@ -65,6 +65,13 @@ class CEAMCLConfig:
             a half of one round of 1,500 per m^2 for the same success (docs/ceamcl.md,
             departure 20); with headings drawn from the scan (``test_pose_headings``) 150 per
             m^2 does as well (the default, departure 27).
+        recovery_n_test: a recovery's search scores at most this many test poses (both rounds),
+            ``None``: ``n_test``. A recovery runs inside one update, so this bounds the longest
+            update: 250,000 is about 0.3 s on the workplace's 2-core VM, and binds only on maps
+            of more than about 1,500 m^2 of free space (at the 150 test poses a square metre of
+            the first search; the shared logs' maps hold 525-1,015 m^2). On a 16,800 m^2
+            hospital campus each recovery scored 10^6 (docs/real-data.md, "The same three
+            buildings with a GMapping truth").
         recovery_test_poses_per_m2: the density of a recovery's search (its second opinion,
             ``recovery_prior``); ``None`` (the default): the global initialisation's. Until
             departure 28 (docs/ceamcl.md) recoveries searched at 450 with uniform headings:
@@ -247,6 +254,7 @@ class CEAMCLConfig:
 
     n_test: int = 1_000_000
     test_poses_per_m2: float | None = 150.0
+    recovery_n_test: int | None = 250_000
     recovery_test_poses_per_m2: float | None = None
     init_refine_share: float = 0.01
     init_refine_per_pose: int = 10
@@ -363,6 +371,7 @@ class CEAMCLConfig:
             "evidence_memory_step_rad": self.evidence_memory_step_rad is None
             or self.evidence_memory_step_rad > 0,
             "test_poses_per_m2": self.test_poses_per_m2 is None or self.test_poses_per_m2 > 0,
+            "recovery_n_test": self.recovery_n_test is None or self.recovery_n_test >= 1,
             "recovery_test_poses_per_m2": self.recovery_test_poses_per_m2 is None
             or self.recovery_test_poses_per_m2 > 0,
             "init_polish_rounds": self.init_polish_rounds >= 0,
@@ -437,11 +446,13 @@ class CEAMCLConfig:
     @cached_property
     def recovery_initialisation(self) -> InitialisationConfig:
         """Section 3.1's settings for a recovery's second opinion (``recovery_prior``), at
-        ``recovery_test_poses_per_m2`` where that is set, its headings uniform unless
-        ``recovery_test_pose_headings``."""
+        ``recovery_test_poses_per_m2`` where that is set, at most ``recovery_n_test`` test
+        poses, its headings uniform unless ``recovery_test_pose_headings``."""
         density = self.recovery_test_poses_per_m2
+        cap = self.recovery_n_test
         return replace(
             self.initialisation,
+            n_test=self.n_test if cap is None else min(self.n_test, cap),
             test_poses_per_m2=self.test_poses_per_m2 if density is None else density,
             headings=self.test_pose_headings if self.recovery_test_pose_headings else None,
         )
