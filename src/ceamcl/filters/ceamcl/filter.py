@@ -645,7 +645,8 @@ class CEAMCL:
         and ``look_around_rad`` plus the gain times its rotation (at most three times
         ``look_around_rad``) is scored on every beam of the scan. When the best of them
         beats the species' best pose by ``look_around_margin`` in tempered log-likelihood
-        and, refined on a grid a quarter as fine, fits as the state reads a lone species
+        (refined, also after both pay for their readings through the map's walls,
+        ``see_through_margin_m``: departure 32) and fits as the state reads a lone species
         (fitness at least ``confirm_fit_below``, beam skipping at that pose), the worst
         ``look_around_share`` of the species' samples are drawn again around it (the
         mutation's Sigma) and the whole species is weighed again with the beams that pose
@@ -687,6 +688,20 @@ class CEAMCL:
         lf = sanitise_log_likelihood(self.sensor.log_likelihood(fine, full))
         evaluations += int(lf.size)
         found = fine[int(np.argmax(lf))]
+        # departure 32: the found pose beats the species' best by the margin once both pay for
+        # the readings they send through the map's walls, as the evidence weighs them
+        wall_margin = cfg.see_through_margin_m
+        if wall_margin is not None and self.last_scan is not None:
+            lost = see_through_penalty(
+                self.grid,
+                self.sensor,
+                np.vstack([found, centre]),
+                self.last_scan,
+                wall_margin,
+                cfg.see_through_tolerance,
+            )
+            if (float(lf.max()) + lost[0]) - (here + lost[1]) < cfg.look_around_margin:
+                return evaluations
         # the found pose's fitness as the state reads a lone species': without the short
         # readings it cannot explain (beam skipping)
         there = full
