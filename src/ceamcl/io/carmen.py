@@ -82,7 +82,6 @@ from ceamcl.pose import relative_poses
 
 __all__ = [
     "CARMEN_DEFAULT_MAX_RANGE_M",
-    "NO_RETURN_MIN_COUNT",
     "CarmenComment",
     "CarmenLaser",
     "CarmenOdometry",
@@ -656,9 +655,10 @@ def read_carmen(
         old_style = np.isnan(per_msg)
         if _param_key(laser) not in params:
             sentinel = no_return_reading(
-                [r for r, old in zip(stream.ranges, old_style, strict=True) if old]
+                [r for r, old in zip(stream.ranges, old_style, strict=True) if old],
+                below=default_max,
             )
-            if sentinel is not None and sentinel[0] < default_max:
+            if sentinel is not None:
                 default_max, times_seen = sentinel
                 max_range_from = (
                     f"{times_seen} readings of exactly {default_max:g} m, the log's largest, "
@@ -716,11 +716,14 @@ NO_RETURN_BAND_M = 1.0
 NO_RETURN_MIN_DISTINCT = 100
 
 
-def no_return_reading(ranges: list[NDArray[np.float64]]) -> tuple[float, int] | None:
+def no_return_reading(
+    ranges: list[NDArray[np.float64]], below: float = math.inf
+) -> tuple[float, int] | None:
     """The value a laser writes for "no return", found in its readings: the largest finite
-    reading, when it recurs (:data:`NO_RETURN_MIN_COUNT`, :data:`NO_RETURN_RATIO`) as a
-    measured distance does not, among many measured distances
-    (:data:`NO_RETURN_MIN_DISTINCT`); with its count. ``None``: no such value."""
+    reading, when it lies below ``below`` (a maximum that already makes it no-return) and
+    recurs (:data:`NO_RETURN_MIN_COUNT`, :data:`NO_RETURN_RATIO`) as a measured distance does
+    not, among many measured distances (:data:`NO_RETURN_MIN_DISTINCT`); with its count.
+    ``None``: no such value."""
     if not ranges:
         return None
     r = np.concatenate(ranges)
@@ -729,13 +732,14 @@ def no_return_reading(ranges: list[NDArray[np.float64]]) -> tuple[float, int] | 
         return None
     top = float(r.max())
     count = int(np.count_nonzero(r == top))
-    if count < NO_RETURN_MIN_COUNT:
+    if top >= below or count < NO_RETURN_MIN_COUNT:
         return None
-    if np.unique(r[r < top]).size < NO_RETURN_MIN_DISTINCT:
+    rest = r[r < top]
+    if np.unique(rest).size < NO_RETURN_MIN_DISTINCT:
         return None
-    below = r[(r < top) & (r >= top - NO_RETURN_BAND_M)]
-    if below.size:
-        _, counts = np.unique(below, return_counts=True)
+    near = rest[rest >= top - NO_RETURN_BAND_M]
+    if near.size:
+        _, counts = np.unique(near, return_counts=True)
         if count < NO_RETURN_RATIO * int(counts.max()):
             return None
     return top, count

@@ -248,8 +248,8 @@ def pair_truth(
     offset = float(np.median(diffs))
     # the timestamps check the pairs only where they agree for most unique twins (docstring)
     times_used = True
-    if unique:
-        late = np.abs(diffs - np.interp(anchor_t, anchor_t[order], smooth[order])) > time_tol_s
+    if unique:  # the residual the walk below would see at each unique twin
+        late = np.abs(diffs - offsets[tj]) > time_tol_s
         times_used = bool(np.count_nonzero(late) * 2 <= late.size)
 
     pairs_raw: list[int] = []
