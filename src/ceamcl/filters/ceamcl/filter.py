@@ -690,18 +690,9 @@ class CEAMCL:
         found = fine[int(np.argmax(lf))]
         # departure 32: the found pose beats the species' best by the margin once both pay for
         # the readings they send through the map's walls, as the evidence weighs them
-        wall_margin = cfg.see_through_margin_m
-        if wall_margin is not None and self.last_scan is not None:
-            lost = see_through_penalty(
-                self.grid,
-                self.sensor,
-                np.vstack([found, centre]),
-                self.last_scan,
-                wall_margin,
-                cfg.see_through_tolerance,
-            )
-            if (float(lf.max()) + lost[0]) - (here + lost[1]) < cfg.look_around_margin:
-                return evaluations
+        lost = self._through_walls(np.vstack([found, centre]))
+        if (float(lf.max()) + lost[0]) - (here + lost[1]) < cfg.look_around_margin:
+            return evaluations
         # the found pose's fitness as the state reads a lone species': without the short
         # readings it cannot explain (beam skipping)
         there = full
@@ -724,6 +715,22 @@ class CEAMCL:
         self._peak_fitness[sid] = fit
         self.events.look_arounds += 1
         return evaluations
+
+    def _through_walls(self, poses: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Per pose, what the last scan's readings through the map's walls cost it in tempered
+        log-likelihood (``see_through_margin_m``, ``see_through_tolerance``; departure 4): the
+        evidence's penalty, 0 when the check is off or no scan was seen."""
+        margin = self.config.see_through_margin_m
+        if margin is None or self.last_scan is None:
+            return np.zeros(len(poses))
+        return see_through_penalty(
+            self.grid,
+            self.sensor,
+            poses,
+            self.last_scan,
+            margin,
+            self.config.see_through_tolerance,
+        )
 
     def _mutation_cloud(self, centre: NDArray[np.float64], n: int) -> NDArray[np.float64]:
         """``n`` poses around ``centre`` with the mutation's Sigma, the first on ``centre``
@@ -812,18 +819,10 @@ class CEAMCL:
         ll = self.particle_set.loglik if best_seen is None else best_seen
         living = {sid: idx for sid, idx in members.items() if idx.size}
         top = {sid: float(np.max(ll[idx])) for sid, idx in living.items()}  # never +inf
-        margin = self.config.see_through_margin_m
-        if see_through and margin is not None and self.last_scan is not None and top:
+        if see_through and self.config.see_through_margin_m is not None and top:
             # the samples at each species' best (a crossover pair shares its children's)
             best = [idx[ll[idx] == top[sid]] for sid, idx in living.items()]
-            penalty = see_through_penalty(
-                self.grid,
-                self.sensor,
-                self.particle_set.poses[np.concatenate(best)],
-                self.last_scan,
-                margin,
-                self.config.see_through_tolerance,
-            )
+            penalty = self._through_walls(self.particle_set.poses[np.concatenate(best)])
             ends = np.cumsum([b.size for b in best])
             top = {
                 sid: v + float(np.max(part))
