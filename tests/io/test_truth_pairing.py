@@ -176,6 +176,12 @@ def test_timestamps_too_coarse_to_check_leave_ranges_and_order() -> None:
     assert not p.times_used
     assert p.raw_index.tolist() == kept
     assert "paired by ranges and order alone" in p.summary()
+    assert "more than 0.5 s from the clock offset" in p.summary()
+    # a wider tolerance let half of these twins agree with an offset fitted to nothing, and
+    # two of the six pairs were lost: a clock that repeats itself checks nothing either way
+    wide = pair_truth(raw, corrected, time_tol_s=2.0)
+    assert "more than 2 s from" in wide.summary()
+    assert not wide.times_used and wide.raw_index.tolist() == kept
     # with usable times the same log is checked by them
     timed = make_log([scans[k] for k in kept], [0.37 * k for k in kept], "corrected")
     q = pair_truth(raw, timed)

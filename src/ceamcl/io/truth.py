@@ -23,9 +23,10 @@ Pairing, in order:
 
 **Timestamps that cannot check.** Some corrected logs print their timestamps too coarsely to
 check anything (GMapping's ``.gfs.log`` of the Belgioioso castle writes ``1.01893e+09``: ten
-thousand seconds a step) or on another clock. When more than half of the corrected scans whose
-ranges name exactly one raw scan lie beyond ``time_tol_s`` of the clock offset (with usable
-timestamps: none of 910 on intel, none of 4,791 on fr079), the timestamps are not used: each
+thousand seconds a step) or on another clock. When most of the corrected log's timestamps
+repeat the one before, or more than half of the corrected scans whose ranges name exactly one
+raw scan lie beyond ``time_tol_s`` of the clock offset (with usable timestamps: none of 910 on
+intel, none of 4,791 on fr079), the timestamps are not used: each
 corrected scan is paired with the first raw scan of the same key after the last pair, ranges
 and order alone (a repeat is a robot standing still, so the first repeat is where it stood).
 The summary says so (``TruthPairing.times_used``).
@@ -86,8 +87,9 @@ class TruthPairing:
     truth_poses: the raw log's robot pose at each pair (module docstring, "whose pose").
     clock_offset_s: raw time minus corrected time, as estimated (median over the run).
     max_time_residual_s: the largest ``|raw_t - offset - truth_t|`` among the pairs.
-    times_used: the timestamps checked the pairs; ``False`` when they could not (module
-        docstring, "Timestamps that cannot check"): paired by ranges and order alone.
+    times_used: the timestamps checked the pairs, within ``time_tol_s``; ``False`` when they
+        could not (module docstring, "Timestamps that cannot check"): paired by ranges and
+        order alone.
     mount_moved: pairs whose two laser mounts differ, where the truth was moved by them.
     mount_shift_m: the largest distance the truth was moved (0 when none).
     suggested_mount: the laser's position ``(x, y)`` on the robot that the corrected poses and
@@ -105,6 +107,7 @@ class TruthPairing:
     clock_offset_s: float
     max_time_residual_s: float
     times_used: bool = True
+    time_tol_s: float = DEFAULT_TIME_TOL_S
     mount_moved: int = 0
     mount_shift_m: float = 0.0
     suggested_mount: tuple[float, float] | None = None
@@ -142,9 +145,9 @@ class TruthPairing:
             f"clock offset {self.clock_offset_s:.3f} s, largest residual "
             f"{self.max_time_residual_s:.3f} s"
             if self.times_used
-            else "paired by ranges and order alone: the timestamps of most scans with a unique "
-            f"twin disagree with the clock offset by more than {DEFAULT_TIME_TOL_S} s, too "
-            "coarse or of another clock"
+            else "paired by ranges and order alone: the corrected log's timestamps cannot check "
+            "the pairs (most repeat the one before, or most scans with a unique twin lie more "
+            f"than {self.time_tol_s:g} s from the clock offset: too coarse or of another clock)"
         )
         return (
             f"{self.n_matched} of {self.n_truth} scans of {self.truth_path} matched among "
@@ -248,7 +251,9 @@ def pair_truth(
     offset = float(np.median(diffs))
     # the timestamps check the pairs only where they agree for most unique twins (docstring)
     times_used = True
-    if unique:  # the residual the walk below would see at each unique twin
+    if truth_t.size > 1:  # a clock that cannot tell most consecutive scans apart
+        times_used = bool(np.count_nonzero(np.diff(truth_t) > 0) * 2 > truth_t.size - 1)
+    if unique and times_used:  # the residual the walk below would see at each unique twin
         late = np.abs(diffs - offsets[tj]) > time_tol_s
         times_used = bool(np.count_nonzero(late) * 2 <= late.size)
 
@@ -295,6 +300,7 @@ def pair_truth(
         clock_offset_s=offset,
         max_time_residual_s=max(residuals),
         times_used=times_used,
+        time_tol_s=time_tol_s,
         mount_moved=int(np.count_nonzero(moved)),
         mount_shift_m=float(shift.max()) if shift.size else 0.0,
         suggested_mount=suggested,
