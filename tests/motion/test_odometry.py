@@ -13,6 +13,7 @@ from ceamcl.motion.odometry import (
     OdometryNoise,
     apply_increment,
     increment_between,
+    synthetic_odometry,
 )
 
 # Small enough that the sampled translation stays positive (0.5 m is > 6 standard deviations
@@ -170,6 +171,53 @@ def test_a_robot_backing_up_in_steps_under_a_centimetre_ends_behind_its_start() 
     assert increment_between(poses[0], poses[1]).variances(NOISE) == pytest.approx(
         forward.variances(NOISE)
     )
+
+
+def test_synthetic_odometry_of_a_track_jittering_sideways_does_not_turn() -> None:
+    # A SLAM track of a robot standing still: the estimate jitters 2-3 cm sideways and back
+    # at every scan, the heading within a milliradian. Wheels made no turn, so odometry made
+    # from the track must not turn either; the filter's model (Nav2's) reads each step as a
+    # turn out of pi/2 and back, and drawing the odometry with it turned the synthetic robot
+    # by about 0.22 rad a scan (alpha1 0.02).
+    rng = np.random.default_rng(7)
+    k = np.arange(41)
+    side = np.where(k % 2 == 1, 0.025, 0.0) + 0.005 * rng.standard_normal(41)
+    track = np.column_stack([0.001 * rng.standard_normal(41), side, 0.001 * np.sin(k)])
+    noise = OdometryNoise(0.02, 0.02, 0.02, 0.02)
+    inc = increment_between(track[0], track[1])
+    assert abs(abs(inc.rot1) - np.pi / 2) < 0.5  # sideways: a turn out and back for the model
+    assert inc.variances(noise)[0] > 0.02  # the filter's model keeps its noise
+    assert inc.wheel_variances(noise)[0] < 1e-4  # the turn made: none, as the wheels saw
+    turned = []
+    for seed in range(20):
+        odom = synthetic_odometry(track, noise, np.random.default_rng(seed))
+        turned.append(np.abs(wrap(np.diff(odom[:, 2]))).max())
+    # per scan: 0.01-0.02 rad at the worst scan of each seed; 0.6-1.1 rad with the model's noise
+    assert max(turned) < 0.05
+
+
+def test_wheel_variances_are_the_models_for_a_step_wheels_can_make() -> None:
+    # Every step of a wheeled robot travels between its old and new heading (forwards or
+    # backwards): driving straight, turning on the spot, an arc, a reversing arc. Those keep
+    # the model's variances bit for bit (the simulator's runs do not change).
+    start = np.array([1.0, 2.0, 0.4])
+    offsets = np.array(
+        [
+            [0.3 * np.cos(0.4), 0.3 * np.sin(0.4), 0.0],
+            [0.0, 0.0, 0.5],
+            [0.2 * np.cos(0.55), 0.2 * np.sin(0.55), 0.3],
+            [-0.2 * np.cos(0.3), -0.2 * np.sin(0.3), -0.2],
+            [0.004, 0.0, 2.9],
+        ]
+    )
+    for offset in offsets:
+        inc = increment_between(start, start + offset)
+        assert inc.wheel_variances(NOISE) == inc.variances(NOISE)
+    # a step that leaves the sweep by 0.3 rad is charged for the turn within it only
+    odd = increment_between(start, start + np.array([0.2 * np.cos(0.9), 0.2 * np.sin(0.9), 0.2]))
+    v = odd.wheel_variances(NOISE)
+    assert v[0] == pytest.approx(NOISE.alpha1 * 0.2**2 + NOISE.alpha2 * 0.2**2)
+    assert v[2] == pytest.approx(NOISE.alpha2 * 0.2**2, abs=1e-12)
 
 
 def test_zero_motion_is_zero_increment_and_adds_no_noise() -> None:

@@ -86,6 +86,31 @@ class OdometryIncrement:
             noise.alpha1 * r2**2 + noise.alpha2 * t**2,
         )
 
+    def wheel_variances(self, noise: OdometryNoise) -> tuple[float, float, float]:
+        """:meth:`variances` for a step that wheels could have made, read from a pose track.
+
+        A wheeled robot travels in a direction between its heading before and after the step
+        (forwards or backwards). A track that moves sideways, as a SLAM estimate jitters while
+        the robot stands or turns on the spot, decomposes into a turn out of about pi/2 and a
+        turn back, and ``alpha1 * rot1^2`` makes that a random turn of about
+        ``sqrt(alpha1) * pi/2`` (0.22 rad with alpha 0.02) that the wheels never made. Here the
+        rotation noise of such a step is that of the turn the robot made: ``rot1`` clipped into
+        the sweep of headings, ``rot2`` the rest of the change of heading. Inside the sweep the
+        step keeps :meth:`variances` exactly."""
+        back = abs(float(diff(self.rot1, np.pi))) < abs(float(diff(self.rot1, 0.0)))
+        along = float(diff(self.rot1, np.pi)) if back else float(diff(self.rot1, 0.0))
+        turn = float(diff(self.rot1 + self.rot2, 0.0))
+        r1 = min(max(along, min(0.0, turn)), max(0.0, turn))
+        if r1 == along:
+            return self.variances(noise)
+        r2 = turn - r1
+        t = self.trans
+        return (
+            noise.alpha1 * r1**2 + noise.alpha2 * t**2,
+            noise.alpha3 * t**2 + noise.alpha4 * (r1**2 + r2**2),
+            noise.alpha1 * r2**2 + noise.alpha2 * t**2,
+        )
+
 
 def _odometry_pose(pose: ArrayLike, name: str) -> NDArray[np.float64]:
     """``pose`` as three numbers ``(x, y, theta)``; a one-line error naming ``name`` else."""
@@ -147,12 +172,19 @@ class OdometryMotionModel:
         poses: ArrayLike,
         increment: OdometryIncrement,
         rng: np.random.Generator,
+        *,
+        wheels: bool = False,
     ) -> NDArray[np.float64]:
-        """New poses ``(N, 3)``: each input pose moved by a noisy copy of ``increment``."""
+        """New poses ``(N, 3)``: each input pose moved by a noisy copy of ``increment``.
+
+        ``wheels``: the noise of :meth:`OdometryIncrement.wheel_variances` (odometry made
+        from a pose track), not of :meth:`OdometryIncrement.variances` (the filter's model,
+        Nav2's)."""
         check_rng(rng)
         p = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
         n = p.shape[0]
-        v_rot1, v_trans, v_rot2 = increment.variances(self.noise)
+        variances = increment.wheel_variances if wheels else increment.variances
+        v_rot1, v_trans, v_rot2 = variances(self.noise)
         noise = rng.standard_normal((n, 3))
         rot1 = increment.rot1 - noise[:, 0] * np.sqrt(v_rot1)
         trans = increment.trans - noise[:, 1] * np.sqrt(v_trans)
@@ -167,7 +199,9 @@ def synthetic_odometry(
     *,
     kidnapped_at: Sequence[int] = (),
 ) -> NDArray[np.float64]:
-    """Odometry poses ``(T, 3)``: the true increments, each perturbed by the odometry model.
+    """Odometry poses ``(T, 3)``: the true increments, each perturbed by the odometry model
+    with the rotation noise of the turn a wheeled robot made (``wheels=True`` of
+    :meth:`OdometryMotionModel.sample`: a track's sideways jitter is no turn).
 
     Serves the simulator and corrected real logs (which hold no raw odometry). At the steps in
     ``kidnapped_at`` the robot is lifted and carried: the wheels do not turn, so the odometry
@@ -186,5 +220,5 @@ def synthetic_odometry(
             odom[k] = odom[k - 1]
             continue
         inc = increment_between(truth[k - 1], truth[k])
-        odom[k] = model.sample(odom[k - 1 : k], inc, rng)[0]
+        odom[k] = model.sample(odom[k - 1 : k], inc, rng, wheels=True)[0]
     return odom
