@@ -79,12 +79,7 @@ class OdometryIncrement:
         as Nav2's differential model folds it: the smaller of it and its difference to pi)."""
         r1 = min(abs(float(diff(self.rot1, 0.0))), abs(float(diff(self.rot1, np.pi))))
         r2 = min(abs(float(diff(self.rot2, 0.0))), abs(float(diff(self.rot2, np.pi))))
-        t = self.trans
-        return (
-            noise.alpha1 * r1**2 + noise.alpha2 * t**2,
-            noise.alpha3 * t**2 + noise.alpha4 * (r1**2 + r2**2),
-            noise.alpha1 * r2**2 + noise.alpha2 * t**2,
-        )
+        return _table_5_6(noise, r1, self.trans, r2)
 
     def wheel_variances(self, noise: OdometryNoise) -> tuple[float, float, float]:
         """:meth:`variances` for a step that wheels could have made, read from a pose track.
@@ -103,13 +98,17 @@ class OdometryIncrement:
         r1 = min(max(along, min(0.0, turn)), max(0.0, turn))
         if r1 == along:
             return self.variances(noise)
-        r2 = turn - r1
-        t = self.trans
-        return (
-            noise.alpha1 * r1**2 + noise.alpha2 * t**2,
-            noise.alpha3 * t**2 + noise.alpha4 * (r1**2 + r2**2),
-            noise.alpha1 * r2**2 + noise.alpha2 * t**2,
-        )
+        return _table_5_6(noise, r1, self.trans, turn - r1)
+
+
+def _table_5_6(noise: OdometryNoise, r1: float, t: float, r2: float) -> tuple[float, float, float]:
+    """The variances of ``rot1``, ``trans`` and ``rot2`` for turns ``r1``, ``r2`` and travel
+    ``t`` (Table 5.6)."""
+    return (
+        noise.alpha1 * r1**2 + noise.alpha2 * t**2,
+        noise.alpha3 * t**2 + noise.alpha4 * (r1**2 + r2**2),
+        noise.alpha1 * r2**2 + noise.alpha2 * t**2,
+    )
 
 
 def _odometry_pose(pose: ArrayLike, name: str) -> NDArray[np.float64]:
