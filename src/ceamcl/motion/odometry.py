@@ -15,6 +15,10 @@ As in ROS amcl's differential model, the rotation noise uses the smaller of ``ro
 (forwards) or pi (backwards) by the sign of the displacement along the old heading: a
 reversing robot whose odometry is read at every scan moves in steps that small, and a ``rot1``
 of 0 would carry it forwards by as much as it backed up.
+
+:func:`synthetic_odometry` (the simulator's odometry, and a corrected log's) draws the noise of
+each step of a pose track from :meth:`OdometryIncrement.wheel_variances`: a step that travels
+sideways, as a SLAM track jitters while the robot stands, is no turn.
 """
 
 from __future__ import annotations
