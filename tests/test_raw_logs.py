@@ -531,7 +531,7 @@ def test_a_look_around_does_not_move_the_track_through_walls() -> None:
     0.55 m off and the window failed to hold. The look-around now compares the two as the
     evidence does, each paying for its readings through walls (docs/ceamcl.md, departure 32)."""
     need(RAW, CORRECTED)
-    from ceamcl.experiments.evaluate_log import LogTrial, run_log_trial
+    from ceamcl.experiments.evaluate_log import log_trials, run_log_trial
     from ceamcl.experiments.log_windows import start_windows
     from ceamcl.experiments.metrics import DEFAULT_HOLD_M
     from ceamcl.replay import UpdatePace, obtain_map, prepare_log
@@ -539,17 +539,9 @@ def test_a_look_around_does_not_move_the_track_through_walls() -> None:
     prepared = prepare_log(RAW, truth_from=CORRECTED)
     grid, _ = obtain_map(prepared.map_log, None, own=False)
     windows, _ = start_windows(prepared.log, 5)
-    start, stop = windows[1]
-    assert start == 1048
-    trial = LogTrial(
-        name="ceamcl@1048",
-        algorithm="ceamcl",
-        start_index=start,
-        grid=grid,
-        log=prepared.log.window(start, stop),
-        seed=0,
-        pace=UpdatePace(),
-        hold_m=DEFAULT_HOLD_M,
+    assert windows[1][0] == 1048
+    (trial,) = log_trials(
+        prepared, grid, ["ceamcl"], windows[1:2], pace=UpdatePace(), hold_m=DEFAULT_HOLD_M
     )
     result = run_log_trial(trial)
     assert result.success

@@ -251,22 +251,14 @@ def test_the_synthetic_odometry_does_not_turn_the_robot_off_the_track_while_it_s
     read each jitter as a turn out of pi/2 and back, turning the robot about a radian at
     random; the species followed it off the track and found the truth again too late to hold
     (docs/real-data.md, "Synthetic odometry that does not turn with the SLAM's jitter")."""
-    from ceamcl.experiments.evaluate_log import LogTrial, run_log_trial
+    from ceamcl.experiments.evaluate_log import log_trials, run_log_trial
     from ceamcl.experiments.metrics import DEFAULT_HOLD_M
 
     prepared = prepare_log(log_path("freiburg-079"), seed=2)
     grid, _ = obtain_map(prepared.map_log, None, own=True)
     windows, _ = start_windows(prepared.log, 10, window_m=50.0)
-    ((start, stop),) = [w for w in windows if w[0] == 684]
-    trial = LogTrial(
-        name="ceamcl@684",
-        algorithm="ceamcl",
-        start_index=start,
-        grid=grid,
-        log=prepared.log.window(start, stop),
-        seed=2,
-        hold_m=DEFAULT_HOLD_M,
-    )
+    at_684 = [w for w in windows if w[0] == 684]
+    (trial,) = log_trials(prepared, grid, ["ceamcl"], at_684, hold_m=DEFAULT_HOLD_M)
     result = run_log_trial(trial)
     assert result.success
     assert not result.confidently_wrong

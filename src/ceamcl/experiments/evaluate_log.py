@@ -226,6 +226,38 @@ def aggregate(results: Sequence[LogTrialResult], algorithms: Sequence[str]) -> l
     return rows
 
 
+def log_trials(
+    prepared: PreparedLog,
+    grid: OccupancyGrid,
+    algorithms: Sequence[str],
+    windows: Sequence[tuple[int, int]],
+    *,
+    hold: int = HOLD_STEPS,
+    hold_m: float | None = None,
+    pace: UpdatePace | None = None,
+    sensor: str = DEFAULT_SENSOR,
+) -> list[LogTrial]:
+    """The runs :func:`evaluate_log` makes: each algorithm on each window ``(start, stop)``
+    of the prepared log, seeded with the log's seed."""
+    log = prepared.log
+    return [
+        LogTrial(
+            name=f"{algo}@{s}",
+            algorithm=algo,
+            start_index=s,
+            grid=grid,
+            log=log.window(s, e),
+            seed=prepared.seed,
+            hold=hold,
+            pace=pace,
+            hold_m=hold_m,
+            sensor=sensor,
+        )
+        for s, e in windows
+        for algo in algorithms
+    ]
+
+
 def evaluate_log(
     prepared: PreparedLog,
     grid: OccupancyGrid,
@@ -269,22 +301,9 @@ def evaluate_log(
     windows, window_what = start_windows(
         log, starts, scans=scans, window_s=window_s, window_m=window_m
     )
-    trials = [
-        LogTrial(
-            name=f"{algo}@{s}",
-            algorithm=algo,
-            start_index=s,
-            grid=grid,
-            log=log.window(s, e),
-            seed=prepared.seed,
-            hold=hold,
-            pace=pace,
-            hold_m=hold_m,
-            sensor=sensor,
-        )
-        for s, e in windows
-        for algo in algorithms
-    ]
+    trials = log_trials(
+        prepared, grid, algorithms, windows, hold=hold, hold_m=hold_m, pace=pace, sensor=sensor
+    )
     batch = Batch(executor, workers, progress, quiet)
     results = batch.run(run_log_trial, trials, f"evaluate {log.name}")
     table = aggregate(results, algorithms)
