@@ -74,9 +74,14 @@ class OdometryIncrement:
         backwards (``rot1`` nearer pi than 0) is no turn, so ``rot1`` counts from pi and
         ``rot2`` from -pi then; the two add up to the change of heading. (Not the noise's
         fold of :meth:`variances`, which also reads a ``rot2`` near pi as small.)"""
-        back = abs(float(diff(self.rot1, np.pi))) < abs(float(diff(self.rot1, 0.0)))
-        shift = np.pi if back else 0.0
+        shift = self._travel_shift()
         return abs(float(diff(self.rot1, shift))), abs(float(diff(self.rot2, -shift)))
+
+    def _travel_shift(self) -> float:
+        """pi when the robot travels backwards (``rot1`` nearer pi than 0), else 0: what
+        ``rot1`` counts from as a turn."""
+        back = abs(float(diff(self.rot1, np.pi))) < abs(float(diff(self.rot1, 0.0)))
+        return np.pi if back else 0.0
 
     def variances(self, noise: OdometryNoise) -> tuple[float, float, float]:
         """Variances of the three components under ``noise`` (Table 5.6; each rotation folded
@@ -96,8 +101,7 @@ class OdometryIncrement:
         rotation noise of such a step is that of the turn the robot made: ``rot1`` clipped into
         the sweep of headings, ``rot2`` the rest of the change of heading. Inside the sweep the
         step keeps :meth:`variances` exactly."""
-        back = abs(float(diff(self.rot1, np.pi))) < abs(float(diff(self.rot1, 0.0)))
-        along = float(diff(self.rot1, np.pi)) if back else float(diff(self.rot1, 0.0))
+        along = float(diff(self.rot1, self._travel_shift()))
         turn = float(diff(self.rot1 + self.rot2, 0.0))
         r1 = min(max(along, min(0.0, turn)), max(0.0, turn))
         if r1 == along:
