@@ -189,7 +189,7 @@ def test_ctrl_c_exits_130_with_one_line_and_removes_the_new_output_folder(
     proc = subprocess.Popen(
         [sys.executable, "-m", "ceamcl", "demo", "--out", "new/out", "--quiet"],
         cwd=tmp_path,
-        env=_env(),
+        env=_env({"PYTHONFAULTHANDLER": "1"}),  # a crash shows where
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,

@@ -169,12 +169,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             warnings.simplefilter("always", InputWarning)
             warnings.showwarning = _show_warning
             code: int = args.run(args, console)
-            if interrupt.swallowed():
+            if interrupt.pending():
                 # Ctrl-C landed where Python drops exceptions (a finaliser, a garbage
-                # collector's callback) and the command returned before it was raised again:
-                # it was interrupted all the same
-                interrupt.consume()
-                raise KeyboardInterrupt
+                # collector's callback) or in the compiler, where it waits, and the command
+                # returned before it was raised again: it was interrupted all the same
+                raise interrupt.consume()
         ok = True  # a command that returns has written its results (soak exits 1 on a finding)
     except CeamclError as exc:
         print(f"ceamcl: error: {exc}", file=sys.stderr)
