@@ -40,14 +40,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ceamcl.filters.base import Hypothesis, PoseEstimate, require_initialised
-from ceamcl.sensors.map_agreement import EXPLAINED_TOL_M, explained_share
+from ceamcl.sensors.map_agreement import EXPLAINED_TOL_M, end_points, explained_share
 from ceamcl.sensors.scan import prepare_scan
 from ceamcl.sensors.see_through import readings_through_walls
 
 if TYPE_CHECKING:
     from ceamcl.filters.particles import ParticleSet
     from ceamcl.maps.grid import OccupancyGrid
-    from ceamcl.sensors.scan import LaserScan
+    from ceamcl.sensors.scan import LaserScan, PreparedScan
 
 
 class State(enum.Enum):
@@ -366,6 +366,7 @@ class MapAgreement:
         self._streak = 0
         self._share = math.nan
         self._pose: NDArray[np.float64] | None = None
+        self._hits: tuple[int, LaserScan, PreparedScan] | None = None
 
     def observe(
         self, step: int, scan: LaserScan | None, pose: NDArray[np.float64]
@@ -401,7 +402,15 @@ class MapAgreement:
             return self._share
         if scan is None:
             return math.nan
-        return explained_share(self.grid, p, scan, self.thresholds.explained_tol_m)
+        # the scan's end points, prepared once an update: the leading pose and the anchor's
+        # (CEAMCL, departure 18) judge the same scan
+        if scan.n_beams == 0:
+            return math.nan  # nothing to judge (explained_share's answer)
+        if self._hits is None or self._hits[0] != step or self._hits[1] is not scan:
+            self._hits = (step, scan, end_points(scan))
+        return explained_share(
+            self.grid, p, scan, self.thresholds.explained_tol_m, hits=self._hits[2]
+        )
 
     def _judged(self, step: int, pose: NDArray[np.float64]) -> bool:
         """Was ``step`` read at ``pose`` last?"""

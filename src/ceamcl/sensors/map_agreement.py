@@ -22,25 +22,37 @@ from numpy.typing import ArrayLike
 
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.sensors.beam_skip import near_obstacle
-from ceamcl.sensors.scan import LaserScan, prepare_scan
+from ceamcl.sensors.scan import LaserScan, PreparedScan, prepare_scan
 
 #: An end point counts as explained within this distance of an obstacle of the map (m).
 EXPLAINED_TOL_M = 0.15
 
 
+def end_points(scan: LaserScan) -> PreparedScan:
+    """The readings of ``scan`` that :func:`explained_share` judges: every usable reading short
+    of the maximum (a caller that judges one scan at several poses prepares them once)."""
+    return prepare_scan(scan, scan.n_beams, keep_max_range=False)
+
+
 def explained_share(
-    grid: OccupancyGrid, pose: ArrayLike, scan: LaserScan, tol_m: float = EXPLAINED_TOL_M
+    grid: OccupancyGrid,
+    pose: ArrayLike,
+    scan: LaserScan,
+    tol_m: float = EXPLAINED_TOL_M,
+    hits: PreparedScan | None = None,
 ) -> float:
     """The share of ``scan``'s end points (every usable reading short of the maximum) within
     ``tol_m`` of an occupied cell of ``grid`` when the scan is taken at ``pose`` (3,); NaN when
-    no reading ends (a scan without beams too) or the pose is not finite (nothing to judge)."""
+    no reading ends (a scan without beams too) or the pose is not finite (nothing to judge).
+    ``hits``: :func:`end_points` of ``scan``, when already prepared."""
     p = np.asarray(pose, dtype=np.float64).reshape(3)
     if not np.all(np.isfinite(p)) or scan.n_beams == 0:
         return math.nan
-    hits = prepare_scan(scan, scan.n_beams, keep_max_range=False)
+    if hits is None:
+        hits = end_points(scan)
     if hits.n_beams == 0:
         return math.nan
     return float(near_obstacle(grid, p, hits, tol_m).mean())
 
 
-__all__ = ["EXPLAINED_TOL_M", "explained_share"]
+__all__ = ["EXPLAINED_TOL_M", "end_points", "explained_share"]
