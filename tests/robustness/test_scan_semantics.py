@@ -8,7 +8,14 @@ import pytest
 from ceamcl.errors import CeamclError
 from ceamcl.filters import ALGORITHMS
 from ceamcl.motion.odometry import OdometryIncrement
-from ceamcl.sensors.scan import LaserGeometry, LaserScan, classify_ranges, prepare_scan
+from ceamcl.sensors.scan import (
+    LaserGeometry,
+    LaserScan,
+    PreparedScan,
+    classify_ranges,
+    prepare_scan,
+    prepare_scan_reference,
+)
 from tests.robustness._filters import assert_all_finite, small_filter, small_sensor
 from tests.robustness.conftest import box_grid
 
@@ -33,6 +40,39 @@ def test_each_reading_class_follows_rep_117() -> None:
     assert dropped.n_beams == 3 and dropped.informative
     for prepared in (kept, dropped, prepare_scan(scan, 4, keep_max_range=True)):
         np.testing.assert_array_equal(prepared.bearings, scan.angles[prepared.source_indices])
+
+
+def _fields(p: PreparedScan) -> tuple[object, ...]:
+    arrays = (p.ranges, p.bearings, p.is_max, p.source_indices)
+    counts = (p.range_max, p.laser_pose, p.n_beams, p.n_nan, p.n_too_close, p.n_invalid)
+    return (
+        tuple(a.tolist() for a in arrays)
+        + tuple(a.dtype for a in arrays)
+        + counts
+        + (p.n_max_range,)
+    )
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_compiled_preparation_equals_the_numpy_reference(seed: int) -> None:
+    """Every reading class, every selection size, both max-range policies, field for field
+    (dtypes included); the selected arrays are the scan's own values, never views into it."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 400))
+    specials = np.array([np.nan, np.inf, -np.inf, 0.0, -1.0, 0.01, 8.0, 9.5])
+    r = rng.uniform(0.0, 9.0, n)
+    hit = rng.random(n) < 0.3
+    r[hit] = rng.choice(specials, int(hit.sum()))
+    scan = LaserScan(r, -2.0, 4.0 / max(n, 1), 0.02, 8.0, (0.1, -0.05, 0.2), 3.0)
+    for max_beams in (1, 2, 7, 60, n, n + 5):
+        for keep in (True, False):
+            fast = prepare_scan(scan, max_beams, keep_max_range=keep)
+            assert _fields(fast) == _fields(
+                prepare_scan_reference(scan, max_beams, keep_max_range=keep)
+            )
+            before = scan.ranges.copy()
+            fast.ranges[:] = -7.0
+            np.testing.assert_array_equal(scan.ranges, before)
 
 
 @pytest.mark.parametrize("model", ["likelihood-field", "beam"])
