@@ -8,6 +8,7 @@ here is computed from arrays ``poses (N, 3)``, ``species (N,)``, ``loglik (N,)``
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numba
@@ -88,8 +89,15 @@ def _collect(
     heading_sd: NDArray[np.float64],
     fit: NDArray[np.float64],
     best: NDArray[np.float64],
+    domains: Callable[
+        [NDArray[np.float64]],
+        tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]],
+    ]
+    | None = None,
 ) -> dict[int, SpeciesStats]:
-    dv, axes, area = living_domains(cov_xy)
+    """The stats of every species from the per-species sums; ``domains``: how the living
+    domains are computed (:func:`living_domains`, or its NumPy reference for the reference)."""
+    dv, axes, area = (living_domains if domains is None else domains)(cov_xy)
     out: dict[int, SpeciesStats] = {}
     for k, sid in enumerate(ids.tolist()):
         a, b = int(starts[k]), int(starts[k] + counts[k])
@@ -263,13 +271,182 @@ def all_species_stats_reference(
     heading_sd = np.sqrt(np.minimum(-2.0 * c_library(math.log, resultant), np.pi**2))
     fit = total(fitness[order]) / n
     best = np.maximum.reduceat(fitness[order], starts)
-    return _collect(ids, order, starts, counts, w, mean, cov, cov_xy, heading_sd, fit, best)
+    return _collect(
+        ids,
+        order,
+        starts,
+        counts,
+        w,
+        mean,
+        cov,
+        cov_xy,
+        heading_sd,
+        fit,
+        best,
+        living_domains_reference,
+    )
 
 
 def living_domains(
     cov_xy: NDArray[np.float64],
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """:func:`~ceamcl.filters.ceamcl.competition.living_domain` over a stack ``(S, 2, 2)``."""
+    """:func:`~ceamcl.filters.ceamcl.competition.living_domain` over a stack ``(S, 2, 2)``:
+    the variances along the domain's axes ``(S, 2)`` (ascending), the axes ``(S, 2, 2)`` (as
+    columns) and the areas ``(S,)``.
+
+    One compiled pass (:func:`_living_domains`), equal bit for bit to
+    :func:`living_domains_reference`, its NumPy form: ``np.linalg.eigh`` of one 2 x 2 matrix
+    cost about 35 us inside a filter update (its LAPACK code cold in the caches, against 5 us
+    in a loop), the largest single cost of a tracking update's species statistics. A matrix
+    LAPACK would rescale first (largest entry below about 1e-146 or above 1e146) is left to
+    NumPy."""
+    c = np.ascontiguousarray(cov_xy, dtype=np.float64).reshape(-1, 2, 2)
+    d, u, area, exact = _living_domains(c)
+    if not exact.all():
+        rest = ~exact
+        d[rest], u[rest], area[rest] = living_domains_reference(c[rest])
+    return d, u, area
+
+
+#: LAPACK's machine constants (``dlamch``) and the bounds within which ``dsyevd`` and
+#: ``dsteqr`` leave a matrix unscaled.
+_EPS = 2.0**-53
+_EPS2 = _EPS * _EPS
+_SAFMIN = 2.0**-1022
+_SSFMAX = math.sqrt(1.0 / _SAFMIN) / 3.0
+_SSFMIN = math.sqrt(_SAFMIN) / _EPS2
+_RMIN = math.sqrt(_SAFMIN / 2.0**-52)
+_RMAX = math.sqrt(1.0 / (_SAFMIN / 2.0**-52))
+_FOUR_PI = 4.0 * np.pi
+
+
+@numba.njit(cache=True, inline="always")
+def _laev2(a: float, b: float, c: float) -> tuple[float, float, float, float]:  # pragma: no cover
+    """LAPACK ``dlaev2``: the eigen-decomposition of ``[[a, b], [b, c]]`` (``rt1`` the larger
+    in absolute value, ``(cs1, sn1)`` its unit eigenvector), operation for operation."""
+    sm = a + c
+    df = a - c
+    adf = abs(df)
+    tb = b + b
+    ab = abs(tb)
+    if abs(a) > abs(c):
+        acmx, acmn = a, c
+    else:
+        acmx, acmn = c, a
+    if adf > ab:
+        ratio = ab / adf
+        rt = adf * math.sqrt(1.0 + ratio * ratio)
+    elif adf < ab:
+        ratio = adf / ab
+        rt = ab * math.sqrt(1.0 + ratio * ratio)
+    else:
+        rt = ab * math.sqrt(2.0)
+    if sm < 0.0:
+        rt1 = 0.5 * (sm - rt)
+        sgn1 = -1
+        rt2 = (acmx / rt1) * acmn - (b / rt1) * b
+    elif sm > 0.0:
+        rt1 = 0.5 * (sm + rt)
+        sgn1 = 1
+        rt2 = (acmx / rt1) * acmn - (b / rt1) * b
+    else:
+        rt1 = 0.5 * rt
+        rt2 = -0.5 * rt
+        sgn1 = 1
+    if df >= 0.0:
+        cs = df + rt
+        sgn2 = 1
+    else:
+        cs = df - rt
+        sgn2 = -1
+    if abs(cs) > ab:
+        ct = -tb / cs
+        sn1 = 1.0 / math.sqrt(1.0 + ct * ct)
+        cs1 = ct * sn1
+    elif ab == 0.0:
+        cs1 = 1.0
+        sn1 = 0.0
+    else:
+        tn = -cs / tb
+        cs1 = 1.0 / math.sqrt(1.0 + tn * tn)
+        sn1 = tn * cs1
+    if sgn1 == sgn2:
+        cs1, sn1 = -sn1, cs1
+    return rt1, rt2, cs1, sn1
+
+
+@numba.njit(cache=True)
+def _living_domains(c):  # type: ignore[no-untyped-def]  # pragma: no cover
+    """:func:`living_domains_reference` row by row, with ``np.linalg.eigh`` replaced by the
+    path LAPACK's ``dsyevd`` (lower triangle) takes for a 2 x 2 matrix: the tridiagonal form is
+    the matrix itself (its Householder reflector is the identity), ``dsteqr`` splits it when
+    the off-diagonal is negligible or else rotates the identity by ``dlaev2``'s eigenvector
+    (``dlasr``; QL or QR by the diagonal's larger end, which for one rotation differ only in
+    the test that deflates), then sorts ascending. ``exact[k]`` is False where LAPACK would
+    first rescale the matrix (:func:`living_domains` then asks NumPy)."""
+    n = c.shape[0]
+    d = np.empty((n, 2))
+    u = np.empty((n, 2, 2))
+    area = np.empty(n)
+    exact = np.ones(n, dtype=np.bool_)
+    for k in range(n):
+        a11 = 0.5 * (c[k, 0, 0] + c[k, 0, 0])
+        a21 = 0.5 * (c[k, 1, 0] + c[k, 0, 1])
+        a12 = 0.5 * (c[k, 0, 1] + c[k, 1, 0])
+        a22 = 0.5 * (c[k, 1, 1] + c[k, 1, 1])
+        bad = not (
+            math.isfinite(a11) and math.isfinite(a21) and math.isfinite(a12) and math.isfinite(a22)
+        )
+        if bad:
+            a11 = a21 = a22 = 0.0
+        top = max(abs(a11), abs(a21), abs(a22))
+        if (top > 0.0 and top < _RMIN) or top > _RMAX:
+            exact[k] = False
+            continue
+        d1, d2, e = a11, a22, a21
+        z11, z21, z12, z22 = 1.0, 0.0, 0.0, 1.0
+        tst = abs(e)
+        split = tst == 0.0 or tst <= (math.sqrt(abs(d1)) * math.sqrt(abs(d2))) * _EPS
+        if not split:
+            anorm = max(abs(d1), abs(d2), abs(e))
+            if anorm > _SSFMAX or anorm < _SSFMIN:
+                exact[k] = False
+                continue
+            if abs(d2) < abs(d1):  # QR iteration from the lower end
+                deflates = tst * tst <= (_EPS2 * abs(d2)) * abs(d1) + _SAFMIN
+            else:  # QL iteration from the upper end
+                deflates = tst * tst <= (_EPS2 * abs(d1)) * abs(d2) + _SAFMIN
+            if not deflates:
+                rt1, rt2, cs, sn = _laev2(d1, e, d2)
+                temp = z12
+                z12 = cs * temp - sn * z11
+                z11 = sn * temp + cs * z11
+                temp = z22
+                z22 = cs * temp - sn * z21
+                z21 = sn * temp + cs * z21
+                d1, d2 = rt1, rt2
+        if d2 < d1:
+            d1, d2 = d2, d1
+            z11, z12 = z12, z11
+            z21, z22 = z22, z21
+        if bad:
+            z11, z21, z12, z22 = 1.0, 0.0, 0.0, 1.0
+        d1 = d1 if d1 > 0.0 else 0.0  # np.clip(d, 0.0, None): -0.0 becomes +0.0
+        d2 = d2 if d2 > 0.0 else 0.0
+        d[k, 0] = d1
+        d[k, 1] = d2
+        u[k, 0, 0] = z11
+        u[k, 1, 0] = z21
+        u[k, 0, 1] = z12
+        u[k, 1, 1] = z22
+        area[k] = _FOUR_PI * math.sqrt(d1 * d2)
+    return d, u, area, exact
+
+
+def living_domains_reference(
+    cov_xy: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """:func:`living_domains` in NumPy (the reference it equals bit for bit)."""
     q = 0.5 * (cov_xy + np.swapaxes(cov_xy, 1, 2))
     bad = ~np.all(np.isfinite(q), axis=(1, 2))
     q[bad] = 0.0
