@@ -24,13 +24,16 @@ CEAMCL applies the penalty to one pose per species and step, in its evidence
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ceamcl.angles import wrap_one
 from ceamcl.maps.grid import OccupancyGrid
+from ceamcl.sensors._compile import serial_and_parallel
 from ceamcl.sensors.base import SensorModel
 from ceamcl.sensors.likelihood_field import LikelihoodFieldModel
-from ceamcl.sensors.raycast import cast_fan
+from ceamcl.sensors.raycast import PARALLEL_MIN_RAYS, _march, cast_fan
 from ceamcl.sensors.scan import LaserScan, PreparedScan, laser_poses, prepare_scan
 
 
@@ -39,7 +42,62 @@ def readings_through_walls(
 ) -> NDArray[np.bool_]:
     """``(N, M)``: whether each prepared reading, seen from each robot pose ``(N, 3)``, ends
     more than ``margin_m`` beyond the first occupied cell of ``grid`` along its ray (module
-    docstring). Poses must be finite."""
+    docstring). Poses must be finite.
+
+    Compiled in one pass (:func:`_through_walls_py`) with the operations of
+    :func:`readings_through_walls_reference` (the laser's pose, the grid's frame, the ray cast
+    through unknown space, the comparison), which it equals: the state reads it at every
+    update for one pose, where the NumPy steps around the cast cost as much as the cast."""
+    p = np.ascontiguousarray(np.asarray(poses, dtype=np.float64).reshape(-1, 3))
+    bearings = np.ascontiguousarray(prepared.bearings, dtype=np.float64)
+    rays = p.shape[0] * bearings.size
+    kernel = _through_walls_parallel if rays >= PARALLEL_MIN_RAYS else _through_walls_serial
+    through: NDArray[np.bool_] = kernel(
+        p,
+        np.asarray(prepared.laser_pose, dtype=np.float64).reshape(3),
+        np.asarray(grid.origin, dtype=np.float64).reshape(3),
+        bearings,
+        np.ascontiguousarray(prepared.ranges, dtype=np.float64),
+        grid.occupied_mask,
+        grid.distance_to_occupied,
+        float(grid.resolution),
+        float(prepared.range_max),
+        float(margin_m),
+    )
+    return through
+
+
+def _through_walls_py(  # type: ignore[no-untyped-def]  # pragma: no cover
+    poses, laser, origin, bearings, ranges, occupied, dist, res, max_range, margin
+):
+    """:func:`readings_through_walls_reference` pose by pose and ray by ray: ``laser_poses``,
+    ``OccupancyGrid.poses_to_map``, ``cast_fan(..., through_unknown=True)`` and the comparison,
+    operation for operation."""
+    n, m = poses.shape[0], bearings.size
+    lx, ly, lyaw = laser[0], laser[1], laser[2]
+    ox, oy, oyaw = origin[0], origin[1], origin[2]
+    co, so = np.cos(oyaw), np.sin(oyaw)
+    out = np.empty((n, m), dtype=np.bool_)
+    for i in numba.prange(n):
+        c, s = np.cos(poses[i, 2]), np.sin(poses[i, 2])
+        dx = poses[i, 0] + c * lx - s * ly - ox
+        dy = poses[i, 1] + s * lx + c * ly - oy
+        if oyaw != 0.0:
+            dx, dy = co * dx + so * dy, -so * dx + co * dy
+        heading = wrap_one(poses[i, 2] + lyaw - oyaw)
+        for j in range(m):
+            expected = _march(dx, dy, heading + bearings[j], occupied, dist, res, max_range)
+            out[i, j] = ranges[j] > expected + margin
+    return out
+
+
+_through_walls_serial, _through_walls_parallel = serial_and_parallel(_through_walls_py)
+
+
+def readings_through_walls_reference(
+    grid: OccupancyGrid, poses: ArrayLike, prepared: PreparedScan, margin_m: float
+) -> NDArray[np.bool_]:
+    """:func:`readings_through_walls` in NumPy and the ray caster (the reference it equals)."""
     p = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
     expected = cast_fan(
         grid,
