@@ -217,19 +217,33 @@ def prepare_scan(scan: LaserScan, max_beams: int, *, keep_max_range: bool) -> Pr
     kept, r, is_max_kept, n_nan, n_too_close, n_usable, n_max = _select(
         scan.ranges, idx, float(scan.range_min), float(scan.range_max), keep_max_range
     )
+    counts = (int(idx.size), int(n_usable), int(n_nan), int(n_too_close), int(n_max))
+    return _prepared(scan, kept, r, is_max_kept, counts)
+
+
+def _prepared(
+    scan: LaserScan,
+    kept: NDArray[np.intp],
+    ranges: NDArray[np.float64],
+    is_max: NDArray[np.bool_],
+    counts: tuple[int, int, int, int, int],
+) -> PreparedScan:
+    """The :class:`PreparedScan` of the ``kept`` beams of ``scan``; ``counts``: of the beams
+    selected, how many, how many usable, NaN, ``-inf`` and max-range."""
+    n_selected, n_usable, n_nan, n_too_close, n_max = counts
     return PreparedScan(
-        ranges=r,
+        ranges=ranges,
         # the bearings of LaserScan.angles at those indices, computed for the kept ones only
         bearings=scan.angle_min + scan.angle_increment * kept.astype(np.float64),
-        is_max=is_max_kept,
+        is_max=is_max,
         range_max=scan.range_max,
         laser_pose=scan.pose,
         n_beams=int(kept.size),
         source_indices=kept,
-        n_nan=int(n_nan),
-        n_too_close=int(n_too_close),
-        n_invalid=idx.size - int(n_usable) - int(n_nan) - int(n_too_close),
-        n_max_range=int(n_max),
+        n_nan=n_nan,
+        n_too_close=n_too_close,
+        n_invalid=n_selected - n_usable - n_nan - n_too_close,
+        n_max_range=n_max,
     )
 
 
@@ -285,19 +299,8 @@ def prepare_scan_reference(
     is_max_kept = is_max[keep]
     if n_max:
         r[is_max_kept] = scan.range_max
-    return PreparedScan(
-        ranges=r,
-        bearings=scan.angle_min + scan.angle_increment * kept.astype(np.float64),
-        is_max=is_max_kept,
-        range_max=scan.range_max,
-        laser_pose=scan.pose,
-        n_beams=int(kept.size),
-        source_indices=kept,
-        n_nan=n_nan,
-        n_too_close=n_too_close,
-        n_invalid=idx.size - int(np.count_nonzero(usable)) - n_nan - n_too_close,
-        n_max_range=n_max,
-    )
+    counts = (int(idx.size), int(np.count_nonzero(usable)), n_nan, n_too_close, n_max)
+    return _prepared(scan, kept, r, is_max_kept, counts)
 
 
 def laser_poses(poses: ArrayLike, laser_pose: ArrayLike) -> NDArray[np.float64]:
