@@ -206,11 +206,18 @@ def test_a_signal_in_the_compiler_waits_until_the_code_is_compiled(
 
 
 def test_only_the_compilers_frames_hold_an_interrupt_back() -> None:
+    """Told by the module's name: a project checked out under a folder named ``numba`` is not
+    the compiler (a path test would hold Ctrl-C back there for good)."""
     assert not interrupt.in_compiler(sys._getframe())
-    code = compile("def f():\n    return sys._getframe()\n", "/x/numba/core/f.py", "exec")
-    space: dict[str, Any] = {"sys": sys}
-    exec(code, space)
-    assert interrupt.in_compiler(space["f"]())
+    code = compile("def f():\n    return sys._getframe()\n", "/home/me/numba/f.py", "exec")
+    for module, held in (("numba.core.dispatcher", True), ("llvmlite.binding", True)):
+        space: dict[str, Any] = {"sys": sys, "__name__": module}
+        exec(code, space)
+        assert interrupt.in_compiler(space["f"]()) is held
+    for module in ("numbat", "myproject.numba_tools", "__main__"):
+        space = {"sys": sys, "__name__": module}
+        exec(code, space)
+        assert not interrupt.in_compiler(space["f"]())
 
 
 def test_the_default_handler_is_back_after_a_command(monkeypatch: pytest.MonkeyPatch) -> None:

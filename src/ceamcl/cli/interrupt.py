@@ -29,7 +29,6 @@ deferred out of the compiler the same way.
 
 from __future__ import annotations
 
-import os
 import signal
 import sys
 import threading
@@ -43,7 +42,6 @@ RETRY_S = 0.05
 
 #: Where a signal is not raised but deferred: the packages that drive LLVM (module docstring).
 COMPILER_PACKAGES = ("numba", "llvmlite")
-_COMPILER_PARTS = tuple(f"{os.sep}{name}{os.sep}" for name in COMPILER_PACKAGES)
 
 # re-entrant: the hook can run inside a finaliser while the main thread holds the lock
 _lock = threading.RLock()
@@ -60,10 +58,11 @@ class Terminated(KeyboardInterrupt):
 
 
 def in_compiler(frame: FrameType | None) -> bool:
-    """Whether ``frame`` or any frame below it runs Numba's or llvmlite's Python code."""
+    """Whether ``frame`` or any frame below it runs Numba's or llvmlite's Python code (told by
+    the module's name, not its file's path, which may hold any folder name)."""
     while frame is not None:
-        name = frame.f_code.co_filename
-        if any(part in name for part in _COMPILER_PARTS):
+        module = frame.f_globals.get("__name__")
+        if isinstance(module, str) and module.partition(".")[0] in COMPILER_PACKAGES:
             return True
         frame = frame.f_back
     return False
