@@ -8,7 +8,6 @@ here is computed from arrays ``poses (N, 3)``, ``species (N,)``, ``loglik (N,)``
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numba
@@ -74,7 +73,10 @@ def all_species_stats(
         np.asarray(starts, dtype=np.intp),
         np.asarray(counts, dtype=np.intp),
     )
-    return _collect(ids, order, starts, counts, w, mean, cov, cov_xy, heading_sd, fit, best)
+    domains = living_domains(cov_xy)
+    return _collect(
+        ids, order, starts, counts, w, mean, cov, cov_xy, heading_sd, fit, best, domains
+    )
 
 
 def _collect(
@@ -89,15 +91,11 @@ def _collect(
     heading_sd: NDArray[np.float64],
     fit: NDArray[np.float64],
     best: NDArray[np.float64],
-    domains: Callable[
-        [NDArray[np.float64]],
-        tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]],
-    ]
-    | None = None,
+    domains: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]],
 ) -> dict[int, SpeciesStats]:
-    """The stats of every species from the per-species sums; ``domains``: how the living
-    domains are computed (:func:`living_domains`, or its NumPy reference for the reference)."""
-    dv, axes, area = (living_domains if domains is None else domains)(cov_xy)
+    """The stats of every species from the per-species sums and ``domains``, the living
+    domains of ``cov_xy`` (:func:`living_domains`, or its NumPy reference for the reference)."""
+    dv, axes, area = domains
     out: dict[int, SpeciesStats] = {}
     for k, sid in enumerate(ids.tolist()):
         a, b = int(starts[k]), int(starts[k] + counts[k])
@@ -283,7 +281,7 @@ def all_species_stats_reference(
         heading_sd,
         fit,
         best,
-        living_domains_reference,
+        living_domains_reference(cov_xy),
     )
 
 
@@ -391,14 +389,10 @@ def _living_domains(c):  # type: ignore[no-untyped-def]  # pragma: no cover
     exact = np.ones(n, dtype=np.bool_)
     for k in range(n):
         a11 = 0.5 * (c[k, 0, 0] + c[k, 0, 0])
-        a21 = 0.5 * (c[k, 1, 0] + c[k, 0, 1])
-        a12 = 0.5 * (c[k, 0, 1] + c[k, 1, 0])
+        a21 = 0.5 * (c[k, 1, 0] + c[k, 0, 1])  # also q[0, 1]: a sum does not depend on order
         a22 = 0.5 * (c[k, 1, 1] + c[k, 1, 1])
-        bad = not (
-            math.isfinite(a11) and math.isfinite(a21) and math.isfinite(a12) and math.isfinite(a22)
-        )
-        if bad:
-            a11 = a21 = a22 = 0.0
+        if not (math.isfinite(a11) and math.isfinite(a21) and math.isfinite(a22)):
+            a11 = a21 = a22 = 0.0  # the zero matrix: no rotation, the identity's axes
         top = max(abs(a11), abs(a21), abs(a22))
         if (top > 0.0 and top < _RMIN) or top > _RMAX:
             exact[k] = False
@@ -429,8 +423,6 @@ def _living_domains(c):  # type: ignore[no-untyped-def]  # pragma: no cover
             d1, d2 = d2, d1
             z11, z12 = z12, z11
             z21, z22 = z22, z21
-        if bad:
-            z11, z21, z12, z22 = 1.0, 0.0, 0.0, 1.0
         d1 = d1 if d1 > 0.0 else 0.0  # np.clip(d, 0.0, None): -0.0 becomes +0.0
         d2 = d2 if d2 > 0.0 else 0.0
         d[k, 0] = d1
