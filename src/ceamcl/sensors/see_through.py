@@ -33,7 +33,7 @@ from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.sensors._compile import serial_and_parallel
 from ceamcl.sensors.base import SensorModel
 from ceamcl.sensors.likelihood_field import LikelihoodFieldModel
-from ceamcl.sensors.raycast import PARALLEL_MIN_RAYS, _march, cast_fan
+from ceamcl.sensors.raycast import PARALLEL_MIN_RAYS, _march, _mounted_pose, cast_fan
 from ceamcl.sensors.scan import LaserScan, PreparedScan, laser_poses, prepare_scan
 
 
@@ -79,12 +79,11 @@ def _through_walls_py(  # type: ignore[no-untyped-def]  # pragma: no cover
     co, so = np.cos(oyaw), np.sin(oyaw)
     out = np.empty((n, m), dtype=np.bool_)
     for i in numba.prange(n):
-        c, s = np.cos(poses[i, 2]), np.sin(poses[i, 2])
-        dx = poses[i, 0] + c * lx - s * ly - ox
-        dy = poses[i, 1] + s * lx + c * ly - oy
+        x, y, yaw = _mounted_pose(poses[i, 0], poses[i, 1], poses[i, 2], lx, ly, lyaw)
+        dx, dy = x - ox, y - oy
         if oyaw != 0.0:
             dx, dy = co * dx + so * dy, -so * dx + co * dy
-        heading = wrap_one(poses[i, 2] + lyaw - oyaw)
+        heading = wrap_one(yaw - oyaw)
         for j in range(m):
             expected = _march(dx, dy, heading + bearings[j], occupied, dist, res, max_range)
             out[i, j] = ranges[j] > expected + margin
