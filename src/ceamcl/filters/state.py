@@ -366,7 +366,7 @@ class MapAgreement:
         self._streak = 0
         self._share = math.nan
         self._pose: NDArray[np.float64] | None = None
-        self._hits: tuple[int, LaserScan, PreparedScan] | None = None
+        self._hits: tuple[LaserScan, PreparedScan] | None = None
 
     def observe(
         self, step: int, scan: LaserScan | None, pose: NDArray[np.float64]
@@ -402,14 +402,12 @@ class MapAgreement:
             return self._share
         if scan is None:
             return math.nan
-        # the scan's end points, prepared once an update: the leading pose and the anchor's
-        # (CEAMCL, departure 18) judge the same scan
-        if scan.n_beams == 0:
-            return math.nan  # nothing to judge (explained_share's answer)
-        if self._hits is None or self._hits[0] != step or self._hits[1] is not scan:
-            self._hits = (step, scan, end_points(scan))
+        # the scan's end points, prepared once: the leading pose and the anchor's (CEAMCL,
+        # departure 18) judge the same scan
+        if self._hits is None or self._hits[0] is not scan:
+            self._hits = (scan, end_points(scan))
         return explained_share(
-            self.grid, p, scan, self.thresholds.explained_tol_m, hits=self._hits[2]
+            self.grid, p, scan, self.thresholds.explained_tol_m, hits=self._hits[1]
         )
 
     def _judged(self, step: int, pose: NDArray[np.float64]) -> bool:

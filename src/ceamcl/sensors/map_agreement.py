@@ -30,8 +30,9 @@ EXPLAINED_TOL_M = 0.15
 
 def end_points(scan: LaserScan) -> PreparedScan:
     """The readings of ``scan`` that :func:`explained_share` judges: every usable reading short
-    of the maximum (a caller that judges one scan at several poses prepares them once)."""
-    return prepare_scan(scan, scan.n_beams, keep_max_range=False)
+    of the maximum (a caller that judges one scan at several poses prepares them once); none
+    for a scan without beams."""
+    return prepare_scan(scan, max(scan.n_beams, 1), keep_max_range=False)
 
 
 def explained_share(
