@@ -99,7 +99,8 @@ class CEAMCLConfig:
             robot has left it; "scan": the paper's literal reading, the mean fitness of the
             species' individuals under the current scan only.
         evidence_memory: exponent on a species' past evidence at each step (1: every past scan
-            counts fully; below 1, old scans fade with that factor per step).
+            counts fully; below 1, old scans fade with that factor per step); 0.93 since
+            docs/ceamcl.md's departure 33 (0.9 before).
         evidence_memory_step_m, evidence_memory_step_rad: the step the memory is for; a step
             that moves the robot farther or turns it more (updates paced by ``update_min_d``)
             applies ``evidence_memory`` once per such length (docs/ceamcl.md, departure 6);
@@ -287,7 +288,7 @@ class CEAMCLConfig:
     tracking_samples: int = 300
     test_batch: int = 250_000
     competition_fitness: str = "evidence"
-    evidence_memory: float = 0.9
+    evidence_memory: float = 0.93
     evidence_memory_step_m: float | None = 0.05
     evidence_memory_step_rad: float | None = 0.1
     evidence_probes: int = 6
