@@ -94,10 +94,12 @@ def test_settings_an_algorithm_lacks_are_warned_and_others_kept_aside() -> None:
 
 
 def test_nav2_beam_skipping_reaches_ceamcls_and_is_warned_elsewhere() -> None:
-    """CEAMCL skips beams while one species tracks (on by default): Nav2's distance and error
-    threshold set its test, and do_beamskip adds amcl's vote at beam_skip_threshold."""
+    """CEAMCL skips beams while one species tracks (on by default): Nav2's distance and, where
+    set, error threshold set its test (unset, CEAMCL's own 1.0 stands, not Nav2's default 0.9:
+    docs/ceamcl.md, departure 34), and do_beamskip adds amcl's vote at beam_skip_threshold."""
     default = parse({}).config.beam_skip
-    assert (default.distance_m, default.error_threshold, default.threshold) == (0.5, 0.9, None)
+    assert (default.distance_m, default.error_threshold, default.threshold) == (0.5, 1.0, None)
+    assert parse({"beam_skip_error_threshold": 0.9}).config.beam_skip.error_threshold == 0.9
     p = parse(
         {
             "do_beamskip": True,

@@ -85,18 +85,36 @@ def test_when_almost_nothing_is_explained_every_beam_counts() -> None:
     assert skipped == 0 and kept.n_beams == prepared.n_beams
 
 
+def crowded_scan(grid: OccupancyGrid, crowded: int):  # type: ignore[no-untyped-def]
+    """Ten beams from POSE, the first ``crowded`` of them on people 0.4 m away."""
+    ten = LaserGeometry.covering(np.pi, 10, 8.0)
+    true = cast_fan(grid, laser_poses(POSE[None, :], ten.pose), ten.angles, ten.range_max)[0]
+    ranges = true.copy()
+    ranges[:crowded] = 0.4  # people close in front, nowhere near a wall
+    prepared = LikelihoodFieldModel(grid).prepare(ten.scan(ranges))
+    assert prepared.n_beams == 10
+    return prepared
+
+
 def test_the_error_threshold_counts_as_amcls_at_the_boundary() -> None:
     # amcl: every beam counts once skipped >= beams x beam_skip_error_threshold (ours was >)
     grid = room(box=False)
-    ten = LaserGeometry.covering(np.pi, 10, 8.0)
-    true = cast_fan(grid, laser_poses(POSE[None, :], ten.pose), ten.angles, ten.range_max)[0]
+    amcl = BeamSkipConfig(error_threshold=0.9)
     for crowded, expect in ((9, 0), (8, 8)):
-        ranges = true.copy()
-        ranges[:crowded] = 0.4  # people close in front, nowhere near a wall
-        prepared = LikelihoodFieldModel(grid).prepare(ten.scan(ranges))
-        assert prepared.n_beams == 10
-        _, skipped = skip_unexplained_beams(grid, [POSE[None, :]], prepared, BeamSkipConfig())
+        prepared = crowded_scan(grid, crowded)
+        _, skipped = skip_unexplained_beams(grid, [POSE[None, :]], prepared, amcl)
         assert skipped == expect
+
+
+def test_by_default_a_view_blocked_but_for_one_beam_still_skips() -> None:
+    """CEAMCL's default (1.0, departure 34): the one reading the map explains is what the
+    species is weighed by while people block the rest; only a view blocked everywhere counts
+    every beam."""
+    grid = room(box=False)
+    for crowded, expect in ((9, 9), (10, 0)):
+        prepared = crowded_scan(grid, crowded)
+        kept, skipped = skip_unexplained_beams(grid, [POSE[None, :]], prepared, BeamSkipConfig())
+        assert skipped == expect and kept.n_beams == 10 - expect
 
 
 def test_any_hypothesis_that_explains_a_beam_keeps_it() -> None:

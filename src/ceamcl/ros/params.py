@@ -342,12 +342,17 @@ def _nav2_to_config(
             )
     skip = getattr(config, "beam_skip", None) if "beam_skip" in names else None
     if skip is not None:
-        # CEAMCL's own beam skipping (on while one species tracks) takes Nav2's distance and
-        # error threshold; do_beamskip adds amcl's vote (docs/ros.md)
+        # CEAMCL's own beam skipping (on while one species tracks) takes Nav2's distance, and
+        # its error threshold where the parameters set it (Nav2's 0.9 is not CEAMCL's default:
+        # departure 34); do_beamskip adds amcl's vote (docs/ros.md)
         changes["beam_skip"] = dataclasses.replace(
             skip,
             distance_m=p["beam_skip_distance"],
-            error_threshold=p["beam_skip_error_threshold"],
+            error_threshold=(
+                p["beam_skip_error_threshold"]
+                if "beam_skip_error_threshold" in given
+                else skip.error_threshold
+            ),
             threshold=p["beam_skip_threshold"] if p["do_beamskip"] else None,
         )
     else:
