@@ -10,6 +10,7 @@ import pytest
 
 from ceamcl.filters import make_filter
 from ceamcl.filters.ceamcl import CEAMCL, CEAMCLConfig
+from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryMotionModel, OdometryNoise
 from ceamcl.runner import RunResult, run_filter
 from ceamcl.sensors.beam_skip import BeamSkipConfig
@@ -20,16 +21,19 @@ from ceamcl.simulation.simulator import SimulatedLog
 RECOVERY_TIME_S = 5.0  # the stated bound: within 0.5 m of the truth 5 s after the kidnap
 
 
+def tracker(grid: OccupancyGrid, config: CEAMCLConfig, rng: np.random.Generator) -> CEAMCL:
+    """CEAMCL with ``config``, the default odometry noise and the likelihood field."""
+    motion, sensor = OdometryMotionModel(OdometryNoise()), LikelihoodFieldModel(grid)
+    return CEAMCL(grid, motion, sensor, config, rng=rng)
+
+
 def run(scenario_log: SimulatedLog, grid_seed: int, recovery: bool) -> RunResult:
     grid = kidnapped_scenario().grid()
     rng = np.random.default_rng(np.random.SeedSequence(grid_seed).spawn(2)[1])
     if recovery:
         f = make_filter("ceamcl", grid, rng)
     else:
-        cfg = replace(CEAMCLConfig(), recovery=False)
-        f = CEAMCL(
-            grid, OdometryMotionModel(OdometryNoise()), LikelihoodFieldModel(grid), cfg, rng=rng
-        )
+        f = tracker(grid, replace(CEAMCLConfig(), recovery=False), rng)
     return run_filter(f, scenario_log)
 
 
@@ -89,9 +93,7 @@ def cluttered_office_log(seed: int, start: int, steps: int) -> SimulatedLog:
 def track_cluttered(seed: int, config: CEAMCLConfig) -> RunResult:
     log = cluttered_office_log(seed, start=60, steps=12)
     grid = office_scenario().grid()
-    rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(2)[1])
-    motion, sensor = OdometryMotionModel(OdometryNoise()), LikelihoodFieldModel(grid)
-    f = CEAMCL(grid, motion, sensor, config, rng=rng)
+    f = tracker(grid, config, np.random.default_rng(np.random.SeedSequence(seed).spawn(2)[1]))
     cov = np.diag([0.1**2, 0.1**2, 0.05**2])
     return run_filter(f, log, initial_pose=(log.true_poses[0], cov))
 
@@ -129,13 +131,7 @@ def track_through_a_crowd(seed: int, config: CEAMCLConfig) -> RunResult:
         people = rng.random(ranges.shape[1]) >= 0.05
         ranges[k, people] = np.minimum(ranges[k, people], rng.uniform(0.3, 0.8, people.sum()))
     log = replace(log, ranges=ranges)
-    f = CEAMCL(
-        grid,
-        OdometryMotionModel(OdometryNoise()),
-        LikelihoodFieldModel(grid),
-        config,
-        rng=np.random.default_rng(filt),
-    )
+    f = tracker(grid, config, np.random.default_rng(filt))
     cov = np.diag([0.1**2, 0.1**2, 0.05**2])
     return run_filter(f, log, initial_pose=(log.true_poses[0], cov))
 
