@@ -76,7 +76,7 @@ def test_readings_through_a_wall_always_count() -> None:
     assert not (dropped & through).any()
 
 
-def test_when_almost_nothing_is_explained_every_beam_counts() -> None:
+def test_when_nothing_is_explained_every_beam_counts() -> None:
     grid = room(box=False)
     crowd = scan_in(grid).ranges.copy()
     crowd[:] = 0.4  # people all round the laser
