@@ -8,6 +8,8 @@ import pytest
 from ceamcl.angles import wrap
 from ceamcl.motion.odometry import (
     MIN_TRANSLATION_FOR_ROT1_M,
+    STRIDE_M,
+    STRIDE_RAD,
     OdometryIncrement,
     OdometryMotionModel,
     OdometryNoise,
@@ -21,6 +23,8 @@ from ceamcl.motion.odometry import (
 NOISE = OdometryNoise(alpha1=0.05, alpha2=0.02, alpha3=0.02, alpha4=0.01)
 N_SAMPLES = 200_000
 START = np.array([1.0, -2.0, 0.4])
+# Table 5.6 over a whole update, as amcl applies it (the default, no strides)
+AMCL_MODEL = OdometryMotionModel(NOISE)
 
 
 def recover_components(start: np.ndarray, moved: np.ndarray) -> np.ndarray:
@@ -69,7 +73,7 @@ def test_sample_has_the_increment_mean_and_the_model_variances() -> None:
     )
     assert 0.5 / np.sqrt(v[1]) > 6.0  # translation never flips sign in practice
     rng = np.random.default_rng(0)
-    moved = OdometryMotionModel(NOISE).sample(np.tile(START, (N_SAMPLES, 1)), inc, rng)
+    moved = AMCL_MODEL.sample(np.tile(START, (N_SAMPLES, 1)), inc, rng)
     assert moved.shape == (N_SAMPLES, 3)
     assert np.all((moved[:, 2] > -np.pi) & (moved[:, 2] <= np.pi))
     check_moments(recover_components(START, moved), np.array([0.3, 0.5, -0.2]), v)
@@ -87,7 +91,7 @@ def test_backwards_motion_does_not_count_as_a_half_turn() -> None:
     v = np.array(inc.variances(NOISE))
     np.testing.assert_allclose(v, [0.02 * 0.16, 0.02 * 0.16, 0.02 * 0.16], rtol=1e-9, atol=1e-15)
     rng = np.random.default_rng(1)
-    moved = OdometryMotionModel(NOISE).sample(np.tile(prev, (N_SAMPLES, 1)), inc, rng)
+    moved = AMCL_MODEL.sample(np.tile(prev, (N_SAMPLES, 1)), inc, rng)
     comp = recover_components(prev, moved)
     # Recovered rot1 and rot2 sit around +-pi: measure them relative to the increment's values
     # to stay clear of the seam.
@@ -239,7 +243,7 @@ def test_pure_rotation_has_rotation_noise_only() -> None:
     v = inc.variances(NOISE)
     assert v[0] == 0.0
     rng = np.random.default_rng(5)
-    moved = OdometryMotionModel(NOISE).sample(np.tile(p, (N_SAMPLES, 1)), inc, rng)
+    moved = AMCL_MODEL.sample(np.tile(p, (N_SAMPLES, 1)), inc, rng)
     dtheta = wrap(moved[:, 2] - p[2])
     expected_var = v[0] + v[2]
     assert abs(dtheta.mean() - 0.6) < 5 * np.sqrt(expected_var / N_SAMPLES)
@@ -249,6 +253,37 @@ def test_pure_rotation_has_rotation_noise_only() -> None:
     along = moved[:, 0] * np.cos(1.0) + moved[:, 1] * np.sin(1.0)
     se_var_t = v[1] * np.sqrt(2.0 / (N_SAMPLES - 1))
     assert abs(along.var(ddof=1) - v[1]) < 5 * se_var_t
+
+
+def test_an_update_of_many_strides_has_the_noise_of_those_strides() -> None:
+    """Noise per stride (module docstring; an option): an update of 1.5 m is six strides of
+    0.25 m, so its variances are Table 5.6's over 1.5 m divided by six (they grow with the
+    distance, not its square); a turn of 0.6 rad on the spot is three strides of 0.2 rad; an
+    update within one stride keeps Table 5.6's variances. The samples show it."""
+    model = OdometryMotionModel(NOISE, stride_m=STRIDE_M, stride_rad=STRIDE_RAD)
+    long = OdometryIncrement(rot1=0.05, trans=1.5, rot2=-0.05)
+    assert long.strides(model.stride_m, model.stride_rad) == pytest.approx(6.0)
+    v = np.array(long.variances(NOISE)) / 6.0
+    moved = model.sample(np.tile(START, (N_SAMPLES, 1)), long, np.random.default_rng(11))
+    check_moments(recover_components(START, moved), np.array([0.05, 1.5, -0.05]), v)
+    turn = increment_between(START, START + np.array([0.0, 0.0, 0.6]))
+    assert turn.strides(model.stride_m, model.stride_rad) == pytest.approx(3.0)
+    moved = model.sample(np.tile(START, (N_SAMPLES, 1)), turn, np.random.default_rng(12))
+    expected = (turn.variances(NOISE)[0] + turn.variances(NOISE)[2]) / 3.0
+    dtheta = wrap(moved[:, 2] - START[2])
+    assert abs(dtheta.var(ddof=1) - expected) < 5 * expected * np.sqrt(2.0 / (N_SAMPLES - 1))
+    short = OdometryIncrement(rot1=0.1, trans=0.2, rot2=-0.05)
+    assert short.strides(model.stride_m, model.stride_rad) == 1.0
+    rng_a, rng_b = np.random.default_rng(13), np.random.default_rng(13)
+    start = np.tile(START, (100, 1))
+    assert np.array_equal(model.sample(start, short, rng_a), AMCL_MODEL.sample(start, short, rng_b))
+
+
+def test_strides_are_validated() -> None:
+    with pytest.raises(ValueError, match="stride_m"):
+        OdometryMotionModel(stride_m=0.0)
+    with pytest.raises(ValueError, match="stride_rad"):
+        OdometryMotionModel(stride_rad=float("nan"))
 
 
 def test_noise_parameters_are_validated() -> None:

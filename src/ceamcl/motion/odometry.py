@@ -19,6 +19,17 @@ of 0 would carry it forwards by as much as it backed up.
 :func:`synthetic_odometry` (the simulator's odometry, and a corrected log's) draws the noise of
 each step of a pose track from :meth:`OdometryIncrement.wheel_variances`: a step that travels
 sideways, as a SLAM track jitters while the robot stands, is no turn.
+
+**Noise per stride (an option, not the default).** amcl's alphas suit its own pace, an update
+every :data:`STRIDE_M` of travel or :data:`STRIDE_RAD` of turning (``update_min_d``,
+``update_min_a``). ``OdometryMotionModel(stride_m=STRIDE_M, stride_rad=STRIDE_RAD)`` gives an
+update that spans more ground (a corrected log's key scans, one every 0.1-3 m) the noise of
+that many independent strides: Table 5.6's variances divided by
+:meth:`OdometryIncrement.strides`, so that they grow with the distance, not with its square
+(over 1.5 m with alpha 0.2 the heading spreads by 0.39 rad instead of 0.9). An update within
+one stride keeps Table 5.6 exactly. The default stays amcl's rule, Table 5.6 over a whole
+update: measured on 2026-11-30, the option helps the sparse corrected logs but changes how
+CEAMCL tracks fr079's doubtful room (docs/real-data.md, "Motion noise per stride").
 """
 
 from __future__ import annotations
@@ -33,6 +44,10 @@ from ceamcl.angles import diff, wrap
 from ceamcl.errors import ConfigError, check_rng
 
 MIN_TRANSLATION_FOR_ROT1_M = 0.01
+#: the travel and the turn of one stride, Nav2's ``update_min_d`` and ``update_min_a`` (module
+#: docstring, "noise per stride")
+STRIDE_M = 0.25
+STRIDE_RAD = 0.2
 
 
 @dataclass(frozen=True)
@@ -89,6 +104,17 @@ class OdometryIncrement:
         r1 = min(abs(float(diff(self.rot1, 0.0))), abs(float(diff(self.rot1, np.pi))))
         r2 = min(abs(float(diff(self.rot2, 0.0))), abs(float(diff(self.rot2, np.pi))))
         return _table_5_6(noise, r1, self.trans, r2)
+
+    def strides(self, stride_m: float | None, stride_rad: float | None) -> float:
+        """How many strides of ``stride_m`` travel or ``stride_rad`` turning (:attr:`turns`,
+        both together) the increment spans, at least 1 (module docstring, "noise per
+        stride"); ``None`` leaves that part out."""
+        n = 1.0
+        if stride_m is not None:
+            n = max(n, self.trans / stride_m)
+        if stride_rad is not None:
+            n = max(n, sum(self.turns) / stride_rad)
+        return n
 
     def wheel_variances(self, noise: OdometryNoise) -> tuple[float, float, float]:
         """:meth:`variances` for a step that wheels could have made, read from a pose track.
@@ -170,9 +196,21 @@ def apply_increment(
 
 @dataclass(frozen=True)
 class OdometryMotionModel:
-    """Samples ``p(x_t | x_{t-1}, u)`` for arrays of poses (sample_motion_model_odometry)."""
+    """Samples ``p(x_t | x_{t-1}, u)`` for arrays of poses (sample_motion_model_odometry).
+
+    ``stride_m``, ``stride_rad`` (e.g. :data:`STRIDE_M`, :data:`STRIDE_RAD`): an update's
+    noise is that of the strides it spans (module docstring, "noise per stride"); ``None`` for
+    both (the default): Table 5.6 over the whole update, as amcl."""
 
     noise: OdometryNoise = OdometryNoise()
+    stride_m: float | None = None
+    stride_rad: float | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("stride_m", "stride_rad"):
+            v = getattr(self, name)
+            if v is not None and not (np.isfinite(v) and v > 0):
+                raise ValueError(f"{name}: expected a positive number or None, got {v}")
 
     def sample(
         self,
@@ -186,12 +224,15 @@ class OdometryMotionModel:
 
         ``wheels``: the noise of :meth:`OdometryIncrement.wheel_variances` (odometry made
         from a pose track), not of :meth:`OdometryIncrement.variances` (the filter's model,
-        Nav2's)."""
+        Nav2's). Either is divided by the increment's :meth:`~OdometryIncrement.strides`."""
         check_rng(rng)
         p = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
         n = p.shape[0]
         variances = increment.wheel_variances if wheels else increment.variances
         v_rot1, v_trans, v_rot2 = variances(self.noise)
+        strides = increment.strides(self.stride_m, self.stride_rad)
+        if strides > 1.0:
+            v_rot1, v_trans, v_rot2 = v_rot1 / strides, v_trans / strides, v_rot2 / strides
         noise = rng.standard_normal((n, 3))
         rot1 = increment.rot1 - noise[:, 0] * np.sqrt(v_rot1)
         trans = increment.trans - noise[:, 1] * np.sqrt(v_trans)
@@ -212,11 +253,12 @@ def synthetic_odometry(
 
     Serves the simulator and corrected real logs (which hold no raw odometry). At the steps in
     ``kidnapped_at`` the robot is lifted and carried: the wheels do not turn, so the odometry
-    stays where it was while the truth jumps.
+    stays where it was while the truth jumps. Each step's noise is Table 5.6's over the whole
+    step, however long (no strides): the data the shared logs' measurements were made on.
     """
     check_rng(rng)
     truth = np.asarray(true_poses, dtype=np.float64).reshape(-1, 3)
-    model = OdometryMotionModel(noise)
+    model = OdometryMotionModel(noise, stride_m=None, stride_rad=None)
     odom = np.empty_like(truth)
     if truth.shape[0] == 0:
         return odom
