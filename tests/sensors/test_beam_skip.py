@@ -16,7 +16,7 @@ from ceamcl.sensors.beam_skip import (
 )
 from ceamcl.sensors.likelihood_field import LikelihoodFieldModel
 from ceamcl.sensors.raycast import cast_fan
-from ceamcl.sensors.scan import LaserGeometry, laser_poses
+from ceamcl.sensors.scan import LaserGeometry, PreparedScan, laser_poses
 
 RES = 0.05
 LASER = LaserGeometry.covering(np.pi, 61, 8.0)
@@ -85,7 +85,7 @@ def test_when_nothing_is_explained_every_beam_counts() -> None:
     assert skipped == 0 and kept.n_beams == prepared.n_beams
 
 
-def crowded_scan(grid: OccupancyGrid, crowded: int):  # type: ignore[no-untyped-def]
+def crowded_scan(grid: OccupancyGrid, crowded: int) -> PreparedScan:
     """Ten beams from POSE, the first ``crowded`` of them on people 0.4 m away."""
     ten = LaserGeometry.covering(np.pi, 10, 8.0)
     true = cast_fan(grid, laser_poses(POSE[None, :], ten.pose), ten.angles, ten.range_max)[0]
