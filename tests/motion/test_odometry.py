@@ -23,8 +23,8 @@ from ceamcl.motion.odometry import (
 NOISE = OdometryNoise(alpha1=0.05, alpha2=0.02, alpha3=0.02, alpha4=0.01)
 N_SAMPLES = 200_000
 START = np.array([1.0, -2.0, 0.4])
-# Table 5.6 over a whole update, as amcl applies it (the default, no strides)
-AMCL_MODEL = OdometryMotionModel(NOISE)
+# Table 5.6 over a whole update, as amcl applies it (no strides)
+AMCL_MODEL = OdometryMotionModel(NOISE, stride_m=None, stride_rad=None)
 
 
 def recover_components(start: np.ndarray, moved: np.ndarray) -> np.ndarray:
@@ -256,10 +256,11 @@ def test_pure_rotation_has_rotation_noise_only() -> None:
 
 
 def test_an_update_of_many_strides_has_the_noise_of_those_strides() -> None:
-    """Noise per stride (module docstring; an option): an update of 1.5 m is six strides of
-    0.25 m, so its variances are Table 5.6's over 1.5 m divided by six (they grow with the
-    distance, not its square); a turn of 0.6 rad on the spot is three strides of 0.2 rad; an
-    update within one stride keeps Table 5.6's variances. The samples show it."""
+    """Noise per stride (module docstring), travel and turns counted (an option): an update
+    of 1.5 m is six strides of 0.25 m, so its variances are Table 5.6's over 1.5 m divided by
+    six (they grow with the distance, not its square); a turn of 0.6 rad on the spot is three
+    strides of 0.2 rad; an update within one stride keeps Table 5.6's variances. The samples
+    show it."""
     model = OdometryMotionModel(NOISE, stride_m=STRIDE_M, stride_rad=STRIDE_RAD)
     long = OdometryIncrement(rot1=0.05, trans=1.5, rot2=-0.05)
     assert long.strides(model.stride_m, model.stride_rad) == pytest.approx(6.0)
@@ -277,6 +278,22 @@ def test_an_update_of_many_strides_has_the_noise_of_those_strides() -> None:
     rng_a, rng_b = np.random.default_rng(13), np.random.default_rng(13)
     start = np.tile(START, (100, 1))
     assert np.array_equal(model.sample(start, short, rng_a), AMCL_MODEL.sample(start, short, rng_b))
+
+
+def test_the_default_model_counts_strides_of_travel_not_turns() -> None:
+    """The default (module docstring, "noise per stride of travel"): 1.5 m of travel is six
+    strides of 0.25 m, so Table 5.6's variances are divided by six; a turn of 0.6 rad on the
+    spot keeps Table 5.6's variances, as amcl's rule does (a turn's slip is one error)."""
+    model = OdometryMotionModel(NOISE)
+    assert (model.stride_m, model.stride_rad) == (STRIDE_M, None)
+    long = OdometryIncrement(rot1=0.05, trans=1.5, rot2=-0.05)
+    v = np.array(long.variances(NOISE)) / 6.0
+    moved = model.sample(np.tile(START, (N_SAMPLES, 1)), long, np.random.default_rng(21))
+    check_moments(recover_components(START, moved), np.array([0.05, 1.5, -0.05]), v)
+    turn = increment_between(START, START + np.array([0.0, 0.0, 0.6]))
+    rng_a, rng_b = np.random.default_rng(22), np.random.default_rng(22)
+    start = np.tile(START, (100, 1))
+    assert np.array_equal(model.sample(start, turn, rng_a), AMCL_MODEL.sample(start, turn, rng_b))
 
 
 def test_strides_are_validated() -> None:

@@ -20,16 +20,18 @@ of 0 would carry it forwards by as much as it backed up.
 each step of a pose track from :meth:`OdometryIncrement.wheel_variances`: a step that travels
 sideways, as a SLAM track jitters while the robot stands, is no turn.
 
-**Noise per stride (an option, not the default).** amcl's alphas suit its own pace, an update
-every :data:`STRIDE_M` of travel or :data:`STRIDE_RAD` of turning (``update_min_d``,
-``update_min_a``). ``OdometryMotionModel(stride_m=STRIDE_M, stride_rad=STRIDE_RAD)`` gives an
-update that spans more ground (a corrected log's key scans, one every 0.1-3 m) the noise of
-that many independent strides: Table 5.6's variances divided by
-:meth:`OdometryIncrement.strides`, so that they grow with the distance, not with its square
-(over 1.5 m with alpha 0.2 the heading spreads by 0.39 rad instead of 0.9). An update within
-one stride keeps Table 5.6 exactly. The default stays amcl's rule, Table 5.6 over a whole
-update: measured on 2026-11-30, the option helps the sparse corrected logs but changes how
-CEAMCL tracks fr079's doubtful room (docs/real-data.md, "Motion noise per stride").
+**Noise per stride of travel (the default since 2026-11-30).** amcl's alphas suit its own
+pace, an update every :data:`STRIDE_M` of travel or :data:`STRIDE_RAD` of turning
+(``update_min_d``, ``update_min_a``). An update that spans more ground (a corrected log's key
+scans, one every 0.1-3 m) gets the noise of that many independent strides of travel: Table
+5.6's variances divided by :meth:`OdometryIncrement.strides`, so that they grow with the
+distance, not with its square (over 1.5 m with alpha 0.2 the heading spreads by 0.39 rad
+instead of 0.9). An update within one stride keeps Table 5.6 exactly: every step of the
+simulator and nearly every update at Nav2's pace. Turns are not counted by default
+(``stride_rad=None``): a turn's slip on real wheels is one systematic error, not a sum of
+independent ones, and counting it cut the rotation noise that lets a species follow raw
+odometry through a turn (measured: docs/real-data.md, "Noise per stride of travel").
+``stride_m=None`` is amcl's rule, Table 5.6 over the whole update.
 """
 
 from __future__ import annotations
@@ -198,12 +200,13 @@ def apply_increment(
 class OdometryMotionModel:
     """Samples ``p(x_t | x_{t-1}, u)`` for arrays of poses (sample_motion_model_odometry).
 
-    ``stride_m``, ``stride_rad`` (e.g. :data:`STRIDE_M`, :data:`STRIDE_RAD`): an update's
-    noise is that of the strides it spans (module docstring, "noise per stride"); ``None`` for
-    both (the default): Table 5.6 over the whole update, as amcl."""
+    ``stride_m``, ``stride_rad``: an update's noise is that of the strides of travel (and, with
+    ``stride_rad``, of turning) it spans (module docstring, "noise per stride of travel"); the
+    default counts strides of :data:`STRIDE_M` travel only; ``None`` for both: Table 5.6 over
+    the whole update, as amcl."""
 
     noise: OdometryNoise = OdometryNoise()
-    stride_m: float | None = None
+    stride_m: float | None = STRIDE_M
     stride_rad: float | None = None
 
     def __post_init__(self) -> None:
