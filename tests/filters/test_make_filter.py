@@ -18,6 +18,7 @@ from ceamcl.filters import (
     make_filter,
 )
 from ceamcl.maps.worlds import get_world
+from ceamcl.motion.odometry import STRIDE_M, OdometryMotionModel, OdometryNoise
 
 
 def test_a_config_reaches_its_filter() -> None:
@@ -26,6 +27,22 @@ def test_a_config_reaches_its_filter() -> None:
     assert isinstance(f, CEAMCL) and f.config.delta_per_m2 == 40
     g = make_filter("gmcl", grid, np.random.default_rng(0), config=GMCLConfig(), n_particles=77)
     assert isinstance(g, GMCL) and g.config.n_particles == 77
+
+
+def test_a_motion_model_reaches_its_filter_and_is_checked() -> None:
+    """The default counts strides of travel; amcl's rule is one argument away."""
+    grid = get_world("small-office")
+    assert make_filter("mcl", grid, np.random.default_rng(0)).motion.stride_m == STRIDE_M
+    amcl_rule = OdometryMotionModel(OdometryNoise(0.1, 0.1, 0.1, 0.1), stride_m=None)
+    for name in ("ceamcl", "mcl", "gmcl", "kld-amcl"):
+        f = make_filter(name, grid, np.random.default_rng(0), motion=amcl_rule)
+        assert f.motion is amcl_rule  # type: ignore[attr-defined]
+    with pytest.raises(ConfigError, match="not both"):
+        make_filter(
+            "mcl", grid, np.random.default_rng(0), motion=amcl_rule, odometry_noise=OdometryNoise()
+        )
+    with pytest.raises(ConfigError, match="motion: expected an OdometryMotionModel, got dict"):
+        make_filter("mcl", grid, np.random.default_rng(0), motion={})  # type: ignore[arg-type]
 
 
 def test_a_config_of_another_filter_is_refused() -> None:

@@ -207,6 +207,7 @@ def make_filter(
     n_particles: int | np.integer[Any] | None = None,
     config: Any = None,
     sensor_settings: Mapping[str, Any] | None = None,
+    motion: OdometryMotionModel | None = None,
 ) -> LocalisationFilter:
     """A filter by name (see :func:`names`), with its default settings or ``config`` (the
     algorithm's own config class, e.g. ``CEAMCLConfig(delta_per_m2=40)``).
@@ -218,6 +219,10 @@ def make_filter(
 
     The sensor model (named, or given) takes the algorithm's ``sensor_settings`` (a tuned
     preset's ``max_beams`` and ``temper``), then ``sensor_settings`` given here on top.
+
+    ``motion``: the odometry motion model, in place of ``OdometryMotionModel(odometry_noise)``
+    (e.g. ``OdometryMotionModel(stride_m=None)``, amcl's rule of Table 5.6 over a whole
+    update; give the noise in it, not both). The Nav2 peer takes only its noise.
     """
     spec = get(algorithm)
     check_grid(grid)
@@ -237,7 +242,12 @@ def make_filter(
         cfg = spec.with_particles(cfg, n_particles)
     sensor_model = make_sensor(sensor, grid) if isinstance(sensor, str) else sensor
     sensor_model = with_settings(sensor_model, {**spec.sensor_settings, **(sensor_settings or {})})
-    motion = OdometryMotionModel(odometry_noise or OdometryNoise())
+    if motion is None:
+        motion = OdometryMotionModel(odometry_noise or OdometryNoise())
+    elif not isinstance(motion, OdometryMotionModel):
+        raise ConfigError(f"motion: expected an OdometryMotionModel, got {type(motion).__name__}")
+    elif odometry_noise is not None:
+        raise ConfigError("motion: give the odometry noise inside the motion model, not both")
     return spec.build(grid, motion, sensor_model, cfg, rng)
 
 
