@@ -18,7 +18,7 @@ from ceamcl.filters import (
     make_filter,
 )
 from ceamcl.maps.worlds import get_world
-from ceamcl.motion.odometry import STRIDE_M, OdometryMotionModel, OdometryNoise
+from ceamcl.motion.odometry import DEFAULT_STRIDE_M, OdometryMotionModel, OdometryNoise
 
 
 def test_a_config_reaches_its_filter() -> None:
@@ -32,7 +32,7 @@ def test_a_config_reaches_its_filter() -> None:
 def test_a_motion_model_reaches_its_filter_and_is_checked() -> None:
     """The default counts strides of travel; amcl's rule is one argument away."""
     grid = get_world("small-office")
-    assert make_filter("mcl", grid, np.random.default_rng(0)).motion.stride_m == STRIDE_M
+    assert make_filter("mcl", grid, np.random.default_rng(0)).motion.stride_m == DEFAULT_STRIDE_M
     amcl_rule = OdometryMotionModel(OdometryNoise(0.1, 0.1, 0.1, 0.1), stride_m=None)
     for name in ("ceamcl", "mcl", "gmcl", "kld-amcl"):
         f = make_filter(name, grid, np.random.default_rng(0), motion=amcl_rule)

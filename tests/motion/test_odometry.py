@@ -7,6 +7,7 @@ import pytest
 
 from ceamcl.angles import wrap
 from ceamcl.motion.odometry import (
+    DEFAULT_STRIDE_M,
     MIN_TRANSLATION_FOR_ROT1_M,
     STRIDE_M,
     STRIDE_RAD,
@@ -281,19 +282,22 @@ def test_an_update_of_many_strides_has_the_noise_of_those_strides() -> None:
 
 
 def test_the_default_model_counts_strides_of_travel_not_turns() -> None:
-    """The default (module docstring, "noise per stride of travel"): 1.5 m of travel is six
-    strides of 0.25 m, so Table 5.6's variances are divided by six; a turn of 0.6 rad on the
-    spot keeps Table 5.6's variances, as amcl's rule does (a turn's slip is one error)."""
+    """The default (module docstring, "noise per stride of travel"): 1.5 m of travel is three
+    strides of 0.5 m, so Table 5.6's variances are divided by three; an update Nav2 could make
+    itself (0.45 m) and a turn of 0.6 rad on the spot keep Table 5.6's variances, as amcl's
+    rule does (a turn's slip is one error)."""
     model = OdometryMotionModel(NOISE)
-    assert (model.stride_m, model.stride_rad) == (STRIDE_M, None)
+    assert (model.stride_m, model.stride_rad) == (DEFAULT_STRIDE_M, None) == (2 * STRIDE_M, None)
     long = OdometryIncrement(rot1=0.05, trans=1.5, rot2=-0.05)
-    v = np.array(long.variances(NOISE)) / 6.0
+    v = np.array(long.variances(NOISE)) / 3.0
     moved = model.sample(np.tile(START, (N_SAMPLES, 1)), long, np.random.default_rng(21))
     check_moments(recover_components(START, moved), np.array([0.05, 1.5, -0.05]), v)
-    turn = increment_between(START, START + np.array([0.0, 0.0, 0.6]))
-    rng_a, rng_b = np.random.default_rng(22), np.random.default_rng(22)
     start = np.tile(START, (100, 1))
-    assert np.array_equal(model.sample(start, turn, rng_a), AMCL_MODEL.sample(start, turn, rng_b))
+    nav2_update = OdometryIncrement(rot1=0.1, trans=0.45, rot2=-0.1)
+    turn = increment_between(START, START + np.array([0.0, 0.0, 0.6]))
+    for inc in (nav2_update, turn):
+        rng_a, rng_b = np.random.default_rng(22), np.random.default_rng(22)
+        assert np.array_equal(model.sample(start, inc, rng_a), AMCL_MODEL.sample(start, inc, rng_b))
 
 
 def test_strides_are_validated() -> None:

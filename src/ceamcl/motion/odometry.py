@@ -21,17 +21,19 @@ each step of a pose track from :meth:`OdometryIncrement.wheel_variances`: a step
 sideways, as a SLAM track jitters while the robot stands, is no turn.
 
 **Noise per stride of travel (the default since 2026-11-30).** amcl's alphas suit its own
-pace, an update every :data:`STRIDE_M` of travel or :data:`STRIDE_RAD` of turning
-(``update_min_d``, ``update_min_a``). An update that spans more ground (a corrected log's key
-scans, one every 0.1-3 m) gets the noise of that many independent strides of travel: Table
-5.6's variances divided by :meth:`OdometryIncrement.strides`, so that they grow with the
-distance, not with its square (over 1.5 m with alpha 0.2 the heading spreads by 0.39 rad
-instead of 0.9). An update within one stride keeps Table 5.6 exactly: every step of the
-simulator and nearly every update at Nav2's pace. Turns are not counted by default
-(``stride_rad=None``): a turn's slip on real wheels is one systematic error, not a sum of
-independent ones, and counting it cut the rotation noise that lets a species follow raw
-odometry through a turn (measured: docs/real-data.md, "Noise per stride of travel").
-``stride_m=None`` is amcl's rule, Table 5.6 over the whole update.
+pace: an update at the first scan past :data:`STRIDE_M` of travel or :data:`STRIDE_RAD` of
+turning (``update_min_d``, ``update_min_a``), so an update Nav2 makes spans up to about two of
+those strides. An update that spans more ground (a corrected log's key scans, one every
+0.1-3 m) gets the noise of that many independent strides of :data:`DEFAULT_STRIDE_M` (twice
+``update_min_d``): Table 5.6's variances divided by :meth:`OdometryIncrement.strides`, so that
+they grow with the distance, not with its square (over 1.5 m with alpha 0.2 the heading
+spreads by 0.52 rad instead of 0.9). An update within one such stride keeps Table 5.6 exactly:
+every step of the simulator and every update at Nav2's pace on the shared raw logs. A stride
+of 0.25 m divided Nav2's own updates too (0.3 m by 1.2) and tracked fr079's doubtful room
+worse. Turns are not counted by default (``stride_rad=None``): a turn's slip on real wheels is
+one systematic error, not a sum of independent ones, and counting it cut the rotation noise
+that lets a species follow raw odometry through a turn (measured: docs/real-data.md, "Noise
+per stride of travel"). ``stride_m=None`` is amcl's rule, Table 5.6 over the whole update.
 """
 
 from __future__ import annotations
@@ -46,10 +48,13 @@ from ceamcl.angles import diff, wrap
 from ceamcl.errors import ConfigError, check_rng
 
 MIN_TRANSLATION_FOR_ROT1_M = 0.01
-#: the travel and the turn of one stride, Nav2's ``update_min_d`` and ``update_min_a`` (module
-#: docstring, "noise per stride")
+#: the travel and the turn of one stride of Nav2's pace, its ``update_min_d`` and
+#: ``update_min_a`` (module docstring, "noise per stride")
 STRIDE_M = 0.25
 STRIDE_RAD = 0.2
+#: the motion model's default stride of travel: the longest update Nav2 itself makes, about two
+#: of its strides (module docstring)
+DEFAULT_STRIDE_M = 2 * STRIDE_M
 
 
 @dataclass(frozen=True)
@@ -202,11 +207,11 @@ class OdometryMotionModel:
 
     ``stride_m``, ``stride_rad``: an update's noise is that of the strides of travel (and, with
     ``stride_rad``, of turning) it spans (module docstring, "noise per stride of travel"); the
-    default counts strides of :data:`STRIDE_M` travel only; ``None`` for both: Table 5.6 over
-    the whole update, as amcl."""
+    default counts strides of :data:`DEFAULT_STRIDE_M` travel only; ``None`` for both: Table
+    5.6 over the whole update, as amcl."""
 
     noise: OdometryNoise = OdometryNoise()
-    stride_m: float | None = STRIDE_M
+    stride_m: float | None = DEFAULT_STRIDE_M
     stride_rad: float | None = None
 
     def __post_init__(self) -> None:
