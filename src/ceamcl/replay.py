@@ -67,7 +67,7 @@ from ceamcl.io.truth_check import TruthDoubt, doubtful_truth
 from ceamcl.mapping import MappingConfig, map_from_log
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.maps.ros_io import load_map
-from ceamcl.motion.odometry import OdometryNoise
+from ceamcl.motion.odometry import STRIDE_M, STRIDE_RAD, OdometryNoise
 from ceamcl.outputs import OutputOptions, write_run_files
 from ceamcl.runner import RunResult, run_filter
 
@@ -193,9 +193,10 @@ def obtain_map(
 #: The verdict of a run on a log without ground truth.
 NOT_SCORED = "not scored: the log has no ground truth (see restarts and jumps)"
 
-#: Nav2 amcl's defaults: update once the robot has moved 0.25 m or turned 0.2 rad.
-DEFAULT_UPDATE_MIN_D = 0.25
-DEFAULT_UPDATE_MIN_A = 0.2
+#: Nav2 amcl's defaults: update once the robot has moved 0.25 m or turned 0.2 rad (one stride
+#: of the pace its motion noise was set for, :data:`ceamcl.motion.odometry.STRIDE_M`).
+DEFAULT_UPDATE_MIN_D = STRIDE_M
+DEFAULT_UPDATE_MIN_A = STRIDE_RAD
 #: The config fields of an algorithm that holds its own update thresholds (amcl's, KLD-AMCL
 #: and its presets): under a shared pace they are set to 0 so that the runner alone decides,
 #: for every algorithm alike.

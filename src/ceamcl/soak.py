@@ -136,7 +136,7 @@ class SimulatedStream:
     def __iter__(self) -> Iterator[tuple[NDArray[np.float64], NDArray[np.float64], LaserScan]]:
         sim = Simulator(self.grid, self.config)
         # the data's noise: Table 5.6 over each step, as synthetic_odometry draws it
-        model = OdometryMotionModel(self.config.odometry_noise, stride_m=None, stride_rad=None)
+        model = OdometryMotionModel(self.config.odometry_noise, stride_m=None)
         dt = 1.0 / self.config.rate_hz
         size = self.loop.shape[0]
         truth = self.loop[0].copy()

@@ -266,7 +266,7 @@ def synthetic_odometry(
     """
     check_rng(rng)
     truth = np.asarray(true_poses, dtype=np.float64).reshape(-1, 3)
-    model = OdometryMotionModel(noise, stride_m=None, stride_rad=None)
+    model = OdometryMotionModel(noise, stride_m=None)
     odom = np.empty_like(truth)
     if truth.shape[0] == 0:
         return odom
