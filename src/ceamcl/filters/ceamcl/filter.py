@@ -1106,7 +1106,24 @@ class CEAMCL:
                 left = self._left_anchor(best)
                 if left is not None and self.state().state is State.LOST:
                     return left
-        return PoseEstimate(best.mean.copy(), best.covariance.copy())
+        return self.estimate_of(best)
+
+    def estimate_of(self, best: SpeciesStats) -> PoseEstimate:
+        """The estimate a species gives when it leads (what :meth:`estimate` reports unless
+        the filter coasts on its anchor): its samples' mean weighted by the scan's untempered
+        likelihood (``estimate_likelihood="full"``, departure 35), or by the species' own
+        weights (``"tempered"``: its mean, as its hypothesis has it); its covariance."""
+        covariance = best.covariance.copy()
+        temper = self.sensor.temper
+        ps = self.particle_set
+        if self.config.estimate_likelihood == "tempered" or temper >= 1.0 or best.n < 2:
+            return PoseEstimate(best.mean.copy(), covariance)
+        ll = ps.loglik[best.members] if ps.loglik.shape[0] == ps.n else np.empty(0)
+        top = float(ll.max()) if ll.size else -np.inf
+        if not np.isfinite(top):  # no likelihood to read (impossible everywhere)
+            return PoseEstimate(best.mean.copy(), covariance)
+        weights = np.exp((ll - top) / temper)  # the tempering undone; NaN-free (sanitised)
+        return PoseEstimate(pose_mean(ps.poses[best.members], weights), covariance)
 
     def _left_anchor(self, best: SpeciesStats) -> PoseEstimate | None:
         """The anchor as an estimate when the leading species ``best`` stands beyond its
