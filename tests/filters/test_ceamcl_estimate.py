@@ -1,11 +1,9 @@
-"""What CEAMCL reports as its pose: the leading species read at the scan's untempered
-likelihood (``CEAMCLConfig.estimate_likelihood``, docs/ceamcl.md departure 35). The real-log
-claim (closer to the truth than the species' mean on intel raw) is in
-``tests/test_raw_logs.py``."""
+"""What CEAMCL reports as its pose: the leading species' mean (the default), or the species
+read at the scan's untempered likelihood (``CEAMCLConfig.estimate_likelihood="full"``,
+docs/ceamcl.md departure 35). The real-log claim of ``"full"`` (closer to the truth than the
+species' mean on intel raw) is in ``tests/test_raw_logs.py``."""
 
 from __future__ import annotations
-
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -15,6 +13,8 @@ from ceamcl.filters.ceamcl import CEAMCL, CEAMCLConfig
 from ceamcl.motion.odometry import increment_between
 from ceamcl.pose import pose_mean
 from ceamcl.simulation.scenarios import office_scenario
+
+FULL = CEAMCLConfig(estimate_likelihood="full")
 
 
 def tracked(steps: int = 12, config: CEAMCLConfig | None = None, **sensor: object) -> CEAMCL:
@@ -36,8 +36,8 @@ def tracked(steps: int = 12, config: CEAMCLConfig | None = None, **sensor: objec
     return f
 
 
-def test_the_estimate_weighs_the_leader_by_the_untempered_likelihood() -> None:
-    f = tracked()
+def test_full_weighs_the_leader_by_the_untempered_likelihood() -> None:
+    f = tracked(config=FULL)
     lead = f.fittest()
     assert lead is not None
     temper = f.sensor.temper
@@ -54,23 +54,24 @@ def test_the_estimate_weighs_the_leader_by_the_untempered_likelihood() -> None:
     assert np.array_equal(f.hypotheses()[0].pose, lead.mean)
 
 
-def test_tempered_reads_the_species_mean_as_before() -> None:
-    f = tracked(config=replace(CEAMCLConfig(), estimate_likelihood="tempered"))
+def test_the_default_reads_the_species_mean() -> None:
+    assert CEAMCLConfig().estimate_likelihood == "tempered"
+    f = tracked()
     lead = f.fittest()
     assert lead is not None
     assert np.array_equal(f.estimate().pose, lead.mean)
 
 
 def test_with_amcls_scoring_there_is_no_tempering_to_undo() -> None:
-    """amcl's sum of cubes takes no temper (1): the default reads the species' mean."""
-    f = tracked(scoring="ros")
+    """amcl's sum of cubes takes no temper (1): ``"full"`` reads the species' mean."""
+    f = tracked(config=FULL, scoring="ros")
     lead = f.fittest()
     assert lead is not None and f.sensor.temper == 1.0
     assert np.array_equal(f.estimate().pose, lead.mean)
 
 
 def test_a_species_no_sample_of_which_fits_still_gives_a_finite_estimate() -> None:
-    f = tracked(steps=3)
+    f = tracked(steps=3, config=FULL)
     lead = f.fittest()
     assert lead is not None
     f.particle_set.loglik[:] = -np.inf  # every sample impossible under the last scan

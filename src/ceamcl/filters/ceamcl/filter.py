@@ -1110,9 +1110,9 @@ class CEAMCL:
 
     def estimate_of(self, best: SpeciesStats) -> PoseEstimate:
         """The estimate a species gives when it leads (what :meth:`estimate` reports unless
-        the filter coasts on its anchor): its samples' mean weighted by the scan's untempered
-        likelihood (``estimate_likelihood="full"``, departure 35), or by the species' own
-        weights (``"tempered"``: its mean, as its hypothesis has it); its covariance."""
+        the filter coasts on its anchor): its mean, as its hypothesis has it (the default,
+        ``estimate_likelihood="tempered"``), or its samples' mean weighted by the scan's
+        untempered likelihood (``"full"``, departure 35); its covariance."""
         covariance = best.covariance.copy()
         temper = self.sensor.temper
         ps = self.particle_set
