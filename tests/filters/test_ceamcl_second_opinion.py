@@ -18,6 +18,7 @@ import pytest
 
 from ceamcl.experiments.routes import paper_course
 from ceamcl.filters import make_filter
+from ceamcl.filters.base import PoseEstimate
 from ceamcl.filters.ceamcl import CEAMCL, CEAMCLConfig
 from ceamcl.filters.ceamcl.anchor import HEADING_Q, _Carried
 from ceamcl.filters.ceamcl.species import SpeciesStats
@@ -937,3 +938,62 @@ def test_a_recovery_searches_the_map_at_its_own_density(seed: int) -> None:
             assert min(position_error(h.pose, image) for h in hyps) < 0.5
     same, third = spent.values()
     assert third < 0.5 * same
+
+
+def _held_with_a_far_leader(
+    keep: float | None, far_fit: float
+) -> tuple[CEAMCL, np.ndarray, SimulatedLog, int]:
+    """Lost behind an obstacle (one species at the truth, the anchor held), then a copy of
+    that species 6 m away, whose samples fitted the last scan at ``far_fit``, leads it on
+    evidence, the estimate held at the anchor at the last update, and eq. 9 about to drop the
+    anchor's species: the filter, the anchor's pose, the log and the last scan's index."""
+    f, log, k = _lost_behind_an_obstacle(True)
+    f.config = replace(f.config, anchor_keep_fit=keep)
+    anchor = f.confident.anchor()
+    assert anchor is not None
+    (near,) = f.stats
+    ps = f.particle_set
+    far = ParticleSet.from_poses(
+        ps.poses + np.array([6.0, 0.0, 0.0]), np.full(ps.n, f._next_id, dtype=np.int64)
+    )
+    far.loglik, far.fitness = ps.loglik.copy(), np.full(ps.n, far_fit)
+    ps.extend(far)
+    f.log_weight[f._next_id], f.log_weight[near] = 0.0, -5.0
+    f.competition.dn[f._next_id], f.competition.dn[near] = 0.0, -1000.0
+    f._next_id += 1
+    f._normalise_weights()
+    f._refresh_stats()
+    held = PoseEstimate(anchor[0].copy(), np.diag([0.01, 0.01, 0.01]))
+    f._held = (f.t, held, None, float("nan"))
+    return f, anchor[0], log, k
+
+
+@pytest.mark.parametrize("keep", [0.55, None])
+def test_while_nothing_fits_the_anchors_species_is_kept(keep: float | None) -> None:
+    """Departure 36: the estimate held at the anchor, the leader 6 m away fitting the
+    obstructed scan no better than 0.55 on average, the anchor's species keeps delta x epsilon
+    (40) samples where eq. 9 would drop it (``anchor_keep_fit=None``: it is dropped)."""
+    f, anchor, log, k = _held_with_a_far_leader(keep, 0.3)
+    (own,) = [sid for sid, s in f.stats.items() if position_error(s.mean, anchor) < 1.0]
+    lead = f.fittest()
+    assert lead is not None and position_error(lead.mean, anchor) > 5.0
+    assert lead.fitness < 0.55  # the leader fitted the last scan no better
+    f.step(increment_between(log.odometry[k], log.odometry[k + 1]), _obstructed(log, k + 1))
+    if keep is None:
+        assert own not in f.stats and f.events.extinctions == 1  # (departure 19 may re-sprout)
+    else:
+        assert f.events.extinctions == 0 and f.stats[own].n >= 40
+
+
+def test_a_leader_that_fits_lets_the_anchors_species_go() -> None:
+    """Departure 36 keeps nothing once the leader fits (0.9: a robot carried off and found
+    again): the anchor's species, outweighed, is dropped as before."""
+    f, anchor, log, k = _held_with_a_far_leader(0.55, 0.9)
+    (own,) = [sid for sid, s in f.stats.items() if position_error(s.mean, anchor) < 1.0]
+    f.step(increment_between(log.odometry[k], log.odometry[k + 1]), _obstructed(log, k + 1))
+    assert own not in f.stats and f.events.extinctions == 1
+
+
+def test_anchor_keep_fit_is_checked() -> None:
+    with pytest.raises(ValueError, match="anchor_keep_fit"):
+        CEAMCLConfig(anchor_keep_fit=1.5)

@@ -216,6 +216,13 @@ class CEAMCLConfig:
             ``delta x epsilon`` samples at the leader's weight less what it fits worse at the
             update's scan (docs/ceamcl.md, departure 19): the place the odometry carried the
             robot to competes instead of being only reported.
+        anchor_keep_fit: while the estimate is held at the anchor (departures 18-23) and the
+            leading species' mean fitness is below this, every species within the anchor's
+            reach keeps at least ``delta x epsilon`` samples, whatever eq. 9 says (docs/ceamcl.md,
+            departure 36): where no place fits the scan (people, clutter the map lacks) nothing
+            is refuted, and the place the odometry carried the robot to must still be there
+            when the scans come back. A leader that fits (a robot carried off and found again)
+            competes as before. ``None``: off. Default the state's fit floor, 0.55.
         far_vouch_share: with ``anchor_hold_margin``, a leading species beyond the anchor's
             envelope that was not the last update's estimate and that the species read
             LOCALISED takes the estimate from the anchor only where the map explains at least
@@ -335,6 +342,7 @@ class CEAMCLConfig:
     coast_after_updates: int = 2
     anchor_hold_margin: float | None = 3.0
     anchor_species: bool = True
+    anchor_keep_fit: float | None = DEFAULT_THRESHOLDS.fit_min
     far_vouch_share: float | None = 0.63
     recovery_lost_updates: int | None = 3
     init_is_a_search: bool = True
@@ -423,6 +431,7 @@ class CEAMCLConfig:
             "estimate_continues_m": self.estimate_continues_m is None
             or (math.isfinite(self.estimate_continues_m) and self.estimate_continues_m >= 0),
             "coast_after_updates": self.coast_after_updates >= 1,
+            "anchor_keep_fit": self.anchor_keep_fit is None or 0 < self.anchor_keep_fit <= 1,
             "anchor_hold_margin": self.anchor_hold_margin is None
             or (math.isfinite(self.anchor_hold_margin) and self.anchor_hold_margin >= 0),
             "recovery_lost_updates": self.recovery_lost_updates is None

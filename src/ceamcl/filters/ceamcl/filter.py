@@ -451,7 +451,8 @@ class CEAMCL:
         self._peak_fitness = {}
         self._full = None
         prepared = usable(self.sensor, scan)
-        # 1. Sample-size determination.
+        # 1. Sample-size determination (the anchor's species kept while nothing fits).
+        self._keep_anchor_species()
         targets, evaluations = grow(
             ps,
             self.stats,
@@ -1252,6 +1253,28 @@ class CEAMCL:
             self._estimate_from = (self.t, best.species_id, best.mean.copy() if believed else None)
         else:
             self._estimate_from = (self.t, -1, None)
+
+    def _keep_anchor_species(self) -> None:
+        """Departure 36 (``anchor_keep_fit``), before eq. 9's sizes are applied: when the
+        last update held the estimate at the anchor and the leading species' mean fitness was
+        below ``anchor_keep_fit``, each species within the anchor's reach (:meth:`_near`, its
+        drift envelope) grows to at least ``delta x epsilon`` samples instead of shrinking."""
+        cfg = self.config
+        at, held, _, _ = self._held
+        lead = self.fittest()
+        if cfg.anchor_keep_fit is None or at != self.t - 1 or held is None or lead is None:
+            return
+        if not lead.fitness < cfg.anchor_keep_fit:
+            return
+        coasting = self.confident.coasting(cfg.recovery_drift_m)
+        reach = None if coasting is None else coasting[2]
+        if reach is None:
+            return
+        floor = float(round(cfg.delta_per_m2 * cfg.epsilon_m2))
+        dn = self.competition.dn
+        for sid, s in self.stats.items():
+            if self._near(s.mean[None, :], held.pose[None, :], reach)[0]:
+                dn[sid] = max(dn.get(sid, 0.0), floor - s.n)
 
     def _continues_estimate(self, best: SpeciesStats) -> bool:
         """Whether the leader ``best`` was the last update's estimate: the same species, or
