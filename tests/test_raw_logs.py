@@ -190,13 +190,10 @@ def test_evaluate_log_tracking_with_the_beam_model(
 INTEL_RAW = DATA / "carmen-raw" / "intel.clf.gz"
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2])
-def test_ceamcl_tracks_intel_through_unmapped_clutter(seed: int) -> None:
-    """Intel's first 700 raw scans, tracked from the true pose perturbed by 0.5 m / 0.3 rad:
-    from raw scan ~190 on the laser sees obstacles the map lacks and the log-likelihood at the
-    true pose falls by about 25 (docs/real-data.md). Leaving out the short readings no
-    hypothesis explains (beam skipping), CEAMCL stays on the truth and no recovery fires;
-    weighing every beam, its recovery fired twice and it ended 12-18 m away (seeds 0-2)."""
+def _track_intel_raw(scans: int, seed: int, **config: Any) -> Any:
+    """CEAMCL (``config`` on top of its defaults) tracking intel raw's first ``scans`` scans
+    from the first with truth, at Nav2's pace, from the true pose perturbed by 0.5 m / 0.3
+    rad with ``seed``: the run (:class:`~ceamcl.runner.RunResult`)."""
     need(INTEL_RAW, OTHER)
     from ceamcl.experiments.tracking_log import perturbed_start, start_covariance
     from ceamcl.filters.registry import with_config
@@ -207,13 +204,23 @@ def test_ceamcl_tracks_intel_through_unmapped_clutter(seed: int) -> None:
     grid, _ = obtain_map(prepared.map_log, None, own=False)
     log = prepared.log
     first = int(np.flatnonzero(log.has_truth_at)[0])
-    window = log.window(first, first + 700)
+    window = log.window(first, first + scans)
     assert window.true_poses is not None
-    pace = UpdatePace()
-    cfg = with_config("ceamcl", tracking_samples=2000)
+    cfg = with_config("ceamcl", **config)
     f = make_paced_filter("ceamcl", grid, filter_rng(seed, 0, "ceamcl"), config=cfg)
     start = (perturbed_start(window.true_poses[0], seed), start_covariance())
-    result = run_filter(f, window, update_when=pace.policy(), initial_pose=start)
+    return run_filter(f, window, update_when=UpdatePace().policy(), initial_pose=start)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_ceamcl_tracks_intel_through_unmapped_clutter(seed: int) -> None:
+    """Intel's first 700 raw scans, tracked from the true pose perturbed by 0.5 m / 0.3 rad:
+    from raw scan ~190 on the laser sees obstacles the map lacks and the log-likelihood at the
+    true pose falls by about 25 (docs/real-data.md). Leaving out the short readings no
+    hypothesis explains (beam skipping), CEAMCL stays on the truth and no recovery fires;
+    weighing every beam, its recovery fired twice and it ended 12-18 m away (seeds 0-2)."""
+    need(INTEL_RAW, OTHER)
+    result = _track_intel_raw(700, seed, tracking_samples=2000)
     errors = result.position_errors
     assert errors is not None
     known = result.truth_known
@@ -233,23 +240,9 @@ def test_ceamcl_reads_intels_track_closer_at_the_full_likelihood(seed: int) -> N
     default: on other buildings and with odometry as the motion model has it, the mean is as
     close or closer (docs/ceamcl.md)."""
     need(INTEL_RAW, OTHER)
-    from ceamcl.experiments.tracking_log import perturbed_start, start_covariance
-    from ceamcl.filters.registry import with_config
-    from ceamcl.replay import UpdatePace, filter_rng, make_paced_filter, obtain_map, prepare_log
-    from ceamcl.runner import run_filter
-
-    prepared = prepare_log(INTEL_RAW, truth_from=OTHER)
-    grid, _ = obtain_map(prepared.map_log, None, own=False)
-    log = prepared.log
-    first = int(np.flatnonzero(log.has_truth_at)[0])
-    window = log.window(first, first + 3000)
-    assert window.true_poses is not None
     errors = {}
     for reading in ("full", "tempered"):
-        cfg = with_config("ceamcl", tracking_samples=200, estimate_likelihood=reading)
-        f = make_paced_filter("ceamcl", grid, filter_rng(seed, 0, "ceamcl"), config=cfg)
-        start = (perturbed_start(window.true_poses[0], seed), start_covariance())
-        result = run_filter(f, window, update_when=UpdatePace().policy(), initial_pose=start)
+        result = _track_intel_raw(3000, seed, tracking_samples=200, estimate_likelihood=reading)
         assert result.position_errors is not None
         errors[reading] = result.position_errors[result.truth_known]
     full, tempered = errors["full"], errors["tempered"]
