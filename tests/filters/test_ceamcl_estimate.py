@@ -10,6 +10,7 @@ import pytest
 
 from ceamcl.filters import make_filter
 from ceamcl.filters.ceamcl import CEAMCL, CEAMCLConfig
+from ceamcl.filters.resampling import normalise_log_weights
 from ceamcl.motion.odometry import increment_between
 from ceamcl.pose import pose_mean
 from ceamcl.simulation.scenarios import office_scenario
@@ -43,7 +44,9 @@ def test_full_weighs_the_leader_by_the_untempered_likelihood() -> None:
     temper = f.sensor.temper
     assert temper < 1.0  # the default sensor tempers its product
     ll = f.particle_set.loglik[lead.members]
-    expected = pose_mean(f.particle_set.poses[lead.members], np.exp((ll - ll.max()) / temper))
+    _, weights, ok = normalise_log_weights(ll / temper)  # exp(ll / temper), normalised
+    assert ok
+    expected = pose_mean(f.particle_set.poses[lead.members], weights)
     est = f.estimate()
     np.testing.assert_array_equal(est.pose, expected)
     np.testing.assert_array_equal(est.covariance, lead.covariance)

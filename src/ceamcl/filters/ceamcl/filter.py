@@ -69,6 +69,7 @@ from ceamcl.filters.ceamcl.phases import (
     compete,
     grow,
     merge,
+    raise_to_floors,
     species_stats,
     split,
 )
@@ -86,7 +87,11 @@ from ceamcl.filters.particles import (
     usable,
     weigh,
 )
-from ceamcl.filters.resampling import label_groups, sanitise_log_likelihood
+from ceamcl.filters.resampling import (
+    label_groups,
+    normalise_log_weights,
+    sanitise_log_likelihood,
+)
 from ceamcl.filters.state import (
     LocalisationState,
     MapAgreement,
@@ -1116,14 +1121,13 @@ class CEAMCL:
         untempered likelihood (``"full"``, departure 35); its covariance."""
         covariance = best.covariance.copy()
         temper = self.sensor.temper
+        if self.config.estimate_likelihood == "tempered" or temper >= 1.0:
+            return PoseEstimate(best.mean.copy(), covariance)
         ps = self.particle_set
-        if self.config.estimate_likelihood == "tempered" or temper >= 1.0 or best.n < 2:
+        # the tempering undone; nothing finite to read (impossible everywhere): the mean
+        _, weights, ok = normalise_log_weights(ps.loglik[best.members] / temper)
+        if not ok:
             return PoseEstimate(best.mean.copy(), covariance)
-        ll = ps.loglik[best.members] if ps.loglik.shape[0] == ps.n else np.empty(0)
-        top = float(ll.max()) if ll.size else -np.inf
-        if not np.isfinite(top):  # no likelihood to read (impossible everywhere)
-            return PoseEstimate(best.mean.copy(), covariance)
-        weights = np.exp((ll - top) / temper)  # the tempering undone; NaN-free (sanitised)
         return PoseEstimate(pose_mean(ps.poses[best.members], weights), covariance)
 
     def _left_anchor(self, best: SpeciesStats) -> PoseEstimate | None:
@@ -1258,23 +1262,24 @@ class CEAMCL:
         """Departure 36 (``anchor_keep_fit``), before eq. 9's sizes are applied: when the
         last update held the estimate at the anchor and the leading species' mean fitness was
         below ``anchor_keep_fit``, each species within the anchor's reach (:meth:`_near`, its
-        drift envelope) grows to at least ``delta x epsilon`` samples instead of shrinking."""
+        drift envelope) grows to at least ``delta x epsilon`` samples instead of shrinking
+        (:func:`~ceamcl.filters.ceamcl.phases.raise_to_floors`, as departure 13's floors)."""
         cfg = self.config
         at, held, _, _ = self._held
-        lead = self.fittest()
-        if cfg.anchor_keep_fit is None or at != self.t - 1 or held is None or lead is None:
+        if cfg.anchor_keep_fit is None or at != self.t - 1 or held is None:
             return
-        if not lead.fitness < cfg.anchor_keep_fit:
+        lead = self.fittest()
+        if lead is None or not lead.fitness < cfg.anchor_keep_fit:
             return
         coasting = self.confident.coasting(cfg.recovery_drift_m)
-        reach = None if coasting is None else coasting[2]
-        if reach is None:
+        if coasting is None or coasting[2] is None:
             return
-        floor = float(round(cfg.delta_per_m2 * cfg.epsilon_m2))
-        dn = self.competition.dn
-        for sid, s in self.stats.items():
-            if self._near(s.mean[None, :], held.pose[None, :], reach)[0]:
-                dn[sid] = max(dn.get(sid, 0.0), floor - s.n)
+        ids = list(self.stats)
+        means = np.array([self.stats[sid].mean for sid in ids])
+        near = self._near(means, held.pose[None, :], coasting[2])
+        floor = round(cfg.delta_per_m2 * cfg.epsilon_m2)
+        kept = {sid: floor for sid, ok in zip(ids, near, strict=True) if ok}
+        raise_to_floors(self.competition.dn, self.stats, kept)
 
     def _continues_estimate(self, best: SpeciesStats) -> bool:
         """Whether the leader ``best`` was the last update's estimate: the same species, or

@@ -303,13 +303,19 @@ def compete(
     if config.fill_tracking_floor and tracking is not None:
         # the competition is over: the floor tracking needs holds from now, not in 10-25 steps
         dn = np.maximum(dn, config.delta_per_m2 * tracking - n)
-    floors = floors or {}
-    for k, sid in enumerate(ids):
-        floor = floors.get(sid)
-        if floor is not None:
-            dn[k] = max(dn[k], floor - n[k])
     out.dn = dict(zip(ids, dn.tolist(), strict=True))
+    raise_to_floors(out.dn, stats, floors or {})
     return out
+
+
+def raise_to_floors(
+    dn: dict[int, float], stats: dict[int, SpeciesStats], floors: dict[int, int]
+) -> None:
+    """Raise the ``dN`` of each species of ``floors`` (by id) so that it reaches that many
+    samples, whatever eq. 9 says: departure 13's viable species (:func:`compete`) and
+    departure 36's species at the anchor (docs/ceamcl.md)."""
+    for sid, floor in floors.items():
+        dn[sid] = max(dn.get(sid, 0.0), float(floor - stats[sid].n))
 
 
 __all__ = [
@@ -321,6 +327,7 @@ __all__ = [
     "compete",
     "grow",
     "merge",
+    "raise_to_floors",
     "species_stats",
     "split",
 ]
