@@ -249,6 +249,48 @@ def test_a_new_species_near_the_last_confident_pose_starts_level(
     assert f._recovery_handicaps(old, log_p, {}) == {10: log_p, 11: log_p}
 
 
+@pytest.mark.parametrize(
+    ("new_pose", "kept", "level", "level_chained"),
+    [
+        # a kept species 2.5 m along from the anchor (a drift of it): a new species 3 m beyond
+        # it stands 5.5 m from the anchor, a drift of a drift ...
+        ((5.5, 0.0, 0.0), (2.5, 0.0, 0.0), False, True),
+        ((3.5, 0.0, 0.0), (2.5, 0.0, 0.0), True, True),  # ... one within reach of both is one
+        ((-1.0, 0.0, 0.0), (2.5, 0.0, 0.0), True, True),
+        # a kept species beyond the anchor's reach (the species followed the scans, the anchor
+        # the odometry) passes on its own reach, as departure 11 says
+        ((9.0, 0.0, 0.0), (6.0, 0.0, 0.0), True, True),
+    ],
+)
+def test_drifts_are_measured_from_the_anchor_and_do_not_chain(
+    new_pose: tuple[float, float, float],
+    kept: tuple[float, float, float],
+    level: bool,
+    level_chained: bool,
+) -> None:
+    """Departure 37 (docs/ceamcl.md): with an anchor, a kept species within reach of it is the
+    anchor's own place; a new species near that species starts level only within reach of the
+    anchor too (aces raw, seed 2: a corridor look-alike 5 m along started level through a
+    species kept 2 m along, and took the estimate). ``recovery_drift_from_anchor=False``: near
+    any kept species."""
+    course = paper_course()
+    f = make_filter("ceamcl", course.grid(), np.random.default_rng(0))
+    assert isinstance(f, CEAMCL)
+    new, old = _two_sets([new_pose, (30.0, 30.0, 0.0)], [kept])
+    f.particle_set = new
+    f.confident._anchor = _Carried(np.zeros(3), 0.0)
+    log_p = float(np.log(1e-6))
+    assert f._recovery_handicaps(old, log_p, {}) == {10: 0.0 if level else log_p, 11: log_p}
+    f.config = replace(f.config, recovery_drift_from_anchor=False)
+    assert f._recovery_handicaps(old, log_p, {}) == {
+        10: 0.0 if level_chained else log_p,
+        11: log_p,
+    }
+    f.config = replace(f.config, recovery_drift_from_anchor=True)
+    f.confident.reset()  # no anchor: a kept species' reach, as departure 11 says
+    assert f._recovery_handicaps(old, log_p, {}) == {10: 0.0 if level_chained else log_p, 11: log_p}
+
+
 def test_the_last_confident_pose_follows_the_odometry_and_is_forgotten() -> None:
     """The anchor is the leading pose at an update where the state says LOCALISED and the map
     explains the scan there; between such updates the odometry carries it, and beyond

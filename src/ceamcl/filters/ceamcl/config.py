@@ -159,6 +159,11 @@ class CEAMCLConfig:
             species near where the odometry says the robot is since it was last localised
             starts level, even after a look-alike place has taken the lead from the drifted
             species (docs/ceamcl.md, departure 14). ``None``: only the living species count.
+        recovery_drift_from_anchor: with an anchor, a drift is measured from it: a species the
+            filter had within ``recovery_drift_m`` of the anchor is the anchor's own place,
+            and a new species near it starts level only if it lies within
+            ``recovery_drift_m`` of the anchor too, so drifts do not chain along a corridor
+            (docs/ceamcl.md, departure 37). ``False``: near any species the filter had.
         estimate_likelihood: what :meth:`~ceamcl.filters.ceamcl.filter.CEAMCL.estimate`
             weighs the leading species' samples by (docs/ceamcl.md, departure 35, measured and
             not the default). ``"tempered"`` (default): the species' own weights, its mean
@@ -333,6 +338,7 @@ class CEAMCLConfig:
     recovery_drift_rad: float = 1.0
     recovery_prior_fades: bool = False
     recovery_anchor_m: float | None = 20.0
+    recovery_drift_from_anchor: bool = True
     estimate_likelihood: str = "tempered"
     coast_when_lost: bool = True
     anchor_envelope_sd: float | None = 3.0

@@ -335,7 +335,10 @@ class CEAMCL:
         the handicaps ``old_priors``): the smallest handicap of an old species whose mean lies
         within ``recovery_drift_m`` and ``recovery_drift_rad`` of its own (0 for one without,
         and for the anchor), ``log_prior`` where none does (docs/ceamcl.md, departures 9, 11
-        and 21: a place near a far place that carried a handicap is that far place again)."""
+        and 21: a place near a far place that carried a handicap is that far place again).
+        With an anchor, an old species within reach of it passes its handicap on only to new
+        species within reach of the anchor as well (departure 37: a drift of a drift is not
+        one)."""
         new = label_groups(self.particle_set.labels)
         reach = self.config.recovery_drift_m
         groups = label_groups(old.labels)
@@ -351,7 +354,12 @@ class CEAMCL:
             b = np.vstack([b, confident[0]])
             held.append(0.0)
         a = np.array([pose_mean(self.particle_set.poses[idx]) for idx in new.values()])
-        inherited = np.where(self._close(a, b, reach), np.array(held)[None, :], -np.inf)
+        close = self._close(a, b, reach)
+        if confident is not None and self.config.recovery_drift_from_anchor:
+            anchor = confident[0][None, :]
+            anchors_own = self._close(b, anchor, reach)[:, 0]
+            close &= ~anchors_own[None, :] | self._close(a, anchor, reach)
+        inherited = np.where(close, np.array(held)[None, :], -np.inf)
         best = inherited.max(axis=1)
         return {
             sid: float(h) if np.isfinite(h) else log_prior for sid, h in zip(new, best, strict=True)
