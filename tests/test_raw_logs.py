@@ -480,9 +480,9 @@ def test_in_fr079s_doubtful_room_a_sliding_species_yields_to_the_odometry(
         assert off > 40 and rmse > 0.9
 
 
-@pytest.mark.parametrize(("coast", "chain"), [(True, True), (False, True), (False, False)])
+@pytest.mark.parametrize(("coast", "from_anchor"), [(True, False), (False, False), (False, True)])
 def test_while_lost_in_fr079s_doubtful_room_ceamcl_reports_the_odometrys_pose(
-    coast: bool, chain: bool
+    coast: bool, from_anchor: bool
 ) -> None:
     """Tracking fr079 raw (seed 0, Nav2's pace) through the room of scans 1148-1239, which the
     map holds poorly: recoveries fire and propose places up to several metres off. With
@@ -490,13 +490,12 @@ def test_while_lost_in_fr079s_doubtful_room_ceamcl_reports_the_odometrys_pose(
     map vouched for, carried on by the odometry, when the leading species stands beyond
     ``recovery_drift_m`` of it: measured at most 1.03 m off in the room (1.71 m when this test
     was written), 3 of 113 scans more than 1 m off. With ``coast_when_lost=False`` it follows
-    the leading species: 91 scans more than 1 m off, at most 2.66 m, or 5.10 m with departure
-    37 off as well (``recovery_drift_from_anchor=False``: a place started level through a
-    drift of a drift; 4.86 m when this test was written; docs/ceamcl.md, departures 15 and
-    37)."""
+    the leading species: 91 scans more than 1 m off, at most 5.10 m (4.86 m when this test was
+    written), or 2.66 m with departure 37's option (``recovery_drift_from_anchor=True``: no
+    place starts level through a drift of a drift; docs/ceamcl.md, departures 15 and 37)."""
     need(RAW, CORRECTED)
     scan, errors = _fr079_tracking_errors(
-        0, 1300, coast_when_lost=coast, recovery_drift_from_anchor=chain
+        0, 1300, coast_when_lost=coast, recovery_drift_from_anchor=from_anchor
     )
     room = np.isfinite(errors) & (scan >= 1148) & (scan <= 1260)
     assert room.sum() > 80
@@ -506,7 +505,7 @@ def test_while_lost_in_fr079s_doubtful_room_ceamcl_reports_the_odometrys_pose(
         assert worst < 2.5 and off <= 20
     else:
         assert off > 40
-        if not chain:
+        if not from_anchor:
             assert worst > 3.5
 
 

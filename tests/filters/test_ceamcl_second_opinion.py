@@ -268,25 +268,25 @@ def test_drifts_are_measured_from_the_anchor_and_do_not_chain(
     level: bool,
     level_chained: bool,
 ) -> None:
-    """Departure 37 (docs/ceamcl.md): with an anchor, a kept species within reach of it is the
-    anchor's own place; a new species near that species starts level only within reach of the
-    anchor too (aces raw, seed 2: a corridor look-alike 5 m along started level through a
-    species kept 2 m along, and took the estimate). ``recovery_drift_from_anchor=False``: near
-    any kept species."""
+    """Departure 37 (docs/ceamcl.md, an option): with ``recovery_drift_from_anchor`` and an
+    anchor, a kept species within reach of it is the anchor's own place; a new species near
+    that species starts level only within reach of the anchor too (aces raw, seed 2: a
+    corridor look-alike 5 m along started level through a species kept 2 m along, and took the
+    estimate). Without it (the default): near any kept species."""
     course = paper_course()
     f = make_filter("ceamcl", course.grid(), np.random.default_rng(0))
     assert isinstance(f, CEAMCL)
+    assert not f.config.recovery_drift_from_anchor
     new, old = _two_sets([new_pose, (30.0, 30.0, 0.0)], [kept])
     f.particle_set = new
     f.confident._anchor = _Carried(np.zeros(3), 0.0)
     log_p = float(np.log(1e-6))
-    assert f._recovery_handicaps(old, log_p, {}) == {10: 0.0 if level else log_p, 11: log_p}
-    f.config = replace(f.config, recovery_drift_from_anchor=False)
     assert f._recovery_handicaps(old, log_p, {}) == {
         10: 0.0 if level_chained else log_p,
         11: log_p,
     }
     f.config = replace(f.config, recovery_drift_from_anchor=True)
+    assert f._recovery_handicaps(old, log_p, {}) == {10: 0.0 if level else log_p, 11: log_p}
     f.confident.reset()  # no anchor: a kept species' reach, as departure 11 says
     assert f._recovery_handicaps(old, log_p, {}) == {10: 0.0 if level_chained else log_p, 11: log_p}
 

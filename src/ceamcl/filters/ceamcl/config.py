@@ -163,7 +163,10 @@ class CEAMCLConfig:
             filter had within ``recovery_drift_m`` of the anchor is the anchor's own place,
             and a new species near it starts level only if it lies within
             ``recovery_drift_m`` of the anchor too, so drifts do not chain along a corridor
-            (docs/ceamcl.md, departure 37). ``False``: near any species the filter had.
+            (docs/ceamcl.md, departure 37). ``False`` (the default): near any species the
+            filter had. An option, not the default: it cures a corridor excursion (aces raw,
+            seed 2) but loses windows where the anchor itself has drifted (fr079's doubtful
+            room) on the tuning seeds.
         estimate_likelihood: what :meth:`~ceamcl.filters.ceamcl.filter.CEAMCL.estimate`
             weighs the leading species' samples by (docs/ceamcl.md, departure 35, measured and
             not the default). ``"tempered"`` (default): the species' own weights, its mean
@@ -338,7 +341,7 @@ class CEAMCLConfig:
     recovery_drift_rad: float = 1.0
     recovery_prior_fades: bool = False
     recovery_anchor_m: float | None = 20.0
-    recovery_drift_from_anchor: bool = True
+    recovery_drift_from_anchor: bool = False
     estimate_likelihood: str = "tempered"
     coast_when_lost: bool = True
     anchor_envelope_sd: float | None = 3.0

@@ -336,9 +336,9 @@ class CEAMCL:
         within ``recovery_drift_m`` and ``recovery_drift_rad`` of its own (0 for one without,
         and for the anchor), ``log_prior`` where none does (docs/ceamcl.md, departures 9, 11
         and 21: a place near a far place that carried a handicap is that far place again).
-        With an anchor, an old species within reach of it passes its handicap on only to new
-        species within reach of the anchor as well (departure 37: a drift of a drift is not
-        one)."""
+        With ``recovery_drift_from_anchor`` and an anchor, an old species within reach of it
+        passes its handicap on only to new species within reach of the anchor as well
+        (departure 37, an option: a drift of a drift is not one)."""
         new = label_groups(self.particle_set.labels)
         reach = self.config.recovery_drift_m
         groups = label_groups(old.labels)
