@@ -450,6 +450,12 @@ class CEAMCLConfig:
             if not ok:
                 raise ValueError(f"{name}: value {getattr(self, name)!r} is out of range")
 
+    @property
+    def species_floor(self) -> int:
+        """Samples a species holds at eq. 13-16's floor, ``delta x epsilon`` (40 at the
+        defaults): what departures 19 and 36 give a species they start or keep."""
+        return round(self.delta_per_m2 * self.epsilon_m2)
+
     # Each phase takes only its own settings (``filters.ceamcl.phases``, ``initialisation``).
     @cached_property
     def initialisation(self) -> InitialisationConfig:

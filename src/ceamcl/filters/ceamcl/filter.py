@@ -357,8 +357,8 @@ class CEAMCL:
         close = self._close(a, b, reach)
         if confident is not None and self.config.recovery_drift_from_anchor:
             anchor = confident[0][None, :]
-            anchors_own = self._close(b, anchor, reach)[:, 0]
-            close &= ~anchors_own[None, :] | self._close(a, anchor, reach)
+            anchors_own = self._near(b, anchor, reach)
+            close &= ~anchors_own[None, :] | self._near(a, anchor, reach)[:, None]
         inherited = np.where(close, np.array(held)[None, :], -np.inf)
         best = inherited.max(axis=1)
         return {
@@ -1185,7 +1185,7 @@ class CEAMCL:
         full = self._full
         assert full is not None
         cfg = self.config
-        n = max(cfg.viable_size, round(cfg.delta_per_m2 * cfg.epsilon_m2))
+        n = max(cfg.viable_size, cfg.species_floor)
         poses = self._mutation_cloud(pose, n)
         sid = self._next_id
         self._next_id += 1
@@ -1285,8 +1285,7 @@ class CEAMCL:
         ids = list(self.stats)
         means = np.array([self.stats[sid].mean for sid in ids])
         near = self._near(means, held.pose[None, :], coasting[2])
-        floor = round(cfg.delta_per_m2 * cfg.epsilon_m2)
-        kept = {sid: floor for sid, ok in zip(ids, near, strict=True) if ok}
+        kept = {sid: cfg.species_floor for sid, ok in zip(ids, near, strict=True) if ok}
         raise_to_floors(self.competition.dn, self.stats, kept)
 
     def _continues_estimate(self, best: SpeciesStats) -> bool:
