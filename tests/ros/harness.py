@@ -33,6 +33,18 @@ from ceamcl.ros.play import grid_msg
 from ceamcl.ros.transforms import Pose2, compose
 from ceamcl.simulation.simulator import SimulatedLog
 
+#: Seconds to wait for a lifecycle transition's answer before asking the node's state.
+ANSWER_WAIT_S = 5.0
+#: Where each transition the tests make leads (lifecycle_msgs' primary state labels).
+TRANSITION_GOALS: dict[int, str] = {
+    Transition.TRANSITION_CONFIGURE: "inactive",
+    Transition.TRANSITION_ACTIVATE: "active",
+    Transition.TRANSITION_DEACTIVATE: "inactive",
+    Transition.TRANSITION_CLEANUP: "unconfigured",
+}
+#: Primary states: a node in one of these is not in the middle of a transition.
+STABLE_STATES = frozenset({"unconfigured", "inactive", "active", "finalized"})
+
 LATCHED = QoSProfile(
     depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
 )
@@ -204,10 +216,34 @@ class Driver:
             assert time.monotonic() < end, f"{client.srv_name}: no answer"
             futures.append(client.call_async(request))
 
-    def transition(self, transition_id: int) -> bool:
+    def transition(self, transition_id: int, timeout_s: float = 30.0) -> bool:
+        """Whether the node took the lifecycle transition. A transition is not idempotent,
+        so it is not simply sent again as :meth:`call` does with ``resend_s``: when no answer
+        comes within :data:`ANSWER_WAIT_S` (the answer can be dropped in the discovery race
+        :meth:`call` describes, after the node has made the transition), the node's state says
+        what happened: at the transition's goal it was taken; still at the state it started
+        from, the request is sent again; in between (configuring, ...), the state is asked
+        again."""
         req = ChangeState.Request()
         req.transition = Transition(id=transition_id)
-        return bool(self.call(self.change_state, req).success)
+        goal = TRANSITION_GOALS.get(transition_id)
+        client = self.change_state
+        assert client.wait_for_service(timeout_sec=timeout_s), f"{client.srv_name} not offered"
+        end = time.monotonic() + timeout_s
+        futures = [client.call_async(req)]
+        while True:
+            wait = min(ANSWER_WAIT_S, max(end - time.monotonic(), 0.0))
+            if self.spin_until(lambda: any(f.done() for f in futures), wait):
+                if any(f.result().success for f in futures if f.done()):
+                    return True
+                # refused: a plain refusal, or a request sent again after the first was taken
+                return len(futures) > 1 and goal is not None and self.state() == goal
+            assert time.monotonic() < end, f"{client.srv_name}: no answer"
+            label = self.state()
+            if goal is not None and label == goal:
+                return True
+            if label in STABLE_STATES:
+                futures.append(client.call_async(req))
 
     def state(self) -> str:
         answer = self.call(self.get_state, GetState.Request(), resend_s=2.0)
