@@ -20,7 +20,7 @@ from ceamcl.experiments.routes import paper_course
 from ceamcl.filters import make_filter
 from ceamcl.filters.base import PoseEstimate
 from ceamcl.filters.ceamcl import CEAMCL, CEAMCLConfig
-from ceamcl.filters.ceamcl.anchor import HEADING_Q, _Carried
+from ceamcl.filters.ceamcl.anchor import HEADING_Q, ConfidentPose, _Carried
 from ceamcl.filters.ceamcl.species import SpeciesStats
 from ceamcl.filters.particles import ParticleSet
 from ceamcl.filters.state import State
@@ -1039,3 +1039,104 @@ def test_a_leader_that_fits_lets_the_anchors_species_go() -> None:
 def test_anchor_keep_fit_is_checked() -> None:
     with pytest.raises(ValueError, match="anchor_keep_fit"):
         CEAMCLConfig(anchor_keep_fit=1.5)
+
+
+@pytest.mark.parametrize("inside", [True, False])
+def test_the_anchor_yields_only_where_its_own_place_fits_no_better(inside: bool) -> None:
+    """Departure 38, the contest: a LOCALISED pose more than ``CHAIN_M`` from the anchor does
+    not replace it at an update where the anchor's own place fits better, inside the drift
+    envelope (where it would replace it at once) or beyond it (after ``anchor_conflict_m``);
+    where the anchor's place fits no better, the rules of departure 17 stand. A pose within
+    ``CHAIN_M`` (a species following the scans) is never contested."""
+    _, log, f = _anchor_on_the_paper_course(5)
+    truth = log.true_poses
+    reach = f.config.recovery_anchor_m
+    since = 12.0 if inside else 0.0  # metres since the anchor was confident
+    envelope = f._drift_envelope()
+    assert envelope is not None
+    assert (envelope.reach_m(since) > 2.0) is inside
+    for better in (True, False):
+        asked: list[int] = []
+
+        def contest(step: int, pose: np.ndarray, better: bool = better, asked=asked) -> bool:
+            asked.append(step)
+            return better
+
+        cp = ConfidentPose(f.map_agreement, f._drift_envelope, contest)
+        cp._anchor = _Carried(truth[0] + np.array([0.0, 1.5, 0.0]), since)
+        travel, k, replaced_at = 0.0, 0, None
+        while travel < 5.0:
+            k += 1
+            inc = increment_between(log.odometry[k - 1], log.odometry[k])
+            cp.carry(inc, reach)
+            travel += abs(inc.trans)
+            cp.propose(truth[k], log.scan(k), k)
+            held = cp.anchor()
+            assert held is not None
+            if np.array_equal(held[0], truth[k]):
+                replaced_at = travel
+                break
+        assert asked, "never contested"
+        if better:
+            assert replaced_at is None  # held over 5 m of travel
+        else:
+            assert replaced_at is not None
+            assert (replaced_at < f.config.anchor_conflict_m) is inside
+    # a pose within CHAIN_M replaces the anchor at once, uncontested
+    asked = []
+    cp = ConfidentPose(f.map_agreement, f._drift_envelope, lambda s, p: asked.append(s) or True)
+    cp._anchor = _Carried(truth[0] + np.array([0.0, 0.3, 0.0]), since)
+    cp.propose(truth[0], log.scan(0), 0)
+    held = cp.anchor()
+    assert held is not None and np.array_equal(held[0], truth[0]) and not asked
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_the_anchors_place_returns_when_it_out_fits_the_place_that_took_the_estimate(
+    seed: int,
+) -> None:
+    """Departure 38, the return: the lone species that continues the estimate stands 1.5 m
+    from the anchor (a recovery's place along a corridor that won a few cluttered scans and
+    was followed since), and the scan fits a pose near the anchor by more than
+    ``anchor_hold_margin`` better: a species starts there, with no handicap, and takes the
+    estimate back. Departures 18 and 19 never judge this leader (it is the estimate).
+    ``anchor_returns=False``: nothing starts and the estimate stays off. Where the leader fits
+    as well as the anchor's place (a look-alike in another room), nothing starts either."""
+    for returns in (True, False):
+        course, log, f, k = _tracked_along_the_course(seed, 3.0, species=True)
+        f.config = replace(f.config, anchor_returns=returns)
+        truth = log.true_poses[k]
+        held = f.confident.anchor()
+        assert held is not None and position_error(held[0], truth) < 0.2
+        off = _free_pose_beside(course, truth, 1.5)
+        f.events = type(f.events)()
+        _leader_moved_to(f, off, new_species=False)
+        assert f.events.sprouts == int(returns)
+        near = [s for s in f.stats.values() if position_error(s.mean, truth) < 0.2]
+        if not returns:
+            assert not near
+            assert position_error(f.estimate().pose, off) < 0.05
+            continue
+        assert len(near) == 1 and f.log_prior.get(near[0].species_id, 0.0) == 0.0
+        assert position_error(f.estimate().pose, truth) < 0.2
+    # a leader that fits as well (a look-alike the robot could be at, or a robot carried off
+    # and found there) keeps the estimate: the anchor's place must fit better by the margin
+    course, log, f, k = _tracked_along_the_course(seed, 3.0, species=True)
+    far = _farthest_image(course, log.true_poses[k])
+    f.events = type(f.events)()
+    _leader_moved_to(f, far, new_species=False)
+    assert f.events.sprouts == 0
+    assert len(f.stats) == 1
+    assert position_error(f.estimate().pose, far) < 0.05
+
+
+def _free_pose_beside(course: Any, pose: np.ndarray, distance: float) -> np.ndarray:
+    """A pose ``distance`` metres from ``pose`` (ahead, behind or to a side, the first in free
+    space of the course's map), with its heading."""
+    grid = course.grid()
+    for turn in (0.0, np.pi, np.pi / 2, -np.pi / 2):
+        a = pose[2] + turn
+        p = pose + np.array([distance * np.cos(a), distance * np.sin(a), 0.0])
+        if bool(grid.is_free(p[0], p[1])):
+            return p
+    raise AssertionError("no free pose beside")

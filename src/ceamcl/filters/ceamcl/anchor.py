@@ -22,6 +22,11 @@ With an envelope, a LOCALISED pose beyond it of the held anchor does not replace
 once: a species that slid while the map explained little can fit the next scans better where
 it slid to than at the truth. It becomes the anchor once such disagreement has lasted
 ``conflict_m`` of travel (the anchor, not the species, may be the one that drifted).
+
+With a *contest* (departure 38), a candidate more than :data:`CHAIN_M` from the anchor, inside
+the envelope or beyond it, does not replace the anchor at an update where the anchor's own
+place fits the scan better than the leading species: a place that won a few cluttered scans
+takes the estimate, not the pose the odometry carries.
 """
 
 from __future__ import annotations
@@ -50,6 +55,7 @@ class _Candidate(_Carried):
     judged_at: NDArray[np.float64]  # the leading pose at its update
     scan: LaserScan | None
     step: int
+    anchor_then: NDArray[np.float64] | None  # the anchor's pose at that update
 
 
 C = TypeVar("C", bound=_Carried)
@@ -115,10 +121,16 @@ class ConfidentPose:
     candidate waiting to be judged."""
 
     def __init__(
-        self, agreement: MapAgreement, envelope: Callable[[], DriftEnvelope | None]
+        self,
+        agreement: MapAgreement,
+        envelope: Callable[[], DriftEnvelope | None],
+        contest: Callable[[int, NDArray[np.float64]], bool] | None = None,
     ) -> None:
         self.agreement = agreement
         self.envelope = envelope  # read at each use: the filter's config may change
+        # departure 38: whether, at update ``step``, the anchor's place (its pose then) fits
+        # the scan better than the leading species
+        self.contest = contest
         # the heading variance a metre the odometry has shown (a property of the robot: a new
         # start keeps it)
         self._heading_q = HEADING_Q
@@ -144,7 +156,8 @@ class ConfidentPose:
         """A LOCALISED update's leading pose; the candidate before it is judged first."""
         self._judge()
         p = np.array(pose, dtype=np.float64)
-        self._candidate = _Candidate(p.copy(), 0.0, p, scan, step)
+        then = None if self._anchor is None else self._anchor.pose.copy()
+        self._candidate = _Candidate(p.copy(), 0.0, p, scan, step, then)
 
     def carry(self, increment: OdometryIncrement, reach_m: float | None) -> None:
         """Move both by the odometry; forget whichever has travelled beyond ``reach_m``
@@ -246,10 +259,19 @@ class ConfidentPose:
         once within the anchor's envelope (or without an envelope); beyond it, once the
         same place (the challenger: each candidate within :data:`CHAIN_M` of the one before,
         carried on) has disagreed with the anchor over ``conflict_m`` metres of travel. A
-        candidate elsewhere starts a new challenger."""
+        candidate elsewhere starts a new challenger. Never, with a contest, at an update where
+        the anchor's place fits better than a candidate more than ``CHAIN_M`` from it
+        (departure 38)."""
         envelope = self.envelope()
         if envelope is None:
             return True
+        if (
+            self.contest is not None
+            and c.anchor_then is not None
+            and _apart(c, anchor) > CHAIN_M
+            and self.contest(c.step, c.anchor_then)
+        ):
+            return False
         q = self.heading_q()
         if _apart(c, anchor) <= envelope.reach_m(anchor.travel - c.travel, q):
             self._challenger = None

@@ -54,7 +54,7 @@ from ceamcl.filters.base import (
     check_step_arguments,
     require_initialised,
 )
-from ceamcl.filters.ceamcl.anchor import ConfidentPose, DriftEnvelope
+from ceamcl.filters.ceamcl.anchor import CHAIN_M, ConfidentPose, DriftEnvelope
 from ceamcl.filters.ceamcl.config import CEAMCLConfig
 from ceamcl.filters.ceamcl.initialisation import (
     InitialisationConfig,
@@ -115,6 +115,9 @@ LOG_WEIGHT_FLOOR = -700.0
 #: ``CEAMCL._held`` before any update has judged the anchor: nothing held.
 _NOT_HELD: tuple[int, None, None, float] = (0, None, None, float("nan"))
 _NO_ESTIMATE: tuple[int, int, None] = (-1, -1, None)
+#: ``CEAMCL._score_anchor``: the best pose around the anchor, its tempered log-likelihood and
+#: the leader's best sample's.
+_Scored = tuple[NDArray[np.float64], float, float]
 
 
 class CEAMCL:
@@ -191,7 +194,12 @@ class CEAMCL:
         self.map_agreement = MapAgreement(grid)
         #: the leading pose the last time the filter was LOCALISED with the map's agreement,
         #: carried on by the odometry (departure 14)
-        self.confident = ConfidentPose(self.map_agreement, self._drift_envelope)
+        self.confident = ConfidentPose(
+            self.map_agreement, self._drift_envelope, self._anchor_fits_better
+        )
+        #: departure 38: the last grid scored around the anchor, keyed by the update, the
+        #: pose, the leader and the particle count (a contest and a return judge one update)
+        self._anchor_scored: tuple[tuple[int, bytes, int, int], _Scored] | None = None
         #: consecutive updates (up to ``self.t``) at which the state said LOST with the leader
         #: beyond the drift envelope of the last confident pose (departure 17)
         self._far_lost: tuple[int, int] = (0, 0)
@@ -1159,23 +1167,73 @@ class CEAMCL:
             return False
         return near >= lead - margin + self.log_prior.get(best.species_id, 0.0)
 
-    def _score_anchor(
-        self, best: SpeciesStats, left: PoseEstimate
-    ) -> tuple[NDArray[np.float64], float, float] | None:
+    def _score_anchor(self, best: SpeciesStats, anchor: NDArray[np.float64]) -> _Scored | None:
         """The pose of a grid around the anchor (:data:`HOLD_RADIUS_M`, :data:`HOLD_RAD`)
         that fits this update's scan best, on every beam, its tempered log-likelihood and the
-        best of the leading species' samples; ``None`` without a scan."""
+        best of the leading species' samples; ``None`` without a scan. Scored once an update
+        for a pose and a leader."""
         full = self._full
         if full is None:
             return None
-        near = left.pose + _HOLD_OFFSETS
+        key = (self.t, anchor.tobytes(), best.species_id, self.particle_set.n)
+        if self._anchor_scored is not None and self._anchor_scored[0] == key:
+            return self._anchor_scored[1]
+        near = anchor + _HOLD_OFFSETS
         near[:, 2] = angles.wrap(near[:, 2])
         leader = self.particle_set.poses[best.members]
         ll = sanitise_log_likelihood(self.sensor.log_likelihood(np.vstack([near, leader]), full))
         self._evaluations += int(ll.size)
         k = near.shape[0]
         i = int(np.argmax(ll[:k]))
-        return near[i].copy(), float(ll[i]), float(ll[k:].max())
+        scored = (near[i].copy(), float(ll[i]), float(ll[k:].max()))
+        self._anchor_scored = (key, scored)
+        return scored
+
+    def _anchor_fits_better(self, step: int, pose: NDArray[np.float64]) -> bool:
+        """Departure 38's contest (``anchor_returns``): whether, at this update (``step``),
+        the best pose around the anchor's ``pose`` fits the scan better than the leading
+        species' best sample, on every beam. ``False`` at another update, without a scan or
+        a leader, or with the departure off."""
+        best = self.fittest()
+        if not self.config.anchor_returns or step != self.t or best is None:
+            return False
+        judged = self._score_anchor(best, np.asarray(pose, dtype=np.float64))
+        return judged is not None and judged[1] > judged[2]
+
+    def _anchor_place_returns(
+        self, best: SpeciesStats | None, moved_on: bool
+    ) -> SpeciesStats | None:
+        """Departure 38 (``anchor_returns``, with ``anchor_species``), at the end of an
+        update: while an anchor is held, the leader that continues the estimate (departures 18
+        and 19 judge the others) stands more than :data:`CHAIN_M` from it and no species does
+        within ``CHAIN_M`` of it, the best pose around the anchor that out-fits the leader's
+        best sample by ``anchor_hold_margin`` starts a species, at the leader's weight plus
+        the difference of their fits (departure 19's start). The leader after it."""
+        cfg = self.config
+        margin = cfg.anchor_hold_margin
+        if (
+            best is None
+            or not moved_on
+            or not (cfg.anchor_returns and cfg.anchor_species)
+            or margin is None
+            or cfg.anchor_envelope_sd is None
+        ):
+            return best
+        coasting = self.confident.coasting(cfg.recovery_drift_m)
+        if coasting is None:
+            return best
+        anchor = coasting[0]
+        if not float(np.hypot(*(best.mean[:2] - anchor[:2]))) > CHAIN_M:
+            return best
+        means = np.array([st.mean for st in self.stats.values()]).reshape(-1, 3)
+        if self._near(means, anchor[None, :], CHAIN_M).any():
+            return best
+        judged = self._score_anchor(best, anchor)
+        if judged is None or judged[1] < judged[2] + margin:
+            return best
+        pose, near, lead = judged
+        self._sprout(pose, self.log_weight.get(best.species_id, 0.0) + near - lead)
+        return self.fittest()
 
     def _sprout(self, pose: NDArray[np.float64], log_weight: float) -> None:
         """Departure 19: a new species of ``delta x epsilon`` samples around ``pose`` (the
@@ -1235,7 +1293,7 @@ class CEAMCL:
             localised = self._species_state().state is State.LOCALISED
             vacant = self._anchor_vacant(left)
             # departure 18's fit test while LOCALISED; departure 19's, where a species may start
-            judged = self._score_anchor(best, left) if localised or vacant else None
+            judged = self._score_anchor(best, left.pose) if localised or vacant else None
             fits = judged is not None and self._fits_as_well(best, judged[1], judged[2])
             # departure 23: nor does the leader take it where the map does not vouch for it
             doubted = localised and not fits and not coasts
@@ -1254,6 +1312,7 @@ class CEAMCL:
                 pose, near, lead = judged
                 self._sprout(pose, self.log_weight.get(best.species_id, 0.0) + near - lead)
                 best = self.fittest()
+        best = self._anchor_place_returns(best, moved_on)
         self._held = (self.t, held, share, unvouched)  # a finite unvouched was held
         own = best is not None and not coasts and held is None
         # departure 25: a species the filter believed (the species' own reading of the state,
