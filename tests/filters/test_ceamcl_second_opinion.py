@@ -23,9 +23,11 @@ from ceamcl.filters.ceamcl import CEAMCL, CEAMCLConfig
 from ceamcl.filters.ceamcl.anchor import HEADING_Q, ConfidentPose, _Carried
 from ceamcl.filters.ceamcl.species import SpeciesStats
 from ceamcl.filters.particles import ParticleSet
+from ceamcl.filters.resampling import sanitise_log_likelihood
 from ceamcl.filters.state import State
 from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel, increment_between
 from ceamcl.pose import position_error
+from ceamcl.sensors.base import fitness
 from ceamcl.sensors.map_agreement import explained_share
 from ceamcl.sensors.scan import LaserScan
 from ceamcl.simulation.simulator import SimulatedLog
@@ -748,10 +750,13 @@ def _leader(f: CEAMCL) -> SpeciesStats:
     return lead
 
 
-def _leader_moved_to(f: CEAMCL, pose: np.ndarray, new_species: bool = True) -> None:
+def _leader_moved_to(
+    f: CEAMCL, pose: np.ndarray, new_species: bool = True, rescore: bool = False
+) -> None:
     """Carry the lone species' samples to ``pose`` (its mean there, its spread kept), as a new
-    species (as a recovery proposes) or as the tracked one. Then end the update as the filter
-    would judge it."""
+    species (as a recovery proposes) or as the tracked one, and with ``rescore`` weigh them on
+    the update's scan where they now stand (otherwise they keep their fitness). Then end the
+    update as the filter would judge it."""
     (stats,) = f.stats.values()
     ps = f.particle_set
     if new_species:
@@ -762,6 +767,10 @@ def _leader_moved_to(f: CEAMCL, pose: np.ndarray, new_species: bool = True) -> N
     ps.poses[:, 0] = pose[0] + c * offsets[:, 0] - s * offsets[:, 1]
     ps.poses[:, 1] = pose[1] + s * offsets[:, 0] + c * offsets[:, 1]
     ps.poses[:, 2] = pose[2] + offsets[:, 2]
+    if rescore:
+        assert f._full is not None
+        ps.loglik = sanitise_log_likelihood(f.sensor.log_likelihood(ps.poses, f._full))
+        ps.fitness = fitness(ps.loglik, f._full, f.sensor)
     f._refresh_stats()
     f.t += 1  # what the end of an update judges, the scan and the particles left as they are
     f._read = None
@@ -1096,38 +1105,44 @@ def test_the_anchors_place_returns_when_it_out_fits_the_place_that_took_the_esti
     seed: int,
 ) -> None:
     """Departure 38, the return: the lone species that continues the estimate stands 1.5 m
-    from the anchor (a recovery's place along a corridor that won a few cluttered scans and
-    was followed since), and the scan fits a pose near the anchor by more than
-    ``anchor_hold_margin`` better: a species starts there, with no handicap, and takes the
-    estimate back. Departures 18 and 19 never judge this leader (it is the estimate).
-    ``anchor_returns=False``: nothing starts and the estimate stays off. Where the leader fits
-    as well as the anchor's place (a look-alike in another room), nothing starts either."""
-    for returns in (True, False):
+    from the anchor and fits the scan there poorly (a recovery's place along a corridor that
+    won a few cluttered scans and was followed since), and a pose near the anchor fits it by
+    more than ``anchor_hold_margin`` better: a species starts there, with no handicap, and
+    takes the estimate back. Departures 18 and 19 never judge this leader (it is the
+    estimate). ``anchor_returns=None``, or a leader whose fitness reaches ``anchor_returns``:
+    nothing starts and the estimate stays off. Nor where the leader fits as well as the
+    anchor's place (a look-alike in another room)."""
+    for returns in (0.55, None, 0.01):
         course, log, f, k = _tracked_along_the_course(seed, 3.0, species=True)
+        assert f.config.anchor_returns == 0.55
         f.config = replace(f.config, anchor_returns=returns)
         truth = log.true_poses[k]
         held = f.confident.anchor()
         assert held is not None and position_error(held[0], truth) < 0.2
         off = _free_pose_beside(course, truth, 1.5)
         f.events = type(f.events)()
-        _leader_moved_to(f, off, new_species=False)
-        assert f.events.sprouts == int(returns)
+        _leader_moved_to(f, off, new_species=False, rescore=True)
+        lead = _leader(f) if returns != 0.55 else None
+        assert lead is None or 0.01 <= lead.fitness < 0.55  # it does not fit, by the state's floor
+        assert f.events.sprouts == int(returns == 0.55)
         near = [s for s in f.stats.values() if position_error(s.mean, truth) < 0.2]
-        if not returns:
+        if returns != 0.55:
             assert not near
             assert position_error(f.estimate().pose, off) < 0.05
             continue
         assert len(near) == 1 and f.log_prior.get(near[0].species_id, 0.0) == 0.0
         assert position_error(f.estimate().pose, truth) < 0.2
     # a leader that fits as well (a look-alike the robot could be at, or a robot carried off
-    # and found there) keeps the estimate: the anchor's place must fit better by the margin
+    # and found there) keeps the estimate
     course, log, f, k = _tracked_along_the_course(seed, 3.0, species=True)
     far = _farthest_image(course, log.true_poses[k])
     f.events = type(f.events)()
-    _leader_moved_to(f, far, new_species=False)
+    _leader_moved_to(f, far, new_species=False, rescore=True)
     assert f.events.sprouts == 0
     assert len(f.stats) == 1
     assert position_error(f.estimate().pose, far) < 0.05
+    with pytest.raises(ValueError, match="anchor_returns"):
+        CEAMCLConfig(anchor_returns=0.0)
 
 
 def _free_pose_beside(course: Any, pose: np.ndarray, distance: float) -> np.ndarray:

@@ -224,20 +224,22 @@ class CEAMCLConfig:
             ``delta x epsilon`` samples at the leader's weight less what it fits worse at the
             update's scan (docs/ceamcl.md, departure 19): the place the odometry carried the
             robot to competes instead of being only reported.
-        anchor_returns: the anchor yields only to a place that fits better (docs/ceamcl.md,
-            departure 38). A LOCALISED pose more than
-            :data:`~ceamcl.filters.ceamcl.anchor.CHAIN_M` from the held anchor does not
-            replace it at an update where the best pose around the anchor (departure 18's
-            grid) fits the scan better than the leading species' best sample. And while the
-            leader, even one that continues the estimate, stands more than ``CHAIN_M`` from
-            the held anchor and no species stands within ``CHAIN_M`` of it, a pose around the
-            anchor that out-fits the leader by ``anchor_hold_margin`` starts a species there
-            (departure 19's start, with ``anchor_species``): a recovery's place along a
-            corridor that won a few cluttered scans does not keep the estimate once the
-            scans say the robot is where the odometry carried it. ``False``: the anchor
-            yields to every LOCALISED pose the map vouches for (within its envelope at once,
-            beyond it after ``anchor_conflict_m``), and its place starts a species only when
-            a far leader that is not the estimate is judged.
+        anchor_returns: while the leading species' mean fitness is below this, the anchor
+            yields only to a place that fits better (docs/ceamcl.md, departure 38). A
+            LOCALISED pose more than :data:`~ceamcl.filters.ceamcl.anchor.CHAIN_M` from the
+            held anchor does not replace it at an update where the best pose around the
+            anchor (departure 18's grid) fits the scan better than the leader's best sample.
+            And while the leader, even one that continues the estimate, stands more than
+            ``CHAIN_M`` from the held anchor and no species stands within ``CHAIN_M`` of it, a
+            pose around the anchor that out-fits the leader by ``anchor_hold_margin`` starts a
+            species there (departure 19's start, with ``anchor_species``): a recovery's place
+            along a corridor that won a few cluttered scans does not keep the estimate once
+            the scans say the robot is where the odometry carried it. A leader that fits (a
+            robot carried off and found) is not asked, so a kidnap costs nothing more. Default
+            the state's fit floor, 0.55. ``None``: the anchor yields to every LOCALISED pose
+            the map vouches for (within its envelope at once, beyond it after
+            ``anchor_conflict_m``), and its place starts a species only when a far leader that
+            is not the estimate is judged.
         anchor_keep_fit: while the estimate is held at the anchor (departures 18-23) and the
             leading species' mean fitness is below this, every species within the anchor's
             reach keeps at least ``delta x epsilon`` samples, whatever eq. 9 says (docs/ceamcl.md,
@@ -366,7 +368,7 @@ class CEAMCLConfig:
     anchor_hold_margin: float | None = 3.0
     anchor_species: bool = True
     anchor_keep_fit: float | None = DEFAULT_THRESHOLDS.fit_min
-    anchor_returns: bool = True
+    anchor_returns: float | None = DEFAULT_THRESHOLDS.fit_min
     far_vouch_share: float | None = 0.63
     recovery_lost_updates: int | None = 3
     init_is_a_search: bool = True
@@ -456,6 +458,7 @@ class CEAMCLConfig:
             or (math.isfinite(self.estimate_continues_m) and self.estimate_continues_m >= 0),
             "coast_after_updates": self.coast_after_updates >= 1,
             "anchor_keep_fit": self.anchor_keep_fit is None or 0 < self.anchor_keep_fit <= 1,
+            "anchor_returns": self.anchor_returns is None or 0 < self.anchor_returns <= 1,
             "anchor_hold_margin": self.anchor_hold_margin is None
             or (math.isfinite(self.anchor_hold_margin) and self.anchor_hold_margin >= 0),
             "recovery_lost_updates": self.recovery_lost_updates is None

@@ -1193,9 +1193,11 @@ class CEAMCL:
         """Departure 38's contest (``anchor_returns``): whether, at this update (``step``),
         the best pose around the anchor's ``pose`` fits the scan better than the leading
         species' best sample, on every beam. ``False`` at another update, without a scan or
-        a leader, or with the departure off."""
+        a leader, for a leader whose mean fitness reaches ``anchor_returns`` (it fits), or
+        with the departure off."""
         best = self.fittest()
-        if not self.config.anchor_returns or step != self.t or best is None:
+        below = self.config.anchor_returns
+        if below is None or step != self.t or best is None or not best.fitness < below:
             return False
         judged = self._score_anchor(best, np.asarray(pose, dtype=np.float64))
         return judged is not None and judged[1] > judged[2]
@@ -1205,16 +1207,20 @@ class CEAMCL:
     ) -> SpeciesStats | None:
         """Departure 38 (``anchor_returns``, with ``anchor_species``), at the end of an
         update: while an anchor is held, the leader that continues the estimate (departures 18
-        and 19 judge the others) stands more than :data:`CHAIN_M` from it and no species does
-        within ``CHAIN_M`` of it, the best pose around the anchor that out-fits the leader's
-        best sample by ``anchor_hold_margin`` starts a species, at the leader's weight plus
-        the difference of their fits (departure 19's start). The leader after it."""
+        and 19 judge the others) fits below ``anchor_returns``, stands more than
+        :data:`CHAIN_M` from the anchor and no species does within ``CHAIN_M`` of it, the best
+        pose around the anchor that out-fits the leader's best sample by
+        ``anchor_hold_margin`` starts a species, at the leader's weight plus the difference
+        of their fits (departure 19's start). The leader after it."""
         cfg = self.config
         margin = cfg.anchor_hold_margin
+        below = cfg.anchor_returns
         if (
             best is None
             or not moved_on
-            or not (cfg.anchor_returns and cfg.anchor_species)
+            or below is None
+            or not best.fitness < below
+            or not cfg.anchor_species
             or margin is None
             or cfg.anchor_envelope_sd is None
         ):
