@@ -612,18 +612,9 @@ def test_a_confident_pose_beyond_the_envelope_replaces_the_anchor_only_after_a_w
             assert np.array_equal(held[0], truth[0])  # the map vouches: replaced at once
             continue
         assert np.array_equal(held[0], off)  # kept
-        travel, k = 0.0, 0
-        while True:
-            k += 1
-            inc = increment_between(log.odometry[k - 1], log.odometry[k])
-            cp.carry(inc, reach)
-            travel += abs(inc.trans)
-            cp.propose(truth[k], log.scan(k), k)
-            held = cp.anchor()
-            assert held is not None
-            if np.array_equal(held[0], truth[k]):
-                break
-            assert travel < f.config.anchor_conflict_m + 0.5, "never replaced"
+        replaced = _driven_until_replaced(cp, log, reach, f.config.anchor_conflict_m + 0.5)
+        assert replaced is not None, "never replaced"
+        travel, k = replaced
         assert travel >= f.config.anchor_conflict_m
         # now held at the truth: a pose 0.1 m off, within the envelope, replaces it at once
         k += 1
@@ -1073,24 +1064,13 @@ def test_the_anchor_yields_only_where_its_own_place_fits_no_better(inside: bool)
 
         cp = ConfidentPose(f.map_agreement, f._drift_envelope, contest)
         cp._anchor = _Carried(truth[0] + np.array([0.0, 1.5, 0.0]), since)
-        travel, k, replaced_at = 0.0, 0, None
-        while travel < 5.0:
-            k += 1
-            inc = increment_between(log.odometry[k - 1], log.odometry[k])
-            cp.carry(inc, reach)
-            travel += abs(inc.trans)
-            cp.propose(truth[k], log.scan(k), k)
-            held = cp.anchor()
-            assert held is not None
-            if np.array_equal(held[0], truth[k]):
-                replaced_at = travel
-                break
+        replaced = _driven_until_replaced(cp, log, reach, 5.0)
         assert asked, "never contested"
         if better:
-            assert replaced_at is None  # held over 5 m of travel
+            assert replaced is None  # held over 5 m of travel
         else:
-            assert replaced_at is not None
-            assert (replaced_at < f.config.anchor_conflict_m) is inside
+            assert replaced is not None
+            assert (replaced[0] < f.config.anchor_conflict_m) is inside
     # a pose within CHAIN_M replaces the anchor at once, uncontested
     asked = []
     cp = ConfidentPose(f.map_agreement, f._drift_envelope, lambda s, p: asked.append(s) or True)
@@ -1143,6 +1123,27 @@ def test_the_anchors_place_returns_when_it_out_fits_the_place_that_took_the_esti
     assert position_error(f.estimate().pose, far) < 0.05
     with pytest.raises(ValueError, match="anchor_returns"):
         CEAMCLConfig(anchor_returns=0.0)
+
+
+def _driven_until_replaced(
+    cp: ConfidentPose, log: SimulatedLog, reach: float | None, limit_m: float
+) -> tuple[float, int] | None:
+    """Carry the anchor of ``cp`` along ``log``'s odometry, proposing the true pose at each
+    reading, until the truth replaces the anchor (the metres travelled and the reading's
+    index then) or ``limit_m`` of travel has passed (``None``)."""
+    truth = log.true_poses
+    travel, k = 0.0, 0
+    while travel < limit_m:
+        k += 1
+        inc = increment_between(log.odometry[k - 1], log.odometry[k])
+        cp.carry(inc, reach)
+        travel += abs(inc.trans)
+        cp.propose(truth[k], log.scan(k), k)
+        held = cp.anchor()
+        assert held is not None
+        if np.array_equal(held[0], truth[k]):
+            return travel, k
+    return None
 
 
 def _free_pose_beside(course: Any, pose: np.ndarray, distance: float) -> np.ndarray:
