@@ -265,15 +265,16 @@ class ConfidentPose:
         envelope = self.envelope()
         if envelope is None:
             return True
+        apart = _apart(c, anchor)
         if (
             self.contest is not None
             and c.anchor_then is not None
-            and _apart(c, anchor) > CHAIN_M
+            and apart > CHAIN_M
             and self.contest(c.step, c.anchor_then)
         ):
             return False
         q = self.heading_q()
-        if _apart(c, anchor) <= envelope.reach_m(anchor.travel - c.travel, q):
+        if apart <= envelope.reach_m(anchor.travel - c.travel, q):
             self._challenger = None
             return True
         rival = self._challenger

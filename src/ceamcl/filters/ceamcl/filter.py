@@ -1196,11 +1196,16 @@ class CEAMCL:
         a leader, for a leader whose mean fitness reaches ``anchor_returns`` (it fits), or
         with the departure off."""
         best = self.fittest()
-        below = self.config.anchor_returns
-        if below is None or step != self.t or best is None or not best.fitness < below:
+        if step != self.t or best is None or not self._in_doubt(best):
             return False
         judged = self._score_anchor(best, np.asarray(pose, dtype=np.float64))
         return judged is not None and judged[1] > judged[2]
+
+    def _in_doubt(self, best: SpeciesStats) -> bool:
+        """Departure 38's gate: whether the leader ``best`` fits below ``anchor_returns`` (its
+        mean fitness; ``None``: the departure is off)."""
+        below = self.config.anchor_returns
+        return below is not None and best.fitness < below
 
     def _anchor_place_returns(
         self, best: SpeciesStats | None, moved_on: bool
@@ -1214,13 +1219,10 @@ class CEAMCL:
         of their fits (departure 19's start). The leader after it."""
         cfg = self.config
         margin = cfg.anchor_hold_margin
-        below = cfg.anchor_returns
         if (
             best is None
             or not moved_on
-            or below is None
-            or not best.fitness < below
-            or not cfg.anchor_species
+            or not self._in_doubt(best)
             or margin is None
             or cfg.anchor_envelope_sd is None
         ):
@@ -1231,8 +1233,7 @@ class CEAMCL:
         anchor = coasting[0]
         if not float(np.hypot(*(best.mean[:2] - anchor[:2]))) > CHAIN_M:
             return best
-        means = np.array([st.mean for st in self.stats.values()]).reshape(-1, 3)
-        if self._near(means, anchor[None, :], CHAIN_M).any():
+        if not self._anchor_vacant(anchor, CHAIN_M):
             return best
         judged = self._score_anchor(best, anchor)
         if judged is None or judged[1] < judged[2] + margin:
@@ -1297,7 +1298,7 @@ class CEAMCL:
         margin = cfg.anchor_hold_margin
         if left is not None and best is not None and not moved_on and margin is not None:
             localised = self._species_state().state is State.LOCALISED
-            vacant = self._anchor_vacant(left)
+            vacant = self._anchor_vacant(left.pose)
             # departure 18's fit test while LOCALISED; departure 19's, where a species may start
             judged = self._score_anchor(best, left.pose) if localised or vacant else None
             fits = judged is not None and self._fits_as_well(best, judged[1], judged[2])
@@ -1382,18 +1383,20 @@ class CEAMCL:
         share = self.map_agreement.share_at(self.t, self.last_scan, best.mean)
         return share if share < floor else float("nan")
 
-    def _anchor_vacant(self, left: PoseEstimate) -> bool:
-        """Whether, with ``anchor_species``, no species' mean lies within the reach of the
-        anchor (``left``'s pose): its drift envelope, :meth:`_near`'s heading."""
+    def _anchor_vacant(self, anchor: NDArray[np.float64], reach: float | None = None) -> bool:
+        """Whether, with ``anchor_species``, no species' mean lies within ``reach`` metres
+        (``None``: the anchor's drift envelope; departure 38 reads :data:`CHAIN_M`) and
+        :meth:`_near`'s heading of the ``anchor`` pose."""
         cfg = self.config
         if not cfg.anchor_species:
             return False
-        coasting = self.confident.coasting(cfg.recovery_drift_m)
-        reach = None if coasting is None else coasting[2]
         if reach is None:
-            return False
+            coasting = self.confident.coasting(cfg.recovery_drift_m)
+            reach = None if coasting is None else coasting[2]
+            if reach is None:
+                return False
         means = np.array([s.mean for s in self.stats.values()]).reshape(-1, 3)
-        return not bool(self._near(means, left.pose[None, :], reach).any())
+        return not bool(self._near(means, anchor[None, :], reach).any())
 
     def _drift_envelope(self) -> DriftEnvelope | None:
         """Departure 17's envelope from the config (``None``: ``anchor_envelope_sd`` is)."""
