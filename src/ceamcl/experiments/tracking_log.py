@@ -6,7 +6,8 @@ truth, moved :data:`START_OFFSET_M` (0.5 m) in a seeded random direction and tur
 :data:`START_TURN_RAD` (0.3 rad) to a seeded random side, with the covariance
 ``diag(0.5^2, 0.5^2, 0.3^2)``. Each algorithm then runs over the rest of the log with the same
 particle budget (``particles``: the sample size of MCL and GMCL, ``max_particles`` of KLD-AMCL
-and Nav2 AMCL, the tracking species' size of CEAMCL) and the same update pace. The APE is the
+and Nav2 AMCL, the tracking species' size and the cap on the total of CEAMCL) and the same
+update pace. The APE is the
 position error of the estimate at the scans with truth (no alignment: the map frame is the
 truth's frame): its RMSE, median and maximum; the heading RMSE beside it; and the RMSE over the
 scans outside the stretches where the truth is doubtful (:mod:`ceamcl.io.truth_check`: the
@@ -83,12 +84,14 @@ def tracking_filter(
     sensor: str = DEFAULT_SENSOR,
 ) -> LocalisationFilter:
     """The filter with the particle budget ``particles``: through the registry's budget where
-    the algorithm has one, and as the size of CEAMCL's tracking species; ``sensor`` names
-    the sensor model (the Nav2 peer keeps the wheel's beam model)."""
+    the algorithm has one; for CEAMCL as the size of its tracking species and the cap on its
+    total sample size (``max_samples``), as ``max_particles`` caps Nav2's, so that no
+    recovery's new species take it past the budget; ``sensor`` names the sensor model (the
+    Nav2 peer keeps the wheel's beam model)."""
     if get(algorithm).with_particles is not None:
         return make_paced_filter(algorithm, grid, rng, n_particles=particles, sensor=sensor)
     if algorithm == "ceamcl":
-        cfg = with_config("ceamcl", tracking_samples=particles)
+        cfg = with_config("ceamcl", tracking_samples=particles, max_samples=particles)
         return make_paced_filter(algorithm, grid, rng, config=cfg, sensor=sensor)
     raise ConfigError(f"tracking: {algorithm} has no particle budget to set")
 

@@ -67,6 +67,7 @@ from ceamcl.filters.ceamcl.phases import (
     Competition,
     allocate_resources,
     compete,
+    fit_budget,
     grow,
     merge,
     raise_to_floors,
@@ -317,6 +318,7 @@ class CEAMCL:
             self.particle_set.log_weights = uniform_log_weights(self.particle_set.n)
             self.competition.dn.update({sid: 0.0 for sid in evidence})
             self._normalise_weights()
+        self._fit_budget()
         # The paper clusters initial species in x-y only; one x-y region can hold a pose and
         # its mirror image (same place, other heading). Splitting now, before the first
         # resampling, keeps both as species instead of letting resampling pick one.
@@ -1242,6 +1244,20 @@ class CEAMCL:
         self._sprout(pose, self.log_weight.get(best.species_id, 0.0) + near - lead)
         return self.fittest()
 
+    def _fit_budget(self) -> None:
+        """``max_samples`` caps the total where species were added beside the living ones (a
+        recovery keeps its old species, departure 19 starts one): the species with the least
+        weight give way (:func:`~ceamcl.filters.ceamcl.phases.fit_budget`), and the rest start
+        with equal weights again. Species that went leave the weights and handicaps; the
+        callers refresh the statistics."""
+        ps = self.particle_set
+        cfg = self.config
+        if fit_budget(ps, cfg.max_samples, cfg.min_species_size, self.log_weight):
+            ps.log_weights = uniform_log_weights(ps.n)
+            living = set(ps.labels.tolist())
+            self.log_weight = {sid: v for sid, v in self.log_weight.items() if sid in living}
+            self.log_prior = {sid: v for sid, v in self.log_prior.items() if sid in living}
+
     def _sprout(self, pose: NDArray[np.float64], log_weight: float) -> None:
         """Departure 19: a new species of ``delta x epsilon`` samples around ``pose`` (the
         mutation's Sigma), weighed on every beam of this update's scan, at ``log_weight``
@@ -1264,6 +1280,7 @@ class CEAMCL:
         self.log_weight[sid] = log_weight
         self.competition.dn[sid] = 0.0
         self._normalise_weights()
+        self._fit_budget()
         self._refresh_stats()
         self._read = None  # the hypotheses and the state include it
         self.events.sprouts += 1

@@ -33,7 +33,7 @@ from ceamcl.filters.ceamcl.species import (
     split_parts,
 )
 from ceamcl.filters.particles import ParticleSet
-from ceamcl.filters.resampling import sanitise_log_likelihood
+from ceamcl.filters.resampling import label_groups, sanitise_log_likelihood
 from ceamcl.sensors.base import SensorModel, fitness
 from ceamcl.sensors.scan import PreparedScan
 
@@ -151,6 +151,35 @@ def grow(
         ps.extend(added)
         events.new_samples = added.n
     return targets, evaluations
+
+
+def fit_budget(
+    ps: ParticleSet, max_samples: int, min_species_size: int, rank: dict[int, float]
+) -> int:
+    """Keep the total sample size within ``max_samples`` where a step added species beside
+    the living ones (a recovery's search, departure 19's start): species in order of
+    ``rank`` (their log-weights, the highest first; ties by id) keep their samples while room
+    lasts, one cut short keeps its best-scoring samples, and one left fewer than
+    ``min_species_size`` goes. Returns how many samples went (0: within the budget)."""
+    if ps.n <= max_samples:
+        return 0
+    members = label_groups(ps.labels)
+    order = sorted(members, key=lambda sid: (-rank.get(sid, -np.inf), sid))
+    keep: list[NDArray[np.intp]] = []
+    room = max_samples
+    for sid in order:
+        idx = members[sid]
+        take = min(idx.size, room)
+        if take < min_species_size:
+            continue
+        if take < idx.size:
+            idx = np.sort(idx[np.argsort(-ps.loglik[idx], kind="stable")[:take]])
+        keep.append(idx)
+        room -= take
+    sel = np.sort(np.concatenate(keep)) if keep else np.zeros(0, dtype=np.intp)
+    dropped = ps.n - sel.size
+    ps.take(sel)
+    return dropped
 
 
 def split(
@@ -325,6 +354,7 @@ __all__ = [
     "SplitMergeConfig",
     "allocate_resources",
     "compete",
+    "fit_budget",
     "grow",
     "merge",
     "raise_to_floors",
