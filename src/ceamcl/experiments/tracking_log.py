@@ -7,12 +7,11 @@ truth, moved :data:`START_OFFSET_M` (0.5 m) in a seeded random direction and tur
 ``diag(0.5^2, 0.5^2, 0.3^2)``. Each algorithm then runs over the rest of the log with the same
 particle budget (``particles``: the sample size of MCL and GMCL, ``max_particles`` of KLD-AMCL
 and Nav2 AMCL, the tracking species' size and the cap on the total of CEAMCL) and the same
-update pace. The APE is the
-position error of the estimate at the scans with truth (no alignment: the map frame is the
-truth's frame): its RMSE, median and maximum; the heading RMSE beside it; and the RMSE over the
-scans outside the stretches where the truth is doubtful (:mod:`ceamcl.io.truth_check`: the
-truth does not explain its own scans on the map), beside the RMSE over every scan, never
-instead of it.
+update pace. The APE is the position error of the estimate at the scans with truth (no
+alignment: the map frame is the truth's frame): its RMSE, median and maximum; the heading RMSE
+beside it; and the RMSE over the scans outside the stretches where the truth is doubtful
+(:mod:`ceamcl.io.truth_check`: the truth does not explain its own scans on the map), beside the
+RMSE over every scan, never instead of it.
 
 Files: ``tracking.csv`` and ``tracking.md`` (one row per algorithm), ``groundtruth.tum`` and
 ``tracking-<algorithm>.tum`` at the scans with truth (``evo_ape tum groundtruth.tum
