@@ -103,7 +103,7 @@ from ceamcl.filters.state import (
 )
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryIncrement, OdometryMotionModel, apply_increment
-from ceamcl.pose import pose_mean
+from ceamcl.pose import pose_mean, position_error
 from ceamcl.sensors.base import SensorModel, fitness
 from ceamcl.sensors.beam_skip import skip_unexplained_beams
 from ceamcl.sensors.scan import LaserScan, PreparedScan
@@ -1233,7 +1233,7 @@ class CEAMCL:
         if coasting is None:
             return best
         anchor = coasting[0]
-        if not float(np.hypot(*(best.mean[:2] - anchor[:2]))) > CHAIN_M:
+        if not float(position_error(best.mean, anchor)) > CHAIN_M:
             return best
         if not self._anchor_vacant(anchor, CHAIN_M):
             return best
@@ -1248,15 +1248,14 @@ class CEAMCL:
         """``max_samples`` caps the total where species were added beside the living ones (a
         recovery keeps its old species, departure 19 starts one): the species with the least
         weight give way (:func:`~ceamcl.filters.ceamcl.phases.fit_budget`), and the rest start
-        with equal weights again. Species that went leave the weights and handicaps; the
-        callers refresh the statistics."""
+        with equal weights again; the weights and handicaps are then the living species'
+        (:meth:`_normalise_weights`)."""
         ps = self.particle_set
         cfg = self.config
         if fit_budget(ps, cfg.max_samples, cfg.min_species_size, self.log_weight):
             ps.log_weights = uniform_log_weights(ps.n)
-            living = set(ps.labels.tolist())
-            self.log_weight = {sid: v for sid, v in self.log_weight.items() if sid in living}
-            self.log_prior = {sid: v for sid, v in self.log_prior.items() if sid in living}
+            self._refresh_stats()
+            self._normalise_weights(living=True)
 
     def _sprout(self, pose: NDArray[np.float64], log_weight: float) -> None:
         """Departure 19: a new species of ``delta x epsilon`` samples around ``pose`` (the
