@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from ceamcl.demo import run_demo, seeded_generators
+from ceamcl.maps.worlds import symmetric_images
 from ceamcl.ros.localiser import Localiser, sensor_model
 from ceamcl.ros.params import parse
 from ceamcl.simulation.scenarios import get_scenario
@@ -82,3 +83,25 @@ def test_amcls_scoring_takes_no_laser_temper() -> None:
     Localiser(kld).set_map(grid)  # builds the filter with amcl's scoring
     with pytest.raises(ConfigError, match="laser_temper: kld-amcl scores scans as amcl does"):
         parse({"algorithm": "kld-amcl", "laser_temper": 0.5})
+
+
+def test_max_particles_caps_ceamcls_sample_size() -> None:
+    """CEAMCL sizes its species itself (eq. 5); in the node Nav2's ``max_particles`` caps
+    their total, as it caps Nav2's filter. The demo's run holds 369 samples at the first scan
+    and up to 421 (seed 0); with a budget of 200 no update holds more, and the four images
+    are still held at the end."""
+    scenario = get_scenario("paper", "symmetric-hall", 0)
+    grid = scenario.grid()
+    log = scenario.simulate(seeded_generators(0, 2)[0], grid)
+    budget = {"max_particles": 200, "min_particles": 100}
+    localiser = Localiser(parse({"seed": 0, **DEMO_SETTINGS, **budget}))
+    localiser.set_map(grid)
+    held = []
+    for k in range(len(log)):
+        localiser.scan(tuple(log.odometry[k]), log.scan(k))
+        assert localiser.filter is not None
+        held.append(localiser.filter.particle_weights().size)
+    assert max(held) <= 200
+    poses = np.array([h.pose for h in localiser.filter.hypotheses()])
+    for image in symmetric_images(log.true_poses[-1]):
+        assert np.hypot(*(poses[:, :2] - image[:2]).T).min() < 0.1

@@ -189,6 +189,26 @@ def test_what_the_parameters_set_wins_over_a_presets_tuning() -> None:
     assert _built({"algorithm": "mcl"}).config.n_particles == NAV2_DEFAULTS["max_particles"]
 
 
+def test_max_particles_set_is_ceamcls_cap() -> None:
+    """CEAMCL takes no particle count (eq. 5 sizes its species). ``max_particles``, where the
+    parameters set it, caps its total (``max_samples``) and its ``initialise_pose`` species;
+    left at Nav2's default CEAMCL keeps its own cap; ``ceamcl.max_samples`` wins; a cap below
+    a species' least size is refused, naming the parameter."""
+    capped = _built({"max_particles": 150, "min_particles": 100}).config
+    assert (capped.max_samples, capped.tracking_samples) == (150, 150)
+    assert _built({"max_particles": 2000}).config.max_samples == 2000
+    own = CEAMCLConfig()
+    default = _built({}).config
+    assert (default.max_samples, default.tracking_samples) == (
+        own.max_samples,
+        own.tracking_samples,
+    )
+    chosen = _built({"max_particles": 150, "min_particles": 100, "ceamcl.max_samples": 9000})
+    assert chosen.config.max_samples == 9000
+    with pytest.raises(ConfigError, match="max_particles: CEAMCL's species hold at least 3"):
+        parse({"max_particles": 2, "min_particles": 1})
+
+
 def test_the_nav2_peer_takes_nav2s_laser_settings() -> None:
     from ceamcl.peers import available
 

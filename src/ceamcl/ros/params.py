@@ -23,6 +23,7 @@ import yaml
 
 from ceamcl.errors import ConfigError
 from ceamcl.filters import registry
+from ceamcl.filters.ceamcl.config import CEAMCLConfig
 from ceamcl.io.safe_yaml import yaml_problem
 from ceamcl.sensors.beam_model import BeamModelConfig
 from ceamcl.sensors.likelihood_field import LikelihoodFieldConfig
@@ -363,6 +364,29 @@ def _nav2_to_config(
     return dataclasses.replace(config, **changes), warnings
 
 
+def _ceamcl_budget(
+    config: Any, max_particles: int, overrides: Mapping[str, Any], given: frozenset[str]
+) -> Any:
+    """CEAMCL sizes its species itself (eq. 5) and takes no particle count. Where the
+    parameters set ``max_particles``, it caps CEAMCL's total sample size (``max_samples``, and
+    an ``initialise_pose`` species' size at most), as it caps Nav2's filter; left at Nav2's
+    default, CEAMCL keeps its own cap (20,000), as a tuned preset keeps its count, and
+    ``ceamcl.max_samples`` wins over both (docs/ros.md)."""
+    if not isinstance(config, CEAMCLConfig) or "max_samples" in overrides:
+        return config
+    if "max_particles" not in given:
+        return config
+    if max_particles < config.min_species_size:
+        raise ConfigError(
+            f"max_particles: CEAMCL's species hold at least {config.min_species_size} samples; "
+            f"expected >= {config.min_species_size}, got {max_particles}"
+        )
+    tracking = config.tracking_samples
+    if "tracking_samples" not in overrides:
+        tracking = min(tracking, max_particles)
+    return dataclasses.replace(config, max_samples=max_particles, tracking_samples=tracking)
+
+
 def parse(values: Mapping[str, Any], given: Iterable[str] | None = None) -> NodeParams:
     """Check ``values`` (flat ROS parameter names) against the node's parameters. ``given``:
     the names the user set (default: every name in ``values``); the node passes its
@@ -458,6 +482,7 @@ def parse(values: Mapping[str, Any], given: Iterable[str] | None = None) -> Node
         config = dataclasses.replace(config, **overrides)
     except (TypeError, ValueError) as exc:
         raise ConfigError(f"{own}: {exc}") from None
+    config = _ceamcl_budget(config, nav2["max_particles"], overrides, chosen)
     if laser_temper not in (None, 1.0) and getattr(config, "scoring", None) == "ros":
         raise ConfigError(
             f"laser_temper: {algorithm} scores scans as amcl does (a sum of cubed beam "
