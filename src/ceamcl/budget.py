@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from ceamcl.errors import ConfigError
 
 __all__ = [
+    "FILTER_CELL_BYTES",
     "MAP_CELL_BYTES",
     "PARTICLE_BYTES",
     "Budget",
@@ -51,6 +52,11 @@ _MIB = 1 << 20
 #: cells): peak memory grows by 87-100 B a cell; 64 let a map through that needed 1.5 times
 #: the budget.
 MAP_CELL_BYTES = 128
+#: Bytes per map cell that one filter built on the map holds (its distance transform with
+#: indices, the likelihood field, the search's cells): measured 2026-12-01, a CEAMCL on
+#: fr-clinic's 40.3 million cells peaks at 1.9 GB, 47 B a cell. Counted for each worker
+#: process of a command that runs filters on a log's map (``ceamcl.experiments.executors``).
+FILTER_CELL_BYTES = 64
 #: Bytes per particle, with the per-beam work of weighting it (a scan of a few hundred beams).
 PARTICLE_BYTES = 1024
 _UNITS = {"": 1, "b": 1, "k": 1 << 10, "m": 1 << 20, "g": 1 << 30, "t": 1 << 40}

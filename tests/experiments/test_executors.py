@@ -87,6 +87,50 @@ def test_worker_processes_take_the_commands_memory_budget() -> None:
             pass
 
 
+def test_workers_holding_a_large_map_fit_the_memory_budget_together() -> None:
+    """Each worker that builds filters on a log's map holds its layers (a CEAMCL on
+    fr-clinic's 40 million cells: 1.9 GB). The CPU count of them was started whatever the map,
+    and together could ask for several times the machine's memory. The default count is what
+    the budget holds (at least one); a count that does not fit is refused, naming the map."""
+    import os
+
+    from ceamcl import budget
+    from ceamcl.experiments.executors import check_executor, worker_count
+
+    cpus = os.cpu_count() or 1
+    large_map = 40_000_000 * budget.FILTER_CELL_BYTES  # 2.4 GiB a worker
+    with budget.use(budget.Budget(6 << 30)):
+        assert worker_count(None) == min(cpus, 24)  # 256 MiB each
+        assert worker_count(None, large_map) == min(cpus, 2)
+        assert worker_count(2, large_map) == 2
+        with pytest.raises(ConfigError, match=r"--workers: 3 worker processes \(2.4 GiB each"):
+            check_executor("local", 3, large_map)
+    with budget.use(budget.Budget(2 << 30)):
+        assert worker_count(None, large_map) == 1
+
+
+def test_evaluate_log_counts_its_map_in_each_worker(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``evaluate-log`` tells the executor what its map costs each worker: with a filter's
+    cost per cell raised so that two workers on the box's map exceed the budget, ``--workers
+    2`` is refused before any trial runs, in one line, and leaves no folder behind."""
+    from ceamcl import budget
+    from ceamcl.cli import main
+    from tests.robustness.hostile_cases import box_log_lines, write_lines
+
+    write_lines("box.log", box_log_lines(30, neff=True))(tmp_path)
+    out = tmp_path / "ev"
+    argv = ["evaluate-log", str(tmp_path / "box.log"), "--algorithms", "mcl", "--quiet"]
+    argv += ["--scans", "10", "--starts", "1", "--memory-budget", "1GiB", "--out", str(out)]
+    # the box's map has about 10,000 cells: about 2.7 GB a worker
+    monkeypatch.setattr(budget, "FILTER_CELL_BYTES", (1 << 30) // 4_000)
+    assert main([*argv, "--workers", "2"]) == 2
+    err = capsys.readouterr().err
+    assert "--workers: 2 worker processes (" in err and "each for their trials' map" in err, err
+    assert not out.exists()
+
+
 def _die(_: int) -> int:
     import os
 

@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ceamcl.errors import ConfigError
-from ceamcl.experiments.executors import Batch, ProgressCallback
+from ceamcl.experiments.executors import Batch, ProgressCallback, filter_bytes
 from ceamcl.experiments.log_report import write_evaluation
 from ceamcl.experiments.log_windows import start_windows
 from ceamcl.experiments.metrics import (
@@ -305,7 +305,7 @@ def evaluate_log(
         prepared, grid, algorithms, windows, hold=hold, hold_m=hold_m, pace=pace, sensor=sensor
     )
     batch = Batch(executor, workers, progress, quiet)
-    results = batch.run(run_log_trial, trials, f"evaluate {log.name}")
+    results = batch.run(run_log_trial, trials, f"evaluate {log.name}", filter_bytes(grid))
     table = aggregate(results, algorithms)
     evaluation = Evaluation(
         results,

@@ -95,15 +95,32 @@ def _single_threaded_worker(memory_bytes: int) -> None:
 WORKER_BYTES = 256 * 1024 * 1024
 
 
-def _check_workers(workers: int | None) -> int:
-    """The worker count: the CPU count by default; a count asked for is checked against the
-    memory budget (``--workers 64`` started 64 processes of ~185 MB unchecked)."""
+def worker_count(workers: int | None, each_bytes: int = 0) -> int:
+    """The worker count. Each worker holds :data:`WORKER_BYTES` and ``each_bytes`` more (what
+    its trials build: a filter's layers of a large map, :data:`ceamcl.budget.FILTER_CELL_BYTES`
+    a cell), and together they share the command's memory budget. By default as many as
+    there are CPUs and as the budget holds, at least one; a count asked for is refused where
+    they would not fit (``--workers 64`` started 64 processes unchecked, and the CPU count of
+    workers, each building a filter on a map of 40 million cells, could ask for several times
+    the machine's memory)."""
+    each = WORKER_BYTES + max(0, int(each_bytes))
     if workers is None:
-        return os.cpu_count() or 1
+        fits = budget.current().memory_bytes // each
+        return int(max(1, min(os.cpu_count() or 1, fits)))
     if workers < 1:
         raise ConfigError(f"workers: expected a positive count, got {workers}")
-    budget.require("--workers", workers, WORKER_BYTES, "worker processes")
+    what = "worker processes"
+    if each_bytes > 0:
+        what += f" ({budget.format_bytes(each_bytes)} each for their trials' map)"
+    budget.require("--workers", workers, each, what)
     return workers
+
+
+def filter_bytes(grid: Any) -> int:
+    """What a worker building filters on ``grid`` (an occupancy grid) holds for it: the
+    ``worker_bytes`` of :func:`open_executor` for trials on a log's map."""
+    height, width = grid.data.shape
+    return int(height) * int(width) * budget.FILTER_CELL_BYTES
 
 
 def _import_distributed() -> Any:
@@ -138,12 +155,13 @@ def _scheduler(spec: str) -> tuple[str, str]:
     return host, port
 
 
-def check_executor(spec: str, workers: int | None = None) -> None:
+def check_executor(spec: str, workers: int | None = None, worker_bytes: int = 0) -> None:
     """Refuse an executor spec :func:`open_executor` would refuse (its form, not whether a
-    Dask scheduler answers), and ``workers`` where the spec takes none, before any work."""
+    Dask scheduler answers), and ``workers`` where the spec takes none or the memory budget
+    does not hold them (each with ``worker_bytes`` for its trials), before any work."""
     if spec in ("serial", "local", "dask"):
         if workers is not None:
-            _check_workers(workers)
+            worker_count(workers, worker_bytes)
         return
     if spec.startswith("dask://"):
         _scheduler(spec)
@@ -159,18 +177,23 @@ def check_executor(spec: str, workers: int | None = None) -> None:
 
 
 @contextmanager
-def open_executor(spec: str = "local", workers: int | None = None) -> Iterator[Executor]:
-    """An executor for ``spec`` (see the module docstring), shut down on exit.
+def open_executor(
+    spec: str = "local", workers: int | None = None, worker_bytes: int = 0
+) -> Iterator[Executor]:
+    """An executor for ``spec`` (see the module docstring), shut down on exit. ``worker_bytes``:
+    what each worker's trials build beyond the interpreter; the local workers' count is bounded
+    so that together they fit the memory budget (:func:`worker_count`). Each takes the
+    command's budget for its own checks, so a trial's numbers do not depend on the count.
 
     Raises :class:`ConfigError` for an unknown spec, a bad worker count or a missing Dask.
     """
-    check_executor(spec, workers)
+    check_executor(spec, workers, worker_bytes)
     if spec == "serial":
         with SerialExecutor() as ex:
             yield ex
         return
     if spec == "local":
-        n = _check_workers(workers)
+        n = worker_count(workers, worker_bytes)
         ctx = multiprocessing.get_context("spawn")
         with ProcessPoolExecutor(
             max_workers=n,
@@ -187,7 +210,7 @@ def open_executor(spec: str = "local", workers: int | None = None) -> Iterator[E
     if spec == "dask" or spec.startswith("dask://"):
         distributed = _import_distributed()
         if spec == "dask":
-            n = _check_workers(workers)
+            n = worker_count(workers, worker_bytes)
             cluster = distributed.LocalCluster(
                 n_workers=n,
                 threads_per_worker=1,
@@ -293,7 +316,10 @@ class Batch:
     progress: ProgressCallback | None = None
     quiet: bool = False
 
-    def run(self, fn: Callable[[T], R], items: Sequence[T], label: str) -> list[R]:
-        """:func:`map_trials` on a freshly opened executor."""
-        with open_executor(self.executor, self.workers) as ex:
+    def run(
+        self, fn: Callable[[T], R], items: Sequence[T], label: str, worker_bytes: int = 0
+    ) -> list[R]:
+        """:func:`map_trials` on a freshly opened executor whose workers each need
+        ``worker_bytes`` for these trials (:func:`open_executor`)."""
+        with open_executor(self.executor, self.workers, worker_bytes) as ex:
             return map_trials(ex, fn, items, label=label, progress=self.progress, quiet=self.quiet)

@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 
 from ceamcl.errors import ConfigError
 from ceamcl.experiments.common import fmt, pct, write_csv, write_text
-from ceamcl.experiments.executors import Batch
+from ceamcl.experiments.executors import Batch, filter_bytes
 from ceamcl.filters.base import LocalisationFilter
 from ceamcl.filters.registry import (
     DEFAULT_SENSOR,
@@ -238,7 +238,9 @@ def track_log(
         TrackingTrial(a, grid, window, start, particles, prepared.seed, pace, doubtful, sensor)
         for a in algorithms
     ]
-    results = (batch or Batch()).run(run_tracking_trial, trials, f"track {log.name}")
+    results = (batch or Batch()).run(
+        run_tracking_trial, trials, f"track {log.name}", filter_bytes(grid)
+    )
     tracking = Tracking(
         results,
         start,
