@@ -131,6 +131,23 @@ def test_evaluate_log_counts_its_map_in_each_worker(
     assert not out.exists()
 
 
+def test_experiments_count_their_map_in_each_worker(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The experiments' workers build filters on the course's map (a route file may name any
+    ROS map): counted as evaluate-log's are, before any trial runs."""
+    from ceamcl import budget
+    from ceamcl.cli import main
+
+    monkeypatch.setattr(budget, "FILTER_CELL_BYTES", 1 << 20)  # the hall: 88 GiB a worker
+    out = tmp_path / "t1"
+    argv = ["experiment", "table1", "--trials", "1", "--algorithms", "mcl", "--quiet"]
+    assert main([*argv, "--workers", "2", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "--workers: 2 worker processes (" in err and "each for their trials' map" in err, err
+    assert not out.exists()
+
+
 def _die(_: int) -> int:
     import os
 

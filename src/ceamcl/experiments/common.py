@@ -16,7 +16,7 @@ from typing import Any, TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
-from ceamcl.experiments.executors import ProgressCallback, map_trials, open_executor
+from ceamcl.experiments.executors import ProgressCallback, filter_bytes, map_trials, open_executor
 from ceamcl.experiments.metrics import CONFIDENT_SHARE, PrecisionSummary
 from ceamcl.experiments.routes import Course
 from ceamcl.experiments.trials import Trial, TrialRecord, localise_trial, run_trial
@@ -77,8 +77,12 @@ def run_trials(
     progress: ProgressCallback | None = None,
     quiet: bool = False,
 ) -> list[TrialRecord]:
-    """Run the trials on the settings' executor, with a progress bar; records in input order."""
-    with open_executor(settings.executor, settings.workers) as ex:
+    """Run the trials on the settings' executor, with a progress bar; records in input order.
+    Each worker builds filters on its trials' map, which the worker count makes room for (a
+    route file's map may be large: :func:`~ceamcl.experiments.executors.filter_bytes`)."""
+    courses = {id(t.course): t.course for t in trials}.values()
+    each = max((filter_bytes(c.grid()) for c in courses), default=0)
+    with open_executor(settings.executor, settings.workers, each) as ex:
         return map_trials(ex, run_trial, trials, label=label, progress=progress, quiet=quiet)
 
 
