@@ -369,9 +369,9 @@ def _ceamcl_budget(
 ) -> Any:
     """CEAMCL sizes its species itself (eq. 5) and takes no particle count. Where the
     parameters set ``max_particles``, it caps CEAMCL's total sample size (``max_samples``, and
-    an ``initialise_pose`` species' size at most), as it caps Nav2's filter; left at Nav2's
-    default, CEAMCL keeps its own cap (20,000), as a tuned preset keeps its count, and
-    ``ceamcl.max_samples`` wins over both (docs/ros.md)."""
+    an ``initialise_pose`` species' size at most), as it caps Nav2's filter; left unset (Nav2's
+    default 2,000 then stands for the other algorithms), CEAMCL keeps its own cap (20,000), as
+    a tuned preset keeps its count; ``ceamcl.max_samples`` wins over both (docs/ros.md)."""
     if not isinstance(config, CEAMCLConfig) or "max_samples" in overrides:
         return config
     if "max_particles" not in given:
