@@ -172,7 +172,8 @@ class Course:
 
 @functools.lru_cache(maxsize=8)
 def load_grid(world: str | None, map_path: str | None) -> OccupancyGrid:
-    """A built-in world or a ROS map, loaded once per process (trial workers reuse it)."""
+    """A built-in world (drawn) or a ROS map (read and checked) at each call: a trial asks for
+    it twice (simulation and filter); a worker does not keep it between trials."""
     if map_path is not None:
         return load_map(map_path)
     if world is None:
