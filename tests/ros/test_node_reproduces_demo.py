@@ -88,20 +88,28 @@ def test_amcls_scoring_takes_no_laser_temper() -> None:
 def test_max_particles_caps_ceamcls_sample_size() -> None:
     """CEAMCL sizes its species itself (eq. 5); in the node Nav2's ``max_particles`` caps
     their total, as it caps Nav2's filter. The demo's run holds 369 samples at the first scan
-    and up to 421 (seed 0); with a budget of 200 no update holds more, and the four images
-    are still held at the end."""
+    and up to 421 (seed 0); with a budget of 200 no update holds more, the node says that the
+    first search wanted more, and the four images are still held at the end."""
     scenario = get_scenario("paper", "symmetric-hall", 0)
     grid = scenario.grid()
     log = scenario.simulate(seeded_generators(0, 2)[0], grid)
     budget = {"max_particles": 200, "min_particles": 100}
     localiser = Localiser(parse({"seed": 0, **DEMO_SETTINGS, **budget}))
     localiser.set_map(grid)
-    held = []
+    held, notices = [], []
     for k in range(len(log)):
         localiser.scan(tuple(log.odometry[k]), log.scan(k))
         assert localiser.filter is not None
         held.append(localiser.filter.particle_weights().size)
+        notices.append(localiser.notice)
     assert max(held) <= 200
+    # the first search wanted more (369): the node logs it, once, naming the cap
+    assert notices[0] is not None and "cap of 200" in notices[0]
+    assert notices[1:] == [None] * (len(log) - 1)
+    unset = Localiser(parse({"seed": 0, **DEMO_SETTINGS}))  # CEAMCL's own cap, 20,000
+    unset.set_map(grid)
+    unset.scan(tuple(log.odometry[0]), log.scan(0))
+    assert unset.notice is None
     poses = np.array([h.pose for h in localiser.filter.hypotheses()])
     for image in symmetric_images(log.true_poses[-1]):
         assert np.hypot(*(poses[:, :2] - image[:2]).T).min() < 0.1

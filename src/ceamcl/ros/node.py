@@ -395,6 +395,8 @@ class LocalisationNode(LifecycleNode):
         )
         assert self.localiser is not None
         estimate = self.localiser.scan(odom, scan)
+        if self.localiser.notice is not None:
+            self.get_logger().warning(self.localiser.notice, throttle_duration_sec=THROTTLE_S)
         if estimate is not None:
             self._publish_estimate(estimate, odom, stamp)
         if self.map_T_odom is not None and p["tf_broadcast"]:
