@@ -18,7 +18,7 @@ import pytest
 
 from ceamcl.demo import run_demo, seeded_generators
 from ceamcl.maps.worlds import symmetric_images
-from ceamcl.ros.localiser import Localiser, sensor_model
+from ceamcl.ros.localiser import Localiser, cap_notice, sensor_model
 from ceamcl.ros.params import parse
 from ceamcl.simulation.scenarios import get_scenario
 
@@ -101,7 +101,7 @@ def test_max_particles_caps_ceamcls_sample_size() -> None:
         localiser.scan(tuple(log.odometry[k]), log.scan(k))
         assert localiser.filter is not None
         held.append(localiser.filter.particle_weights().size)
-        notices.append(localiser.notice)
+        notices.append(cap_notice(localiser.filter))  # every scan updates here
     assert max(held) <= 200
     # the first search wanted more (369): the node logs it, once, naming the cap
     assert notices[0] is not None and "cap of 200" in notices[0]
@@ -109,7 +109,7 @@ def test_max_particles_caps_ceamcls_sample_size() -> None:
     unset = Localiser(parse({"seed": 0, **DEMO_SETTINGS}))  # CEAMCL's own cap, 20,000
     unset.set_map(grid)
     unset.scan(tuple(log.odometry[0]), log.scan(0))
-    assert unset.notice is None
+    assert cap_notice(unset.filter) is None
     poses = np.array([h.pose for h in localiser.filter.hypotheses()])
     for image in symmetric_images(log.true_poses[-1]):
         assert np.hypot(*(poses[:, :2] - image[:2]).T).min() < 0.1

@@ -39,6 +39,7 @@ from typing import Any, TypeVar
 
 from ceamcl import budget
 from ceamcl.errors import CeamclError, ConfigError
+from ceamcl.maps.grid import OccupancyGrid
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -116,11 +117,10 @@ def worker_count(workers: int | None, each_bytes: int = 0) -> int:
     return workers
 
 
-def filter_bytes(grid: Any) -> int:
-    """What a worker building filters on ``grid`` (an occupancy grid) holds for it: the
-    ``worker_bytes`` of :func:`open_executor` for trials on a log's map."""
-    height, width = grid.data.shape
-    return int(height) * int(width) * budget.FILTER_CELL_BYTES
+def filter_bytes(grid: OccupancyGrid) -> int:
+    """What a worker building filters on ``grid`` holds for it: the ``worker_bytes`` of
+    :func:`open_executor` for trials on a log's map."""
+    return int(grid.data.size) * budget.FILTER_CELL_BYTES
 
 
 def _import_distributed() -> Any:

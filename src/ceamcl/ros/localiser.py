@@ -15,7 +15,7 @@ from ceamcl.demo import seeded_generators
 from ceamcl.errors import CeamclError
 from ceamcl.filters import registry
 from ceamcl.filters.base import LocalisationFilter, PoseEstimate
-from ceamcl.filters.ceamcl.config import CEAMCLConfig
+from ceamcl.filters.ceamcl import CEAMCL
 from ceamcl.filters.policies import Context, on_motion
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.motion.odometry import OdometryNoise, increment_between
@@ -72,19 +72,16 @@ def particle_budget(params: NodeParams) -> int | None:
     return int(params["max_particles"])
 
 
-def cap_notice(f: LocalisationFilter) -> str | None:
-    """A line for the log when CEAMCL's search (the first global localisation, or a
-    recovery's) asked for as many samples as its cap allows: eq. 5 sized the initial species
-    beyond ``max_samples``, so only the likeliest were kept (docs/ros.md: on a large map, a
-    global search needs more than Nav2's 2,000). ``None`` otherwise, and for the others."""
-    config = getattr(f, "config", None)
-    events = getattr(f, "events", None)
-    if not isinstance(config, CEAMCLConfig) or events is None:
-        return None
-    if events.n0 < config.max_samples:
+def cap_notice(f: LocalisationFilter | None) -> str | None:
+    """A line for the log after an update of ``f`` at which CEAMCL's search (the first global
+    localisation, or a recovery's) asked for as many samples as its cap allows: eq. 5 sized
+    the initial species beyond ``max_samples``, so only the likeliest were kept (docs/ros.md:
+    on a large map, a global search needs more than Nav2's 2,000). ``None`` otherwise, and
+    for the other filters."""
+    if not isinstance(f, CEAMCL) or f.events.n0 < f.config.max_samples:
         return None
     return (
-        f"CEAMCL's search wanted more samples than its cap of {config.max_samples:,} "
+        f"CEAMCL's search wanted more samples than its cap of {f.config.max_samples:,} "
         "(max_particles, or ceamcl.max_samples) and kept the likeliest; on a large map a "
         "higher cap localises more reliably (docs/ros.md)"
     )
@@ -115,8 +112,6 @@ class Localiser:
         self.filter: LocalisationFilter | None = None
         self.pending: Literal["global"] | tuple[Pose2, Any] | None = None
         self.last_estimate: Pose2 | None = None
-        #: what the last update has to tell the user, if anything (:func:`cap_notice`)
-        self.notice: str | None = None
 
     def set_map(self, grid: OccupancyGrid) -> str | None:
         """Use ``grid`` from now on; what happens next, in words (``None``: nothing changed)."""
@@ -171,7 +166,6 @@ class Localiser:
         new estimate, or ``None`` when the filter did not update. A non-finite estimate is an
         error and leaves the last one in place."""
         f = self.filter
-        self.notice = None
         if f is None:
             return None
         if self.pending == "global":
@@ -190,7 +184,6 @@ class Localiser:
             assert self.gate.reference is not None
             f.step(increment_between(self.gate.reference, odom), scan)
             self.gate.updated(odom)
-        self.notice = cap_notice(f)
         estimate = f.estimate()
         if not (np.all(np.isfinite(estimate.pose)) and np.all(np.isfinite(estimate.covariance))):
             raise CeamclError("the filter gave a non-finite pose; nothing published")

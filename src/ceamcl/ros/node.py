@@ -42,7 +42,7 @@ from ceamcl.errors import CeamclError
 from ceamcl.filters import registry
 from ceamcl.filters.base import PoseEstimate
 from ceamcl.ros import messages as m
-from ceamcl.ros.localiser import DEFAULT_INIT_COV, Localiser
+from ceamcl.ros.localiser import DEFAULT_INIT_COV, Localiser, cap_notice
 from ceamcl.ros.params import NAV2_DEFAULTS, OWN_DEFAULTS, NodeParams, parse
 from ceamcl.ros.transforms import (
     Pose2,
@@ -395,9 +395,10 @@ class LocalisationNode(LifecycleNode):
         )
         assert self.localiser is not None
         estimate = self.localiser.scan(odom, scan)
-        if self.localiser.notice is not None:
-            self.get_logger().warning(self.localiser.notice, throttle_duration_sec=THROTTLE_S)
-        if estimate is not None:
+        if estimate is not None:  # the filter updated
+            notice = cap_notice(self.localiser.filter)
+            if notice is not None:
+                self.get_logger().warning(notice, throttle_duration_sec=THROTTLE_S)
             self._publish_estimate(estimate, odom, stamp)
         if self.map_T_odom is not None and p["tf_broadcast"]:
             self.tf_pub.publish(

@@ -23,7 +23,6 @@ import yaml
 
 from ceamcl.errors import ConfigError
 from ceamcl.filters import registry
-from ceamcl.filters.ceamcl.config import CEAMCLConfig
 from ceamcl.io.safe_yaml import yaml_problem
 from ceamcl.sensors.beam_model import BeamModelConfig
 from ceamcl.sensors.likelihood_field import LikelihoodFieldConfig
@@ -333,6 +332,18 @@ def _nav2_to_config(
             changes[field_name] = value
         elif p[nav2_name] != NAV2_DEFAULTS[nav2_name] and not nav2_name.startswith("update_"):
             warnings.append(f"{nav2_name}: {algorithm} has no such setting; ignored")
+    if "max_samples" in names and "max_particles" in given:
+        # CEAMCL sizes its species itself (eq. 5) and takes no particle count: a budget the
+        # parameters set caps its total, as it caps Nav2's filter, and an initial pose's
+        # species; unset, CEAMCL keeps its own cap (docs/ros.md). Its own ``ceamcl.*`` win.
+        cap = p["max_particles"]
+        if cap < config.min_species_size:
+            raise ConfigError(
+                f"max_particles: CEAMCL's species hold at least {config.min_species_size} "
+                f"samples; expected >= {config.min_species_size}, got {cap}"
+            )
+        changes["max_samples"] = cap
+        changes["tracking_samples"] = min(config.tracking_samples, cap)
     beam = getattr(config, "beam", None) if "beam" in names else None
     if isinstance(beam, BeamModelConfig):
         # an algorithm with a beam model of its own (the Nav2 peer): Nav2's laser settings
@@ -362,29 +373,6 @@ def _nav2_to_config(
                 why = "skips no beams" if "beam_skip" not in names else "has beam skipping off"
                 warnings.append(f"{name}: {algorithm} {why}; ignored")
     return dataclasses.replace(config, **changes), warnings
-
-
-def _ceamcl_budget(
-    config: Any, max_particles: int, overrides: Mapping[str, Any], given: frozenset[str]
-) -> Any:
-    """CEAMCL sizes its species itself (eq. 5) and takes no particle count. Where the
-    parameters set ``max_particles``, it caps CEAMCL's total sample size (``max_samples``, and
-    an ``initialise_pose`` species' size at most), as it caps Nav2's filter; left unset (Nav2's
-    default 2,000 then stands for the other algorithms), CEAMCL keeps its own cap (20,000), as
-    a tuned preset keeps its count; ``ceamcl.max_samples`` wins over both (docs/ros.md)."""
-    if not isinstance(config, CEAMCLConfig) or "max_samples" in overrides:
-        return config
-    if "max_particles" not in given:
-        return config
-    if max_particles < config.min_species_size:
-        raise ConfigError(
-            f"max_particles: CEAMCL's species hold at least {config.min_species_size} samples; "
-            f"expected >= {config.min_species_size}, got {max_particles}"
-        )
-    tracking = config.tracking_samples
-    if "tracking_samples" not in overrides:
-        tracking = min(tracking, max_particles)
-    return dataclasses.replace(config, max_samples=max_particles, tracking_samples=tracking)
 
 
 def parse(values: Mapping[str, Any], given: Iterable[str] | None = None) -> NodeParams:
@@ -482,7 +470,6 @@ def parse(values: Mapping[str, Any], given: Iterable[str] | None = None) -> Node
         config = dataclasses.replace(config, **overrides)
     except (TypeError, ValueError) as exc:
         raise ConfigError(f"{own}: {exc}") from None
-    config = _ceamcl_budget(config, nav2["max_particles"], overrides, chosen)
     if laser_temper not in (None, 1.0) and getattr(config, "scoring", None) == "ros":
         raise ConfigError(
             f"laser_temper: {algorithm} scores scans as amcl does (a sum of cubed beam "

@@ -1244,18 +1244,20 @@ class CEAMCL:
         self._sprout(pose, self.log_weight.get(best.species_id, 0.0) + near - lead)
         return self.fittest()
 
-    def _fit_budget(self) -> None:
+    def _fit_budget(self) -> bool:
         """``max_samples`` caps the total where species were added beside the living ones (a
         recovery keeps its old species, departure 19 starts one): the species with the least
         weight give way (:func:`~ceamcl.filters.ceamcl.phases.fit_budget`), and the rest start
-        with equal weights again; the weights and handicaps are then the living species'
-        (:meth:`_normalise_weights`)."""
+        with equal weights again; the statistics are refreshed and the weights and handicaps
+        are then the living species' (:meth:`_normalise_weights`). Whether any went."""
         ps = self.particle_set
         cfg = self.config
-        if fit_budget(ps, cfg.max_samples, cfg.min_species_size, self.log_weight):
-            ps.log_weights = uniform_log_weights(ps.n)
-            self._refresh_stats()
-            self._normalise_weights(living=True)
+        if not fit_budget(ps, cfg.max_samples, cfg.min_species_size, self.log_weight):
+            return False
+        ps.log_weights = uniform_log_weights(ps.n)
+        self._refresh_stats()
+        self._normalise_weights(living=True)
+        return True
 
     def _sprout(self, pose: NDArray[np.float64], log_weight: float) -> None:
         """Departure 19: a new species of ``delta x epsilon`` samples around ``pose`` (the
@@ -1279,8 +1281,8 @@ class CEAMCL:
         self.log_weight[sid] = log_weight
         self.competition.dn[sid] = 0.0
         self._normalise_weights()
-        self._fit_budget()
-        self._refresh_stats()
+        if not self._fit_budget():  # (which refreshes them where species went)
+            self._refresh_stats()
         self._read = None  # the hypotheses and the state include it
         self.events.sprouts += 1
 
