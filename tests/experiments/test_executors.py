@@ -183,3 +183,21 @@ def test_a_script_without_a_main_guard_is_told_about_it(tmp_path: Path) -> None:
     last = proc.stderr.strip().splitlines()[-1]
     assert last.startswith("ceamcl.experiments.executors.TrialError: my trials: a worker")
     assert "'spawn'" in last and 'if __name__ == "__main__":' in last
+
+
+def _compile_a_kernel() -> int:
+    """Compile a Numba function in this process, as a worker does for each kernel its numba
+    cache does not hold (a fresh clone, or a source edit)."""
+    import numba
+
+    return int(numba.njit(lambda x: x + 1)(1))
+
+
+def test_a_worker_can_compile_a_kernel() -> None:
+    """The worker's initialiser set ``NUMBA_NUM_THREADS`` after Numba had read it (importing
+    this package imports Numba) and had started its threads, so every compilation in a worker
+    re-read it and stopped with "Cannot set NUMBA_NUM_THREADS to a different value once the
+    threads have been launched": `evaluate-log --workers 2` failed on a fresh clone, whose
+    kernels are compiled in the first run, until a run without workers had cached them."""
+    with open_executor("local", 1) as ex:
+        assert ex.submit(_compile_a_kernel).result(timeout=120) == 2

@@ -81,14 +81,22 @@ def _single_threaded_worker(memory_bytes: int) -> None:
     ``workers`` cores rather than each spreading its kernels over every core; Ctrl-C ignored
     (a terminal sends it to the whole process group: the command ends its workers itself, and
     each printed a traceback); the command's memory budget (``--memory-budget``, which was
-    set in the command's process only, so the executors' numbers differed)."""
+    set in the command's process only, so the executors' numbers differed).
+
+    Numba reads ``NUMBA_NUM_THREADS`` when it is imported, and unpickling this function has
+    imported it (the package does). Setting the variable now would make every later
+    compilation in the worker fail ("cannot set NUMBA_NUM_THREADS to a different value once
+    the threads have been launched"), so the variable is set only where Numba is not loaded
+    yet, and the thread count is otherwise set for the thread that runs the trials."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     budget.install(budget.Budget(memory_bytes))
-    os.environ["NUMBA_NUM_THREADS"] = "1"
     import sys
 
-    if "numba" in sys.modules:  # pragma: no cover - only when numba came in first
-        sys.modules["numba"].set_num_threads(1)
+    numba = sys.modules.get("numba")
+    if numba is None:  # pragma: no cover - the package imports Numba
+        os.environ["NUMBA_NUM_THREADS"] = "1"
+    else:
+        numba.set_num_threads(1)
 
 
 #: What a worker process holds (the interpreter, NumPy, SciPy, Numba, a map): about 185 MB
