@@ -172,8 +172,9 @@ class Course:
 
 @functools.lru_cache(maxsize=8)
 def load_grid(world: str | None, map_path: str | None) -> OccupancyGrid:
-    """A built-in world (drawn) or a ROS map (read and checked) at each call: a trial asks for
-    it twice (simulation and filter); a worker does not keep it between trials."""
+    """A built-in world (drawn) or a ROS map (read and checked), once per process: a trial
+    asks for it twice (simulation and filter), and the trials a worker runs on one course share
+    it, distance fields included (the last eight maps are kept)."""
     if map_path is not None:
         return load_map(map_path)
     if world is None:
