@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pickle
+
 import numpy as np
 import pytest
 from scipy import stats
@@ -201,3 +203,28 @@ def test_cell_values_outside_minus_one_to_100_are_refused(
     as occupied."""
     with pytest.raises(MapFormatError, match=says):
         OccupancyGrid(np.array(values), 0.05)
+
+
+def test_a_grid_is_pickled_as_its_cells_and_a_process_reuses_the_one_it_holds() -> None:
+    """A worker is sent the trial's map with every trial: the pickle holds the cells, not
+    the distance fields derived from them (eight times their size), and a process given the
+    same map again gets the grid it already built those layers for."""
+    g = random_grid(np.random.default_rng(3), (200, 300))
+    asked = (g.distance_to_occupied, g.free_cells, g.distance_to_blocking)  # a filter's layers
+    layers = sum(v.nbytes for v in vars(g).values() if isinstance(v, np.ndarray))
+    assert layers > sum(a.nbytes for a in asked)
+    blob = pickle.dumps(g)
+    assert len(blob) < g.data.nbytes + 1024 < layers / 8
+    first = pickle.loads(blob)
+    assert first is not g and first == g
+    assert (first.resolution, first.origin, first.name) == (g.resolution, g.origin, g.name)
+    assert "distance_to_occupied" not in vars(first)  # computed where it is needed
+    np.testing.assert_array_equal(first.distance_to_occupied, g.distance_to_occupied)
+    assert pickle.loads(blob) is first  # the same map again: the grid held, with its layers
+    # another map, or the same cells under another name, is a grid of its own
+    other = g.with_data(np.where(g.data == FREE, UNKNOWN, g.data))
+    assert pickle.loads(pickle.dumps(other)) == other
+    renamed = pickle.loads(pickle.dumps(g.with_data(g.data, name="elsewhere")))
+    assert renamed.name == "elsewhere" and renamed is not first
+    again = pickle.loads(blob)  # the process kept only the last one
+    assert again == g and again is not first

@@ -9,6 +9,8 @@ ignores it, we do not).
 
 from __future__ import annotations
 
+import hashlib
+import threading
 from collections.abc import Callable, Hashable
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -97,6 +99,24 @@ class OccupancyGrid:
         )
 
     __hash__ = None  # type: ignore[assignment]
+
+    # ------------------------------------------------------------------ pickling
+    @cached_property
+    def digest(self) -> str:
+        """A digest of the cells, resolution and origin: equal grids have equal digests."""
+        h = hashlib.blake2b(digest_size=16)
+        h.update(repr((self.data.shape, self.resolution, self.origin)).encode())
+        h.update(self.data.tobytes())
+        return h.hexdigest()
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        """Pickled as its cells alone, without the layers derived from them (masks, distance
+        fields, :meth:`derived`): a worker process that receives trial after trial on one map
+        was sent them with every trial (657 MB a trial on fr-clinic's 40 million cells, for
+        40 MB of cells) and had the command hold several such copies in its queue. Where the
+        receiving process already holds the same grid, it gets that one back, layers and all
+        (:func:`_unpickled`)."""
+        return (_unpickled, (self.data, self.resolution, self.origin, self.name, self.digest))
 
     # ------------------------------------------------------------------ cell classes
     @cached_property
@@ -257,3 +277,31 @@ class OccupancyGrid:
             self.origin,
             name=self.name if name is None else name,
         )
+
+
+#: The grid this process unpickled last: a worker running trial after trial on a map computes
+#: its distance fields once rather than at every trial. One is kept, with the layers its
+#: filters derived, as the memory budget counts them per worker
+#: (:data:`ceamcl.budget.FILTER_CELL_BYTES`); a worker given another map lets it go.
+_LAST_UNPICKLED: list[OccupancyGrid] = []
+_LAST_UNPICKLED_LOCK = threading.Lock()
+
+
+def _unpickled(
+    data: NDArray[np.int8],
+    resolution: float,
+    origin: tuple[float, float, float],
+    name: str,
+    digest: str,
+) -> OccupancyGrid:
+    """The grid :meth:`OccupancyGrid.__reduce__` pickled: the one this process unpickled last
+    if it has the same digest and name, or a new one (then kept in its place)."""
+    with _LAST_UNPICKLED_LOCK:
+        last = _LAST_UNPICKLED[0] if _LAST_UNPICKLED else None
+    if last is not None and last.digest == digest and last.name == name:
+        return last
+    grid = OccupancyGrid(data, resolution, origin, name=name)
+    if grid.digest == digest:  # a grid this code pickled (else keep nothing for it)
+        with _LAST_UNPICKLED_LOCK:
+            _LAST_UNPICKLED[:] = [grid]
+    return grid
