@@ -201,3 +201,19 @@ def test_a_worker_can_compile_a_kernel() -> None:
     kernels are compiled in the first run, until a run without workers had cached them."""
     with open_executor("local", 1) as ex:
         assert ex.submit(_compile_a_kernel).result(timeout=120) == 2
+
+
+def _kernel_threads() -> int:
+    import numba
+
+    return int(numba.get_num_threads())
+
+
+@pytest.mark.parametrize("spec", ["local", "dask"])
+def test_a_worker_runs_its_kernels_on_one_thread(spec: str) -> None:
+    """N workers use N cores. A Dask worker runs its tasks in a thread of its own, where the
+    initialiser's thread count did not hold: each ran its kernels on every core."""
+    if spec == "dask":
+        pytest.importorskip("distributed")
+    with open_executor(spec, 1) as ex:
+        assert ex.submit(_kernel_threads).result(timeout=120) == 1

@@ -225,6 +225,9 @@ def open_executor(
                 processes=True,
                 dashboard_address=None,
                 silence_logs=40,  # logging.ERROR
+                # before Numba is imported: the initialiser's set_num_threads holds for the
+                # thread it runs in, and a Dask worker runs its tasks in another
+                env={"NUMBA_NUM_THREADS": "1"},
             )
             client = distributed.Client(cluster)
             try:
