@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import pickle
 
 import numpy as np
@@ -228,3 +229,6 @@ def test_a_grid_is_pickled_as_its_cells_and_a_process_reuses_the_one_it_holds() 
     assert renamed.name == "elsewhere" and renamed is not first
     again = pickle.loads(blob)  # the process kept only the last one
     assert again == g and again is not first
+    # a copy is the grid itself (it is immutable), and is not kept as an unpickled one
+    assert copy.deepcopy(g) is g and copy.copy(g) is g
+    assert pickle.loads(blob) is again

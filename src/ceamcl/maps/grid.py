@@ -118,6 +118,12 @@ class OccupancyGrid:
         (:func:`_unpickled`)."""
         return (_unpickled, (self.data, self.resolution, self.origin, self.name, self.digest))
 
+    def __copy__(self) -> OccupancyGrid:
+        return self  # immutable: its cells are read-only and its layers derive from them
+
+    def __deepcopy__(self, memo: dict[int, Any]) -> OccupancyGrid:
+        return self  # a deep copy of a filter shares its map, as filters of one map do
+
     # ------------------------------------------------------------------ cell classes
     @cached_property
     def occupied_mask(self) -> NDArray[np.bool_]:
