@@ -2,8 +2,13 @@
 
 from __future__ import annotations
 
+import bz2
 import gzip
+import lzma
 import math
+import os
+import threading
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -317,6 +322,43 @@ def test_gzip_is_read_transparently(tmp_path: Path) -> None:
     packed = open_log(write(tmp_path, lines, name="run.log.gz", gz=True))
     assert len(packed) == 3
     np.testing.assert_array_equal(packed.ranges_flat, plain.ranges_flat)
+
+
+@pytest.mark.parametrize("packer", [bz2.compress, lzma.compress], ids=["bzip2", "xz"])
+def test_bzip2_and_xz_are_read_transparently_from_a_file_or_a_pipe(
+    tmp_path: Path, packer: Callable[[bytes], bytes]
+) -> None:
+    """Logs are published as ``.bz2`` too: one was refused as binary data ("NUL bytes"),
+    and the README had users pipe it through ``bzcat``."""
+    lines = [flaser(180, 1.0 + 0.1 * k, (0, 0, 0), float(k)) for k in range(40)]
+    plain = read_carmen(write(tmp_path, lines))
+    packed = packer(write(tmp_path, lines).read_bytes())
+    path = tmp_path / "run.log.packed"
+    path.write_bytes(packed)
+    np.testing.assert_array_equal(open_log(path).ranges_flat, plain.ranges_flat)
+    r, w = os.pipe()
+
+    def feed() -> None:
+        with os.fdopen(w, "wb") as fh:
+            fh.write(packed)
+
+    threading.Thread(target=feed).start()
+    try:
+        piped = read_carmen(f"/dev/fd/{r}")
+    finally:
+        os.close(r)
+    np.testing.assert_array_equal(piped.ranges_flat, plain.ranges_flat)
+    path.write_bytes(packed[: len(packed) // 2])
+    with pytest.raises(LogFormatError, match=r"run\.log\.packed:\d+: the compressed file is"):
+        read_carmen(path)
+
+
+def test_a_text_log_that_starts_like_bzip2_is_text(tmp_path: Path) -> None:
+    """Only bzip2's block or end-of-stream magic after ``BZh`` and a digit opens a
+    decompressor: a text line starting ``BZh9`` is an unknown message of a text log."""
+    lines = ["BZh9 something", flaser(180, 1.0, (0, 0, 0), 0.0)]
+    log = read_carmen(write(tmp_path, lines))
+    assert len(log) == 1 and log.info["skipped_messages"] == {"BZh9": 1}
 
 
 def test_beam_count_that_does_not_agree_with_the_fields_is_refused(tmp_path: Path) -> None:

@@ -1,4 +1,4 @@
-"""CARMEN log files (``.log``, ``.clf``, optionally gzip-compressed), read line by line.
+"""CARMEN log files (``.log``, ``.clf``; plain, gzip, bzip2 or xz), read line by line.
 
 The format is that of CARMEN's logger and ``carmen/src/global/readlog.c``: one message per
 line, the message name first, fields separated by white space. This module reads:
@@ -59,8 +59,10 @@ lone CR (classic Mac OS); a UTF-8 byte order mark at the start of the file is sk
 
 from __future__ import annotations
 
+import bz2
 import gzip
 import io
+import lzma
 import math
 import os
 import re
@@ -69,6 +71,7 @@ from collections import Counter
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import IO, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -377,19 +380,34 @@ def parse_line(text: str, path: str = "<string>", lineno: int = 1) -> CarmenMess
     return CarmenSkipped(kind, lineno)
 
 
+#: Errors of a damaged or truncated compressed stream (gzip, bzip2, xz).
+_DAMAGED = (EOFError, gzip.BadGzipFile, zlib.error, lzma.LZMAError)
+
+
 def _open_binary(path: Path) -> io.BufferedIOBase:
-    """A binary stream over the file (or pipe), gunzipped on the fly when it starts with the
-    gzip magic. The magic is sniffed from a kept buffer, so a pipe loses nothing."""
+    """A binary stream over the file (or pipe), decompressed on the fly when it starts with
+    the magic of gzip, bzip2 or xz (logs are published as ``.gz`` and ``.bz2``; a ``.bz2``
+    was refused as binary data, and the README had users pipe it through ``bzcat``). The
+    magic is sniffed from a kept buffer, so a pipe loses nothing. A text log cannot start
+    with any of them: bzip2's is ``BZh``, a block size digit and the block magic ``1AY&SY``
+    (or the empty stream's ``\x17rE8P\x90``)."""
     try:
-        magic = streams.sniff(path, 2, "CARMEN log")
+        magic = streams.sniff(path, 10, "CARMEN log")
         raw = streams.open_input(path, "CARMEN log")
     except FileNotFoundError:
         raise LogFormatError(f"{path}: log file not found") from None
     except OSError as exc:
         raise LogFormatError(f"{path}: cannot read the log: {exc.strerror or exc}") from None
-    if magic == b"\x1f\x8b":
+    if magic.startswith(b"\x1f\x8b"):
         return gzip.GzipFile(fileobj=raw, mode="rb")
+    if _BZIP2.match(magic):
+        return bz2.BZ2File(raw, mode="rb")
+    if magic.startswith(b"\xfd7zXZ\x00"):
+        return lzma.LZMAFile(cast(IO[bytes], raw), mode="rb")
     return raw
+
+
+_BZIP2 = re.compile(rb"BZh[1-9](1AY&SY|\x17rE8P\x90)")
 
 
 #: Bytes read from the file at a time while splitting it into lines.
@@ -456,7 +474,8 @@ def _lines(path: Path, fh: io.BufferedIOBase) -> Iterator[tuple[int, str]]:
 
 
 def iter_carmen(path: str | os.PathLike[str]) -> Iterator[CarmenMessage]:
-    """Every message of a CARMEN log, in file order, read as a stream (gzip or plain text)."""
+    """Every message of a CARMEN log, in file order, read as a stream (plain text, or gzip,
+    bzip2 or xz)."""
     p = Path(path)
     lineno = 0
     with _open_binary(p) as fh:
@@ -465,7 +484,7 @@ def iter_carmen(path: str | os.PathLike[str]) -> Iterator[CarmenMessage]:
                 msg = parse_line(text, str(p), lineno)
                 if msg is not None:
                     yield msg
-        except (EOFError, gzip.BadGzipFile, zlib.error) as exc:
+        except _DAMAGED as exc:
             raise LogFormatError(
                 f"{p}:{lineno + 1}: the compressed file is damaged or truncated ({exc})"
             ) from None
@@ -520,7 +539,7 @@ def read_carmen(
     """The scans of one laser of a CARMEN log with the robot's pose at each scan.
 
     Args:
-        path: the log (plain or gzip-compressed).
+        path: the log (plain, or compressed with gzip, bzip2 or xz).
         laser: 1 = front (``FLASER``, ``ROBOTLASER1``, ``RAWLASER1``), 2 = rear (``RLASER``,
             ``ROBOTLASER2``, ...), 3 and 4 the numbered lasers.
         max_range_m: the sensor's maximum; readings at or beyond it mean no return. Default:

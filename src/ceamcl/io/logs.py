@@ -2,7 +2,7 @@
 
 :func:`open_log` picks the reader by file type: a ROS 1 bag (``.bag`` or the ``#ROSBAG``
 header), a ROS 2 bag (a folder with ``metadata.yaml``, or a ``.db3``/``.mcap`` file inside
-one or on its own), anything else a CARMEN log (plain or gzip). Every reader returns a
+one or on its own), anything else a CARMEN log (plain, gzip, bzip2 or xz). Every reader returns a
 :class:`~ceamcl.io.recorded.RecordedLog` (the log type, its ground truth and synthetic
 odometry are described in :mod:`ceamcl.io.recorded`).
 """
