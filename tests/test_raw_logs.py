@@ -125,12 +125,25 @@ def test_logs_of_different_runs_are_a_one_line_error(
     assert not out.exists()  # nothing half-done left behind
 
 
-def test_evaluate_log_raw_with_truth_from(cut_logs: tuple[Path, Path], tmp_path: Path) -> None:
+def test_evaluate_log_raw_with_truth_from(
+    cut_logs: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     raw, corrected = cut_logs
     out = tmp_path / "ev"
     args = ["evaluate-log", str(raw), "--truth-from", str(corrected), "--starts", "2"]
     args += ["--scans", "120", "--algorithms", "mcl", "kld-amcl", "--executor", "serial"]
-    assert main([*args, "--quiet", "--out", str(out)]) == 0
+    assert main([*args, "--out", str(out)]) == 0
+    # at the pace most scans only add their odometry: the console gives the updates' cost
+    said = " ".join(capsys.readouterr().out.split())
+    runs = list(csv.DictReader((out / "evaluate.csv").open()))
+    update = {
+        a: np.mean([float(r["mean_update_ms"]) for r in runs if r["algorithm"] == a])
+        for a in ("mcl", "kld-amcl")
+    }
+    assert (
+        f"mean update (the scans that updated the filter): mcl {update['mcl']:.1f} ms, "
+        f"kld-amcl {update['kld-amcl']:.1f} ms" in said
+    ), said
     md = (out / "evaluate.md").read_text()
     assert "at the 250 of 300 scans that match" in md
     assert "filter updates (every algorithm): update when moved 0.25 m" in md
