@@ -351,6 +351,11 @@ def test_bzip2_and_xz_are_read_transparently_from_a_file_or_a_pipe(
     path.write_bytes(packed[: len(packed) // 2])
     with pytest.raises(LogFormatError, match=r"run\.log\.packed:\d+: the compressed file is"):
         read_carmen(path)
+    damaged = bytearray(packed)  # whole, with bytes changed inside: bzip2 raised OSError
+    damaged[len(packed) // 2 : len(packed) // 2 + 64] = bytes(64)
+    path.write_bytes(bytes(damaged))
+    with pytest.raises(LogFormatError, match=r"run\.log\.packed:\d+: the compressed file is"):
+        read_carmen(path)
 
 
 def test_a_text_log_that_starts_like_bzip2_is_text(tmp_path: Path) -> None:

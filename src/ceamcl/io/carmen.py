@@ -380,8 +380,11 @@ def parse_line(text: str, path: str = "<string>", lineno: int = 1) -> CarmenMess
     return CarmenSkipped(kind, lineno)
 
 
-#: Errors of a damaged or truncated compressed stream (gzip, bzip2, xz).
-_DAMAGED = (EOFError, gzip.BadGzipFile, zlib.error, lzma.LZMAError)
+_BZIP2 = re.compile(rb"BZh[1-9](1AY&SY|\x17rE8P\x90)")
+
+#: Errors of a damaged or truncated compressed stream: gzip's, xz's, and bzip2's, which says
+#: "Invalid data stream" with a bare ``OSError`` (as a failing disk under a plain log would).
+_DAMAGED = (EOFError, OSError, zlib.error, lzma.LZMAError)
 
 
 def _open_binary(path: Path) -> io.BufferedIOBase:
@@ -405,9 +408,6 @@ def _open_binary(path: Path) -> io.BufferedIOBase:
     if magic.startswith(b"\xfd7zXZ\x00"):
         return lzma.LZMAFile(cast(IO[bytes], raw), mode="rb")
     return raw
-
-
-_BZIP2 = re.compile(rb"BZh[1-9](1AY&SY|\x17rE8P\x90)")
 
 
 #: Bytes read from the file at a time while splitting it into lines.
@@ -485,9 +485,9 @@ def iter_carmen(path: str | os.PathLike[str]) -> Iterator[CarmenMessage]:
                 if msg is not None:
                     yield msg
         except _DAMAGED as exc:
-            raise LogFormatError(
-                f"{p}:{lineno + 1}: the compressed file is damaged or truncated ({exc})"
-            ) from None
+            compressed = isinstance(fh, (gzip.GzipFile, bz2.BZ2File, lzma.LZMAFile))
+            what = "the compressed file is damaged or truncated" if compressed else "cannot read it"
+            raise LogFormatError(f"{p}:{lineno + 1}: {what} ({exc})") from None
 
 
 # ------------------------------------------------------------------------------ whole log
