@@ -37,6 +37,8 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
+import numba
+
 from ceamcl import budget
 from ceamcl.errors import CeamclError, ConfigError
 from ceamcl.maps.grid import OccupancyGrid
@@ -83,20 +85,13 @@ def _single_threaded_worker(memory_bytes: int) -> None:
     each printed a traceback); the command's memory budget (``--memory-budget``, which was
     set in the command's process only, so the executors' numbers differed).
 
-    Numba reads ``NUMBA_NUM_THREADS`` when it is imported, and unpickling this function has
-    imported it (the package does). Setting the variable now would make every later
-    compilation in the worker fail ("cannot set NUMBA_NUM_THREADS to a different value once
-    the threads have been launched"), so the variable is set only where Numba is not loaded
-    yet, and the thread count is otherwise set for the thread that runs the trials."""
+    Numba has read ``NUMBA_NUM_THREADS`` by then (this module imports it, through the map), so
+    the count is set for the thread that runs the trials; setting the variable instead made
+    every later compilation in the worker fail ("cannot set NUMBA_NUM_THREADS to a different
+    value once the threads have been launched")."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     budget.install(budget.Budget(memory_bytes))
-    import sys
-
-    numba = sys.modules.get("numba")
-    if numba is None:  # pragma: no cover - the package imports Numba
-        os.environ["NUMBA_NUM_THREADS"] = "1"
-    else:
-        numba.set_num_threads(1)
+    numba.set_num_threads(1)
 
 
 #: What a worker process holds (the interpreter, NumPy, SciPy, Numba, a map): about 185 MB
