@@ -93,6 +93,8 @@ def plot_resources(
     _draw(axes[0], samples)
     axes[0].set_ylabel("total sample size (mean over trials)")
     axes[0].set_yscale("log")
+    if samples:  # below the axes: inside, it hid CEAMCL's curve along the bottom
+        axes[0].legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.15), ncol=4)
     _draw(axes[1], resources)
     axes[1].set_ylabel("total resources R (mean over trials)")
     fig.suptitle(title)
