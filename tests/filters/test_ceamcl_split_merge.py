@@ -11,7 +11,12 @@ from numpy.typing import NDArray
 
 from ceamcl.filters import make_filter
 from ceamcl.filters.ceamcl import CEAMCL
-from ceamcl.filters.ceamcl.species import domains_overlap
+from ceamcl.filters.ceamcl.species import (
+    ALL_PAIRS_MAX,
+    SpeciesStats,
+    domains_overlap,
+    overlapping_pairs,
+)
 from ceamcl.filters.clustering import pose_cluster_labels
 from ceamcl.filters.particles import ParticleSet
 from ceamcl.maps.worlds import symmetric_hall, symmetric_images
@@ -245,3 +250,43 @@ def test_one_cell_joins_every_region_it_touches_across_the_heading_wrap() -> Non
     # Control: without the bridging cell the two first-slice cells are two regions.
     _, count_apart = pose_cluster_labels(poses[1:], 1.0, np.pi / 4)
     assert count_apart == 2
+
+
+def test_overlapping_pairs_from_the_tree_are_every_pair_that_overlaps() -> None:
+    """Above ``ALL_PAIRS_MAX`` species a k-d tree proposes the pairs to test: the result is
+    the all-pairs test's, pair for pair and in the same order, for species crowded together
+    (many overlaps), spread out, of very different widths, and with a domain of zero width."""
+    rng = np.random.default_rng(45)
+    found = []
+    for trial in range(12):
+        m = int(rng.integers(ALL_PAIRS_MAX + 1, 400))
+        spread = [3.0, 30.0, 300.0][trial % 3]
+        poses = np.column_stack([rng.uniform(0, spread, (m, 2)), rng.uniform(-3, 3, m)])
+        stats = []
+        for k in range(m):
+            sd = rng.choice([0.0, 0.02, 0.3, 2.0]) * rng.uniform(0.5, 1.5, 2)
+            angle = rng.uniform(0, np.pi)
+            axes = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+            stats.append(
+                SpeciesStats(
+                    species_id=k,
+                    members=np.arange(1),
+                    weights=np.ones(1),
+                    mean=poses[k],
+                    covariance=np.eye(3),
+                    cov_xy=np.eye(2),
+                    heading_sd=0.1,
+                    fitness=1.0,
+                    domain_variances=sd**2,
+                    domain_axes=axes,
+                    area_m2=0.0,
+                )
+            )
+        got = overlapping_pairs(stats)
+        want = [
+            (i, j) for i in range(m) for j in range(i + 1, m) if domains_overlap(stats[i], stats[j])
+        ]
+        assert got == want
+        found.append(len(want))
+    assert min(found[0::3]) > 100  # crowded: many pairs overlap
+    assert max(found[2::3]) < 50  # spread out: few do

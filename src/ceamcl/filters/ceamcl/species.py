@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial import cKDTree
 
 from ceamcl.angles import wrap, wrap_one
 from ceamcl.filters.clustering import pose_cluster_labels
@@ -471,16 +472,24 @@ def compact_species(
     return {sid for sid, ok in zip(members, compact.tolist(), strict=True) if ok}
 
 
+#: Up to this many species every pair is tested; above it a k-d tree proposes the pairs whose
+#: bounding circles meet (a recovery on a big map makes a thousand species and more).
+ALL_PAIRS_MAX = 64
+
+
 def overlapping_pairs(stats: list[SpeciesStats]) -> list[tuple[int, int]]:
     """Index pairs ``(i, j)``, ``i < j``, of species in ``stats`` whose living domains overlap
-    (:func:`domains_overlap` for all pairs at once)."""
+    (:func:`domains_overlap` for all pairs at once), in ascending order of ``(i, j)``."""
     m = len(stats)
     if m < 2:
         return []
     means = np.array([s.mean[:2] for s in stats])
     d = np.maximum(np.array([s.domain_variances for s in stats]), 1e-12)
     axes = np.array([s.domain_axes for s in stats])
-    i, j = np.triu_indices(m, 1)
+    if m <= ALL_PAIRS_MAX or not (np.all(np.isfinite(means)) and np.all(np.isfinite(d))):
+        i, j = np.triu_indices(m, 1)
+    else:
+        i, j = _pairs_within_reach(means, d)
     delta = means[j] - means[i]
     dist = np.hypot(delta[:, 0], delta[:, 1])
     u = delta / np.where(dist > 0, dist, 1.0)[:, None]
@@ -491,6 +500,26 @@ def overlapping_pairs(stats: list[SpeciesStats]) -> list[tuple[int, int]]:
 
     hit = (dist == 0.0) | (dist < radius(i) + radius(j))
     return [(int(a), int(b)) for a, b in zip(i[hit], j[hit], strict=True)]
+
+
+def _pairs_within_reach(
+    means: NDArray[np.float64], variances: NDArray[np.float64]
+) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """The pairs ``(i, j)``, ``i < j``, in ascending order, whose centres lie closer than the
+    sum of their domains' bounding circles (radius ``2 sqrt`` of the larger variance, widened
+    by a relative 1e-9 against rounding): every pair whose domains can overlap, found by each
+    species' k-d tree query of twice its own reach for the species no wider than itself
+    (for ``R_j <= R_i``, ``R_i + R_j <= 2 R_i``)."""
+    m = means.shape[0]
+    reach = 2.0 * np.sqrt(np.max(variances, axis=1)) * (1.0 + 1e-9) + 1e-12
+    near = cKDTree(means).query_ball_point(means, 2.0 * reach)
+    rows = np.repeat(np.arange(m), [len(n) for n in near])
+    cols = np.concatenate([np.asarray(n, dtype=np.intp) for n in near])
+    keep = (cols != rows) & (reach[cols] <= reach[rows])
+    a = np.minimum(rows, cols)[keep]
+    b = np.maximum(rows, cols)[keep]
+    key = np.unique(a.astype(np.int64) * m + b)  # ascending (a, b), each pair once
+    return (key // m).astype(np.intp), (key % m).astype(np.intp)
 
 
 def sample_living_domain(
