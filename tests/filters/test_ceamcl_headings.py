@@ -13,6 +13,8 @@ from ceamcl.filters.ceamcl.config import CEAMCLConfig
 from ceamcl.filters.ceamcl.initialisation import heading_proposal, sample_test_poses
 from ceamcl.filters.headings import (
     HeadingPrior,
+    _map_normals,
+    _map_normals_reference,
     heading_density,
     map_normal_histogram,
     sample_headings,
@@ -200,3 +202,27 @@ def test_a_rotated_maps_normals_turn_with_its_origin() -> None:
     corr = [float(np.dot(np.roll(a, k), b)) for k in range(PRIOR.bins)]
     assert int(np.argmax(corr)) == shift
     assert a.sum() == pytest.approx(b.sum())
+
+
+def test_the_maps_normals_tile_by_tile_equal_the_filters_over_the_whole_map() -> None:
+    """The normals are smoothed and differentiated only in tiles around the boundary cells:
+    the histogram is the one SciPy's filters over the whole map give, bin for bin, on the
+    paper's hall, on maps with walls across tile edges and along the map's own edge, and on
+    clutter scattered over a map several tiles wide."""
+    grids = [get_scenario("paper").grid(), get_scenario("office").grid(), _box_grid()]
+    rng = np.random.default_rng(46)
+    for trial in range(4):
+        h, w = 150 + 37 * trial, 210 - 23 * trial
+        data = np.full((h, w), -1, dtype=np.int8)
+        data[5 : h - 5, 5 : w - 5] = 0
+        data[rng.random((h, w)) < 0.02 * (trial + 1)] = 100
+        data[:, 63:66] = 100  # a wall along a tile edge
+        data[0, :] = 100  # walls on the map's own edge
+        data[:, -1] = 100
+        grids.append(OccupancyGrid(data, 0.05, (0.0, 0.0, 0.3 * trial)))
+    for grid in grids:
+        for prior in (PRIOR, HeadingPrior(bins=180)):
+            got = _map_normals(grid, prior)
+            want = _map_normals_reference(grid, prior)
+            assert got.sum() > 0
+            assert np.array_equal(got, want)
