@@ -20,6 +20,7 @@ from ceamcl.motion.odometry import OdometryMotionModel
 from ceamcl.sensors import LikelihoodFieldModel
 from ceamcl.sensors.scan import LaserScan
 from ceamcl.simulation import Simulator, paper_scenario
+from tests.city_block import seed_distances
 
 #: departure 20 (docs/ceamcl.md), the default from departure 24 to 26: 450 test poses per m^2
 #: with uniform headings and ten more around each of the best 1 %
@@ -78,19 +79,8 @@ def test_skiz_partition_matches_brute_force_on_random_seeds() -> None:
         for label in range(1, 4):
             y, x = rng.integers(0, 15), rng.integers(0, 12)
             seeds[y : y + rng.integers(1, 3), x : x + rng.integers(1, 3)] = label
-        labels = [lab for lab in range(1, 4) if np.any(seeds == lab)]
+        labels, dist = seed_distances(seeds)
         part = skiz_partition(seeds)
-        ys, xs = np.indices(seeds.shape)
-        dist = np.stack(
-            [
-                np.min(
-                    np.abs(ys[..., None] - np.nonzero(seeds == lab)[0])
-                    + np.abs(xs[..., None] - np.nonzero(seeds == lab)[1]),
-                    axis=-1,
-                )
-                for lab in labels
-            ]
-        )
         best = dist.min(axis=0)
         # Every cell gets a label at the minimal city-block distance (any one of a tie).
         chosen = np.array(labels)[None, None, :] == part[..., None]

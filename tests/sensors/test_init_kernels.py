@@ -17,6 +17,7 @@ from ceamcl.filters.ceamcl.initialisation import (
     top_k_mean_per_cell,
     top_k_mean_per_cell_reference,
 )
+from tests.city_block import seed_distances
 
 
 @pytest.mark.parametrize("k", [1, 3, 7])
@@ -79,19 +80,8 @@ def test_skiz_partition_equals_scipys_chamfer_transform_ties_included() -> None:
             seeds[y : y + int(rng.integers(1, 4)), x : x + int(rng.integers(1, 4))] = label
         got = skiz_partition(seeds)
         assert np.array_equal(got, skiz_partition_reference(seeds))
-        ys, xs = np.indices(seeds.shape)
-        labels = [lab for lab in range(1, int(seeds.max()) + 1) if np.any(seeds == lab)]
+        labels, d = seed_distances(seeds)
         if len(labels) > 1:
-            d = np.stack(
-                [
-                    np.min(
-                        np.abs(ys[..., None] - np.nonzero(seeds == lab)[0])
-                        + np.abs(xs[..., None] - np.nonzero(seeds == lab)[1]),
-                        axis=-1,
-                    )
-                    for lab in labels
-                ]
-            )
             ties += int(np.sum(np.sum(d == d.min(axis=0), axis=0) > 1))
     assert ties > 100  # the comparison covered ties, where the transform's order decides
 
