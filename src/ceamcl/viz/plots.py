@@ -67,8 +67,14 @@ def plot_run(
 ) -> Path:
     """``run.png``: map, final particles coloured by label, the tracks of the species alive at
     the end (not of every species ever created), estimate, final hypotheses, and the true
-    path on top; the legend below the map."""
-    fig, ax = plt.subplots(figsize=(8, 8.6))
+    path on top; the legend below the map. The figure's height follows the map's shape, and
+    the legend has its own strip at the bottom of the figure (below the axes of a wide map it
+    covered the x label)."""
+    x0, x1, y0, y1 = grid.bounds
+    legend_in = 0.9
+    map_in = float(np.clip(7.4 * (y1 - y0) / max(x1 - x0, 1e-9), 3.0, 8.0))
+    height = map_in + legend_in + 0.9  # and the title and the x label
+    fig, ax = plt.subplots(figsize=(8, height))
     draw_map(ax, grid)
     parts = result.final_particles
     if parts.poses.shape[0]:
@@ -151,15 +157,10 @@ def plot_run(
             path_effects=edge,
         )
         ax.plot(*truth[-1, :2], "go", ms=8, mec="white", label="truth (final)", zorder=8)
-    ax.legend(
-        loc="upper center",
-        bbox_to_anchor=(0.5, -0.07),
-        ncol=3,
-        fontsize=8,
-        frameon=False,
-    )
+    handles, names = ax.get_legend_handles_labels()
+    fig.legend(handles, names, loc="lower center", ncol=3, fontsize=8, frameon=False)
     ax.set_title(title or f"{result.algorithm}: {result.steps} steps")
-    fig.tight_layout()
+    fig.tight_layout(rect=(0.0, legend_in / height, 1.0, 1.0))
     out = Path(path)
     fig.savefig(out, dpi=110)
     plt.close(fig)
