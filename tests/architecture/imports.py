@@ -190,7 +190,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
             "ceamcl.checks",
         ),
     ),
-    ("runner", ("ceamcl.runner",)),
+    ("runner", ("ceamcl.runner", "ceamcl.warmup")),
     (
         "outputs",
         (

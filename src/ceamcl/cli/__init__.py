@@ -34,6 +34,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "evaluate_log",
     "node",
     "play",
+    "warm_up",
 )
 
 

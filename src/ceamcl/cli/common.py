@@ -29,6 +29,7 @@ from ceamcl import budget
 from ceamcl.errors import ConfigError
 from ceamcl.filters import registry
 from ceamcl.outputs import DEFAULT_FPS, DEFAULT_STRIDE
+from ceamcl.warmup import WarmUp, warm_up
 
 
 def _whole_number(text: str, lowest: int, wanted: str) -> int:
@@ -198,6 +199,18 @@ def make_progress(label: str, console: Console, *, quiet: bool = False) -> Progr
         disable=quiet,
         transient=False,
     )
+
+
+def warm_kernels(progress: Progress) -> WarmUp:
+    """Every compiled kernel ready before a run (:mod:`ceamcl.warmup`), shown as a task of
+    ``progress`` while it lasts; a line says so where kernels had to be compiled (a cold
+    Numba cache), so the run's own times hold no compilation."""
+    task = progress.add_task("compiled kernels", total=None)
+    ready = warm_up(lambda done, total: progress.update(task, completed=done, total=total))
+    progress.remove_task(task)
+    if ready.compiled and not progress.disable:
+        progress.console.print(ready.describe(), markup=False)
+    return ready
 
 
 class RunProgress:

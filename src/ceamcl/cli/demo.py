@@ -20,6 +20,7 @@ from ceamcl.cli.common import (
     positive_int,
     print_written,
     require_available,
+    warm_kernels,
 )
 from ceamcl.demo import DEFAULT_ALGORITHM, run_demo
 from ceamcl.experiments.common import pct
@@ -78,6 +79,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
         f"[bold]{args.algorithm}[/] on {args.world}", console, quiet=args.quiet
     )
     with progress:
+        warm_kernels(progress)
         bar = RunProgress(progress)
         outcome = run_demo(
             args.algorithm,

@@ -19,6 +19,7 @@ from ceamcl.cli.common import (
     plural,
     positive_float,
     positive_int,
+    warm_kernels,
 )
 from ceamcl.cli.experiment import RUN_BYTES
 from ceamcl.cli.run import (
@@ -202,6 +203,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     if args.tracking:
         return run_tracking(args, console, prepared, grid, map_source, algos, skipped, pace, doubt)
     with TrialsProgress(console, quiet=args.quiet) as progress:
+        warm_kernels(progress.progress)
         ev = evaluate_log(
             prepared,
             grid,
@@ -285,6 +287,7 @@ def run_tracking(
     """``evaluate-log --tracking``: APE of pose tracking over the whole log."""
     particles = args.particles or DEFAULT_TRACKING_PARTICLES
     with TrialsProgress(console, quiet=args.quiet) as progress:
+        warm_kernels(progress.progress)
         tr = track_log(
             prepared,
             grid,

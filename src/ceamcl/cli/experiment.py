@@ -34,6 +34,7 @@ from ceamcl.cli.common import (
     plural,
     positive_float,
     positive_int,
+    warm_kernels,
     write_error,
 )
 from ceamcl.errors import ConfigError
@@ -773,6 +774,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     meta = run_metadata(settings)
     started = time.perf_counter()
     with TrialsProgress(console, quiet=args.quiet) as progress:
+        warm_kernels(progress.progress)
         result = experiment.run(settings, args, progress)
     meta["wall_time_s"] = round(time.perf_counter() - started, 1)
     paths = _write_staged(experiment, result, Path(args.out), meta)

@@ -26,6 +26,7 @@ from ceamcl.cli.common import (
     positive_int,
     print_written,
     require_available,
+    warm_kernels,
 )
 from ceamcl.errors import ConfigError
 from ceamcl.filters import registry
@@ -431,6 +432,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
         f"[bold]{args.algorithm}[/] on {escape(prepared.log.name)}", console, quiet=args.quiet
     )
     with progress:
+        warm_kernels(progress)
         bar = RunProgress(progress, "scans")
         outcome = replay_log(
             prepared,
