@@ -51,6 +51,17 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             item.add_marker(pytest.mark.skip(reason=MISSING))
 
 
+@pytest.fixture(scope="session", autouse=True)
+def compiled_kernels() -> None:
+    """The kernels in Numba's cache before any node starts: a node readies them when it is
+    configured (``ceamcl.warmup``), which on a cold cache (a fresh clone) is compiling for
+    tens of seconds on a busy machine, longer than a test's lifecycle transition waits; from
+    the cache it is a fraction of a second."""
+    from ceamcl.warmup import warm_up
+
+    warm_up()
+
+
 @pytest.fixture
 def driver() -> Iterator[object]:
     """The test's own ROS node (publishes inputs, listens to outputs); one per test, so no

@@ -60,6 +60,8 @@ def test_params_file_and_lifecycle(driver, hall_log, tmp_path: Path) -> None:
         driver.configure_and_activate()
         assert driver.state() == "active"
         assert wait_for_log(node, "configured: gmcl")
+        # its kernels were readied while it configured, before any scan (ceamcl.warmup)
+        assert wait_for_log(node, "compiled-kernel signatures ready")
         driver.start_run(node, log, scenario.grid())
         assert driver.step(log, 0, 2_000.0, TOLERANCE_S)
         # inactive: scans are ignored, nothing is published

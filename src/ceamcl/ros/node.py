@@ -51,6 +51,7 @@ from ceamcl.ros.transforms import (
     compose,
     inverse,
 )
+from ceamcl.warmup import warm_up
 
 #: Seconds between repeats of the same warning.
 THROTTLE_S = 5.0
@@ -135,6 +136,9 @@ class LocalisationNode(LifecycleNode):
             self.get_logger().warning(warning)
         self.params = params
         self._reset_state()
+        # every kernel loaded (compiled on a cold Numba cache) now, before the robot moves:
+        # compiled mid-drive, the first updates stalled for seconds (ceamcl.warmup)
+        self.get_logger().info(warm_up().describe())
         self.localiser = Localiser(params)
         self._create_interfaces(params)
         self.get_logger().info(
