@@ -13,14 +13,18 @@ update. With a warm cache the same updates take 0.13 s, 41 ms and 5 ms.
 :func:`warm_up` loads every kernel the package calls from Python, for the argument types it
 calls it with (:data:`KERNELS`), from the cache, compiling what is not there, before a run
 starts: the ROS node does it when it is configured, the command line before it replays or
-simulates (docs/performance.md, "Compiled before the run"). With a warm cache it takes about
-0.1 s beyond what the run would load anyway; with a cold one about 16 s on 2 cores.
+simulates (docs/performance.md, "Compiled before the run"). With a warm cache it costs nothing
+measurable beyond what the run would load anyway; with a cold one it compiles for 14 s (the
+likelihood field's runs) to 18 s (every kernel) on 2 cores, which the runs used to spend in
+their first updates.
 ``ceamcl warm-up`` does it alone, for a container image or a read-only install to carry the
 compiled kernels (``NUMBA_CACHE_DIR`` names where).
 
 The list is checked against what the filters really call: ``tests/test_warmup.py`` runs every
 algorithm with both sensor models, a recovery and a real log after :func:`warm_up` and fails,
-naming the kernel and the argument types, if any kernel met a signature the list lacks.
+naming the kernel and the argument types, if any kernel met a signature the list lacks, if a
+run with the likelihood field needed one of :data:`BEAM_MODEL_KERNELS`, or if the list holds a
+signature no run called.
 """
 
 from __future__ import annotations
@@ -34,7 +38,14 @@ from typing import Any
 from numba.core import types
 from numba.core.registry import CPUDispatcher
 
-__all__ = ["KERNELS", "WarmUp", "parse_signature", "signature_text", "warm_up"]
+__all__ = [
+    "BEAM_MODEL_KERNELS",
+    "KERNELS",
+    "WarmUp",
+    "parse_signature",
+    "signature_text",
+    "warm_up",
+]
 
 # Argument types in Numba's own notation: ``float64[:, ::1]`` is a C-contiguous 2-D array,
 # ``readonly(...)`` an array the caller cannot write (``scan._select``'s cached index).
@@ -138,6 +149,19 @@ KERNELS: tuple[tuple[str, tuple[str, ...], tuple[str, ...]], ...] = (
 )
 
 
+#: The beam model's kernels (its table and exact ray casting), which a run with the likelihood
+#: field never calls: readied only for the beam model (4 s of a cold warm-up's 18 s).
+BEAM_MODEL_KERNELS = frozenset(
+    {
+        "ceamcl.sensors.beam_model._beam_table_serial",
+        "ceamcl.sensors.beam_model._beam_table_parallel",
+        "ceamcl.sensors.beam_model._beam_kernel_serial",
+        "ceamcl.sensors.beam_model._beam_kernel_parallel",
+        "ceamcl.sensors.raycast._assign_rows",
+    }
+)
+
+
 def _readonly(array: types.Array) -> types.Array:
     return array.copy(readonly=True)
 
@@ -173,12 +197,15 @@ def signature_text(signature: tuple[types.Type, ...]) -> str:
     return f"({inner},)" if len(signature) == 1 else f"({inner})"
 
 
-def kernels() -> list[tuple[str, CPUDispatcher, tuple[types.Type, ...]]]:
-    """``(name, dispatcher, signature)`` for every entry of :data:`KERNELS`."""
+def kernels(beam_model: bool = True) -> list[tuple[str, CPUDispatcher, tuple[types.Type, ...]]]:
+    """``(name, dispatcher, signature)`` for every entry of :data:`KERNELS` (without
+    :data:`BEAM_MODEL_KERNELS` where ``beam_model`` is false)."""
     out = []
     for module_name, names, signatures in KERNELS:
         module = importlib.import_module(module_name)
         for name in names:
+            if not beam_model and f"{module_name}.{name}" in BEAM_MODEL_KERNELS:
+                continue
             dispatcher = getattr(module, name)
             if not isinstance(dispatcher, CPUDispatcher):
                 raise TypeError(f"{module_name}.{name} is not a compiled kernel")
@@ -214,11 +241,15 @@ class WarmUp:
         )
 
 
-def warm_up(progress: Callable[[int, int], None] | None = None) -> WarmUp:
+def warm_up(
+    progress: Callable[[int, int], None] | None = None, *, beam_model: bool = True
+) -> WarmUp:
     """Load (or compile, where Numba's cache lacks them) every kernel of :data:`KERNELS` for
-    its signatures; ``progress(done, total)`` after each. A second call finds them loaded."""
+    its signatures, the beam model's only where ``beam_model`` (a run with the likelihood field
+    calls none of them); ``progress(done, total)`` after each. A second call finds them
+    loaded."""
     start = time.perf_counter()
-    todo = kernels()
+    todo = kernels(beam_model)
     compiled = from_cache = 0
     for done, (_, dispatcher, signature) in enumerate(todo, start=1):
         if signature not in dispatcher.overloads:

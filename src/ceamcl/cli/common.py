@@ -201,12 +201,20 @@ def make_progress(label: str, console: Console, *, quiet: bool = False) -> Progr
     )
 
 
-def warm_kernels(progress: Progress) -> WarmUp:
+def warm_kernels(
+    progress: Progress, sensor: str | None = None, algorithms: Iterable[str] = ()
+) -> WarmUp:
     """Every compiled kernel ready before a run (:mod:`ceamcl.warmup`), shown as a task of
     ``progress`` while it lasts; a line says so where kernels had to be compiled (a cold
-    Numba cache), so the run's own times hold no compilation."""
+    Numba cache), so the run's own times hold no compilation. The beam model's kernels are
+    left out where ``sensor`` is the likelihood field and no algorithm brings its own sensor
+    model (the Nav2 peer scores its hypotheses with our beam model)."""
+    beam_model = sensor != "likelihood-field" or any(a in registry.OWN_SENSOR for a in algorithms)
     task = progress.add_task("compiled kernels", total=None)
-    ready = warm_up(lambda done, total: progress.update(task, completed=done, total=total))
+    ready = warm_up(
+        lambda done, total: progress.update(task, completed=done, total=total),
+        beam_model=beam_model,
+    )
     progress.remove_task(task)
     if ready.compiled and not progress.disable:
         progress.console.print(ready.describe(), markup=False)

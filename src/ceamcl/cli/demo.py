@@ -79,7 +79,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
         f"[bold]{args.algorithm}[/] on {args.world}", console, quiet=args.quiet
     )
     with progress:
-        warm_kernels(progress)
+        warm_kernels(progress, args.sensor, [args.algorithm])
         bar = RunProgress(progress)
         outcome = run_demo(
             args.algorithm,

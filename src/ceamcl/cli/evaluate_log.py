@@ -203,7 +203,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
     if args.tracking:
         return run_tracking(args, console, prepared, grid, map_source, algos, skipped, pace, doubt)
     with TrialsProgress(console, quiet=args.quiet) as progress:
-        warm_kernels(progress.progress)
+        warm_kernels(progress.progress, args.sensor, algos)
         ev = evaluate_log(
             prepared,
             grid,
@@ -287,7 +287,7 @@ def run_tracking(
     """``evaluate-log --tracking``: APE of pose tracking over the whole log."""
     particles = args.particles or DEFAULT_TRACKING_PARTICLES
     with TrialsProgress(console, quiet=args.quiet) as progress:
-        warm_kernels(progress.progress)
+        warm_kernels(progress.progress, args.sensor, algos)
         tr = track_log(
             prepared,
             grid,

@@ -432,7 +432,7 @@ def run(args: argparse.Namespace, console: Console) -> int:
         f"[bold]{args.algorithm}[/] on {escape(prepared.log.name)}", console, quiet=args.quiet
     )
     with progress:
-        warm_kernels(progress)
+        warm_kernels(progress, args.sensor, [args.algorithm])
         bar = RunProgress(progress, "scans")
         outcome = replay_log(
             prepared,

@@ -17,7 +17,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         help="compile every kernel into Numba's cache now (for a container image or a "
         "read-only install), so no run compiles",
         description="Load every compiled kernel the filters call, compiling those Numba's "
-        "cache lacks (about 16 s on 2 cores the first time, well under a second after). "
+        "cache lacks (about 18 s on 2 cores the first time, well under a second after). "
         "Every run does this before it starts; this command does it alone, e.g. while "
         "building a container image with NUMBA_CACHE_DIR set to a folder the image keeps "
         "(docs/performance.md, 'Compiled before the run').",

@@ -138,7 +138,8 @@ class LocalisationNode(LifecycleNode):
         self._reset_state()
         # every kernel loaded (compiled on a cold Numba cache) now, before the robot moves:
         # compiled mid-drive, the first updates stalled for seconds (ceamcl.warmup)
-        self.get_logger().info(warm_up().describe())
+        beam = params.sensor == "beam" or params.algorithm in registry.OWN_SENSOR
+        self.get_logger().info(warm_up(beam_model=beam).describe())
         self.localiser = Localiser(params)
         self._create_interfaces(params)
         self.get_logger().info(
