@@ -5,6 +5,7 @@ updates of a real log stall for seconds)."""
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -186,6 +187,21 @@ def test_a_run_after_warm_up_meets_no_kernel_signature_the_list_lacks() -> None:
         if not any((f"{module}.{name}", text) in called for name in names)
     ]
     assert unused == [], f"listed in ceamcl.warmup.KERNELS, never called: {unused}"
+
+
+def test_with_the_jit_disabled_there_is_nothing_to_ready_and_no_error() -> None:
+    """``NUMBA_DISABLE_JIT=1`` (Numba's debugging switch) makes every kernel a Python function:
+    the warm-up, which every run does first, says so instead of failing."""
+    done = subprocess.run(
+        [sys.executable, "-m", "ceamcl", "warm-up"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+        env={**os.environ, "NUMBA_DISABLE_JIT": "1"},
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "no kernel compiled: NUMBA_DISABLE_JIT is set" in " ".join(done.stdout.split())
 
 
 def test_ceamcl_warm_up_says_what_it_readied(capsys: pytest.CaptureFixture[str]) -> None:

@@ -35,6 +35,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+import numba
 from numba.core import types
 from numba.core.registry import CPUDispatcher
 
@@ -229,6 +230,8 @@ class WarmUp:
     cache_dir: str
 
     def describe(self) -> str:
+        if self.signatures == 0:
+            return "no kernel compiled: NUMBA_DISABLE_JIT is set, every kernel runs as Python"
         parts = [f"{self.compiled} compiled"] if self.compiled else []
         if self.from_cache:
             parts.append(f"{self.from_cache} from Numba's cache")
@@ -249,6 +252,8 @@ def warm_up(
     calls none of them); ``progress(done, total)`` after each. A second call finds them
     loaded."""
     start = time.perf_counter()
+    if getattr(numba.config, "DISABLE_JIT", False):  # plain Python functions (debugging)
+        return WarmUp(0, 0, 0, 0.0, "")
     todo = kernels(beam_model)
     compiled = from_cache = 0
     for done, (_, dispatcher, signature) in enumerate(todo, start=1):

@@ -33,5 +33,6 @@ def run(args: argparse.Namespace, console: Console) -> int:
         ready = warm_up(lambda done, total: progress.update(task, completed=done, total=total))
     if not args.quiet:
         console.print(ready.describe(), markup=False)
-        console.print(f"Numba's cache: {ready.cache_dir} and its siblings", markup=False)
+        if ready.cache_dir:
+            console.print(f"Numba's cache: {ready.cache_dir} and its siblings", markup=False)
     return 0
