@@ -21,7 +21,8 @@ their first updates.
 compiled kernels (``NUMBA_CACHE_DIR`` names where).
 
 The list is checked against what the filters really call: ``tests/test_warmup.py`` runs every
-algorithm with both sensor models, a recovery and a real log after :func:`warm_up` and fails,
+algorithm, both sensor models, the mapper, the node's core and a real log's recoveries after
+:func:`warm_up` and fails,
 naming the kernel and the argument types, if any kernel met a signature the list lacks, if a
 run with the likelihood field needed one of :data:`BEAM_MODEL_KERNELS`, or if the list holds a
 signature no run called.
@@ -43,6 +44,7 @@ __all__ = [
     "BEAM_MODEL_KERNELS",
     "KERNELS",
     "WarmUp",
+    "kernels",
     "parse_signature",
     "signature_text",
     "warm_up",
