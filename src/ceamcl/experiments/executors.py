@@ -18,7 +18,9 @@ Specs:
     A local Dask distributed cluster (``workers`` single-threaded worker processes),
     through :meth:`dask.distributed.Client.get_executor`.
 ``"dask://HOST:PORT"``
-    An existing Dask scheduler at ``tcp://HOST:PORT``.
+    An existing Dask scheduler at ``tcp://HOST:PORT``; its workers are checked (the same
+    software as this process), given this process's memory budget and their kernels loaded
+    before the first trial (:mod:`ceamcl.experiments.dask_workers`).
 
 Trial functions must be top-level functions of an importable module and take and return
 picklable values (plain dataclasses, numpy arrays). A trial's numbers depend only on its own
@@ -240,6 +242,9 @@ def open_executor(
                 f"executor: cannot reach the Dask scheduler at {host}:{port}: {exc}"
             ) from None
         try:
+            from ceamcl.experiments import dask_workers
+
+            dask_workers.prepare(client, f"{host}:{port}")
             yield client.get_executor()
         finally:
             client.close()
