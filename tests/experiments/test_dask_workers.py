@@ -13,10 +13,8 @@ import pytest
 import ceamcl
 from ceamcl import budget
 from ceamcl.errors import ConfigError
-from ceamcl.experiments.common import ExperimentSettings
 from ceamcl.experiments.executors import open_executor
-from ceamcl.experiments.routes import paper_course
-from tests.experiments.test_experiments import _numbers
+from tests.experiments.test_experiments import _numbers, small_table1
 
 distributed = pytest.importorskip("distributed")
 dask_workers = pytest.importorskip("ceamcl.experiments.dask_workers")
@@ -67,15 +65,8 @@ def test_workers_hold_the_commands_budget_and_every_kernel_before_the_first_tria
 
 
 def test_a_schedulers_workers_give_the_same_numbers_as_this_process(scheduler: str) -> None:
-    base = ExperimentSettings(
-        course=paper_course().select([3]),
-        algorithms=("ceamcl",),
-        trials=2,
-        seed=11,
-        max_time_s=2.0,
-    )
-    here_rows, here_est = _numbers(ExperimentSettings(**{**base.__dict__, "executor": "serial"}))
-    there_rows, there_est = _numbers(ExperimentSettings(**{**base.__dict__, "executor": scheduler}))
+    here_rows, here_est = _numbers(small_table1("serial"))
+    there_rows, there_est = _numbers(small_table1(scheduler))
     assert len(here_rows) == 2
     assert there_rows == here_rows
     assert all(np.array_equal(a, b) for a, b in zip(here_est, there_est, strict=True))

@@ -78,21 +78,23 @@ def _numbers(settings: ExperimentSettings) -> tuple[list[dict[str, object]], lis
     return rows, [r.estimates for r in result.records]
 
 
-def test_dask_cluster_gives_the_same_numbers_as_local_processes() -> None:
-    pytest.importorskip("distributed")
-    base = ExperimentSettings(
+def small_table1(executor: str, workers: int | None = None) -> ExperimentSettings:
+    """Two short trials of CEAMCL on one route, run by ``executor``."""
+    return ExperimentSettings(
         course=paper_course().select([3]),
         algorithms=("ceamcl",),
         trials=2,
         seed=11,
         max_time_s=2.0,
+        executor=executor,
+        workers=workers,
     )
-    local_rows, local_est = _numbers(
-        ExperimentSettings(**{**base.__dict__, "executor": "local", "workers": 2})
-    )
-    dask_rows, dask_est = _numbers(
-        ExperimentSettings(**{**base.__dict__, "executor": "dask", "workers": 1})
-    )
+
+
+def test_dask_cluster_gives_the_same_numbers_as_local_processes() -> None:
+    pytest.importorskip("distributed")
+    local_rows, local_est = _numbers(small_table1("local", 2))
+    dask_rows, dask_est = _numbers(small_table1("dask", 1))
     assert len(local_rows) == 2
     assert dask_rows == local_rows
     assert all(np.array_equal(a, b) for a, b in zip(local_est, dask_est, strict=True))
