@@ -4,7 +4,12 @@ here as a Dask LocalCluster, whose address the executor reaches as it would a re
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+import time
 from collections.abc import Iterator
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -13,6 +18,7 @@ import pytest
 import ceamcl
 from ceamcl import budget
 from ceamcl.errors import ConfigError
+from ceamcl.experiments import executors
 from ceamcl.experiments.executors import open_executor
 from tests.experiments.test_experiments import _numbers, small_table1
 
@@ -103,13 +109,109 @@ def test_a_scheduler_without_workers_is_an_error_after_a_bounded_wait(
         cluster.close()  # type: ignore[attr-defined]
 
 
-def test_a_worker_joining_with_other_software_does_not_start() -> None:
-    """The plugin's check, which a worker joining after the command started meets at its
-    start; one with the same software takes the command's budget."""
+def _join(address: str) -> subprocess.Popen[str]:
+    """A worker started as a user starts one, joining the scheduler at ``address``."""
+    dask = Path(sys.executable).with_name("dask")
+    # the repository on its path, as the spawned workers have it: trials sent from here
+    # refer to this module's functions
+    root = str(Path(__file__).resolve().parents[2])
+    path = os.pathsep.join(p for p in (root, os.environ.get("PYTHONPATH")) if p)
+    env = {**os.environ, "NUMBA_NUM_THREADS": "1", "PYTHONPATH": path}
+    return subprocess.Popen(
+        [str(dask), "worker", address, "--nthreads", "1", "--no-dashboard"],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+
+
+def _end(process: subprocess.Popen[str]) -> str:
+    """Ends a worker started by :func:`_join`; its log."""
+    if process.poll() is None:
+        process.terminate()
+    try:
+        return process.communicate(timeout=30)[1]
+    except subprocess.TimeoutExpired:
+        process.kill()
+        return process.communicate(timeout=10)[1]
+
+
+def _answer() -> int:
+    return 42
+
+
+def test_the_refusal_names_the_worker_and_what_differs() -> None:
     worker = SimpleNamespace(address="tcp://10.0.0.7:40000")
     other = {**dask_workers.software(), "numpy": "1.0.0"}
-    with pytest.raises(ConfigError, match=r"tcp://10.0.0.7:40000 .*numpy 1.0.0 here, "):
-        dask_workers.TrialWorker(123, other).setup(worker)
-    with budget.use(budget.current()):
-        dask_workers.TrialWorker(2 * 1024**3, dask_workers.software()).setup(worker)
-        assert budget.current().memory_bytes == 2 * 1024**3
+    why = dask_workers.TrialWorker(123, other).refusal(worker)
+    assert why is not None
+    assert "tcp://10.0.0.7:40000" in why
+    assert f"numpy {np.__version__} here, 1.0.0 there" in why
+    assert dask_workers.TrialWorker(123, dask_workers.software()).refusal(worker) is None
+
+
+def test_a_worker_joining_with_other_software_closes_before_it_runs_a_trial() -> None:
+    """Before: Dask caught the plugin's refusal at the worker's start and the worker ran the
+    trial anyway."""
+    cluster, spec = _start(0)
+    address = "tcp://" + spec.removeprefix("dask://")
+    other = {**dask_workers.software(), "numpy": "1.0.0"}
+    process = None
+    try:
+        with distributed.Client(address, timeout="10s") as client:
+            client.register_plugin(
+                dask_workers.TrialWorker(2 * 1024**3, other), name=dask_workers.PLUGIN_NAME
+            )
+            future = client.submit(_answer, pure=False)
+            process = _join(address)
+            assert process.wait(timeout=60) == 0  # it closed itself, with its nanny
+            assert not future.done()
+            assert client.nthreads() == {}
+            future.cancel()
+        log = _end(process)
+        assert "runs other software than the command" in log
+    finally:
+        if process is not None:
+            _end(process)
+        cluster.close()  # type: ignore[attr-defined]
+
+
+def test_a_worker_joining_later_loads_the_kernels_before_its_first_trial() -> None:
+    cluster, spec = _start(1)
+    address = "tcp://" + spec.removeprefix("dask://")
+    process = None
+    try:
+        with open_executor(spec), distributed.Client(address, timeout="10s") as client:
+            first = set(client.nthreads())
+            process = _join(address)
+            client.wait_for_workers(2, timeout=60)
+            (late,) = set(client.nthreads()) - first
+            missing = client.submit(
+                _kernels_without_their_signatures, workers=[late], allow_other_workers=False
+            )
+            assert missing.result(timeout=120) == []
+    finally:
+        if process is not None:
+            _end(process)
+        cluster.close()  # type: ignore[attr-defined]
+
+
+def test_a_run_whose_workers_all_left_ends_with_an_error(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Before: the command sat at its last count for good once the only worker was gone."""
+    monkeypatch.setattr(dask_workers, "WORKER_WAIT_S", 1.0)
+    monkeypatch.setattr(executors, "WATCH_S", 0.2)
+    cluster, spec = _start(1)
+    try:
+        with open_executor(spec) as ex:
+            cluster.scale(0)  # type: ignore[attr-defined]
+            assert isinstance(ex, dask_workers.SchedulerExecutor)
+            deadline = time.monotonic() + 60
+            while ex._client.nthreads() and time.monotonic() < deadline:
+                time.sleep(0.1)
+            with pytest.raises(ConfigError, match=r"every worker .* left while trials ran"):
+                executors.map_trials(ex, abs, [-1, -2], label="trials", quiet=True)
+    finally:
+        cluster.close()  # type: ignore[attr-defined]

@@ -10,23 +10,30 @@ this machine, the worker's Numba cache empty as on a fresh machine):
   against 2.0-2.5 ms for the other seven of ``table1 --trials 2``, and Fig. 5 showed it;
 - nothing checked that a worker ran the same code: a trial's numbers depend only on its seed
   for the same ``ceamcl``, NumPy, SciPy, Numba and Python, and a worker with another checkout
-  (an editable install keeps its version while its code changes) gave other numbers silently.
+  (an editable install keeps its version while its code changes) gave other numbers silently;
+- and (2026-12-02) once every worker had left, the command waited for good.
 
 :func:`prepare` waits a bounded time for a worker, refuses workers whose software differs from
 the command's (naming them and what differs), gives every worker the command's memory budget
 (as the local executors do, so a trial's checks do not depend on where it ran) through a
 worker plugin that also refuses, at its start, a worker that joins later with other software,
 and runs :func:`ceamcl.warmup.warm_up` on every worker before the first trial (compiling
-there what its cache lacks, in parallel on every worker).
+there what its cache lacks, in parallel on every worker; a worker that joins later does it at
+its start). :class:`SchedulerExecutor` ends a run whose workers have all left after
+:data:`WORKER_WAIT_S`.
 """
 
 from __future__ import annotations
 
+import asyncio
 import hashlib
 import platform
+import time
+from collections.abc import Callable, Iterable
+from concurrent.futures import Executor, Future
 from functools import cache
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numba
 import numpy as np
@@ -39,7 +46,10 @@ from ceamcl import budget
 from ceamcl.errors import ConfigError
 from ceamcl.warmup import warm_up
 
-#: How long :func:`prepare` waits for the scheduler to have a worker before it gives up.
+R = TypeVar("R")
+
+#: How long :func:`prepare` waits for the scheduler to have a worker before it gives up, and
+#: how long a run waits when every worker has left (:class:`SchedulerExecutor`).
 WORKER_WAIT_S = 30.0
 
 #: How long a worker may take to load (and compile) the kernels: 18 s on 2 cores when none is
@@ -82,23 +92,46 @@ def differences(theirs: dict[str, str], ours: dict[str, str]) -> list[str]:
 
 
 class TrialWorker(WorkerPlugin):
-    """On every worker of the scheduler, now and joining later: the command's memory budget,
-    and a refusal (the worker does not start) where its software is not the command's."""
+    """On every worker of the scheduler, now and joining later: the command's memory budget;
+    a worker whose software is not the command's is closed (with its nanny) before it takes a
+    trial; a worker that joins after :func:`prepare` loads the kernels before its first trial
+    (the workers present then, ``prepared``, load them in :func:`prepare`, which bounds the
+    wait).
+
+    Dask catches a plugin's failure at a worker's start and lets the worker run (measured
+    with distributed 2026.8: a late worker with another NumPy took and ran a task), so raising
+    is not enough: the worker closes itself."""
 
     idempotent = False  # a later command's plugin, with its budget, replaces an earlier one
 
-    def __init__(self, memory_bytes: int, expected: dict[str, str]) -> None:
+    def __init__(
+        self, memory_bytes: int, expected: dict[str, str], prepared: Iterable[str] = ()
+    ) -> None:
         self.memory_bytes = int(memory_bytes)
         self.expected = dict(expected)
+        self.prepared = frozenset(prepared)
 
-    def setup(self, worker: Worker) -> None:
-        differ = differences(software(), self.expected)
-        if differ:
-            raise ConfigError(
-                f"Dask worker {worker.address} runs other software than the command that "
-                f"sent the trials ({'; '.join(differ)})"
-            )
+    def refusal(self, worker: Worker) -> str | None:
+        """Why ``worker`` may not run the command's trials, or ``None``."""
+        differ = differences(self.expected, software())  # "here": this worker
+        if not differ:
+            return None
+        return (
+            f"Dask worker {worker.address} runs other software than the command that sent the "
+            f"trials ({'; '.join(differ)}): it closes"
+        )
+
+    async def setup(self, worker: Worker) -> None:
+        why = self.refusal(worker)
+        if why is not None:
+            # after this setup returns: the worker's start goes on, then closes
+            worker.loop.add_callback(worker.close, nanny=True, reason="ceamcl-other-software")
+            raise ConfigError(why)
         budget.install(budget.Budget(self.memory_bytes))
+        if worker.address not in self.prepared:
+            # a late worker: the scheduler may already have sent it trials, which it reads
+            # only once this returns; a thread keeps its event loop (and comms) going
+            await asyncio.to_thread(warm_up)
 
 
 def _warm_up() -> int:
@@ -137,7 +170,9 @@ def prepare(client: Client, where: str) -> dict[str, int]:
             f"software than this command ({lines}); a trial's numbers would depend on the "
             "worker that ran it: install the same ceamcl and libraries on every worker"
         )
-    client.register_plugin(TrialWorker(budget.current().memory_bytes, ours), name=PLUGIN_NAME)
+    client.register_plugin(
+        TrialWorker(budget.current().memory_bytes, ours, prepared=found), name=PLUGIN_NAME
+    )
     futures: dict[str, Any] = {
         address: client.submit(
             _warm_up,
@@ -156,3 +191,46 @@ def prepare(client: Client, where: str) -> dict[str, int]:
             f"kernels within {WARM_UP_WAIT_S:.0f} s (did they leave the scheduler?)"
         ) from None
     return {address: int(future.result()) for address, future in futures.items()}
+
+
+class SchedulerExecutor(Executor):
+    """The executor of a Dask scheduler's own workers (``client.get_executor()``), which
+    :func:`~ceamcl.experiments.executors.map_trials` also asks whether its trials can still
+    run: when every worker has left, the scheduler keeps them waiting for good (measured
+    2026-12-02: the command sat at its last count after the only worker was stopped), so after
+    :data:`WORKER_WAIT_S` without a worker :meth:`stalled` raises."""
+
+    def __init__(self, client: Client, where: str, wait_s: float | None = None) -> None:
+        self._client = client
+        self._inner = client.get_executor()
+        self.where = where
+        self.wait_s = WORKER_WAIT_S if wait_s is None else float(wait_s)
+        self._empty_since: float | None = None
+
+    def submit(self, fn: Callable[..., R], /, *args: Any, **kwargs: Any) -> Future[R]:
+        return self._inner.submit(fn, *args, **kwargs)
+
+    def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
+        self._inner.shutdown(wait=wait)
+
+    def stalled(self) -> None:
+        """Raises :class:`ConfigError` once the scheduler has had no worker for
+        :attr:`wait_s` (or cannot be asked); does nothing otherwise."""
+        try:
+            workers = len(self._client.nthreads())
+        except Exception as exc:  # the scheduler left or the connection broke
+            raise ConfigError(
+                f"executor: lost the Dask scheduler at {self.where} while trials ran ({exc})"
+            ) from None
+        now = time.monotonic()
+        if workers:
+            self._empty_since = None
+            return
+        if self._empty_since is None:
+            self._empty_since = now
+        elif now - self._empty_since >= self.wait_s:
+            raise ConfigError(
+                f"executor: every worker of the Dask scheduler at {self.where} left while "
+                f"trials ran and none came back within {self.wait_s:.0f} s; start them with "
+                f"`dask worker tcp://{self.where}` and run the command again"
+            )

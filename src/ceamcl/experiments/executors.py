@@ -33,7 +33,7 @@ import multiprocessing
 import os
 import signal
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
+from concurrent.futures import FIRST_COMPLETED, Executor, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -52,6 +52,10 @@ R = TypeVar("R")
 ProgressCallback = Callable[[str, int, int], None]
 
 EXECUTOR_SPECS: tuple[str, ...] = ("local", "serial", "dask", "dask://HOST:PORT")
+
+#: How often :func:`map_trials` asks an executor that can stall (a Dask scheduler whose
+#: workers may all leave) whether its trials can still run, while none completes.
+WATCH_S = 2.0
 
 
 class TrialError(CeamclError, RuntimeError):
@@ -244,8 +248,9 @@ def open_executor(
         try:
             from ceamcl.experiments import dask_workers
 
-            dask_workers.prepare(client, f"{host}:{port}")
-            yield client.get_executor()
+            where = f"{host}:{port}"
+            dask_workers.prepare(client, where)
+            yield dask_workers.SchedulerExecutor(client, where)
         finally:
             client.close()
         return
@@ -257,6 +262,22 @@ def _describe(item: object) -> str:
         return name
     text = repr(item)
     return text if len(text) <= 80 else text[:77] + "..."
+
+
+def _as_completed(
+    futures: Sequence[Future[R]] | dict[Future[R], int], stalled: Callable[[], None] | None
+) -> Iterator[Future[R]]:
+    """The futures as they complete, as :func:`concurrent.futures.as_completed`; with
+    ``stalled``, that check runs every :data:`WATCH_S` while none completes (it raises to end
+    the wait)."""
+    pending = set(futures)
+    while pending:
+        finished, pending = wait(
+            pending, timeout=None if stalled is None else WATCH_S, return_when=FIRST_COMPLETED
+        )
+        if not finished and stalled is not None:
+            stalled()
+        yield from finished
 
 
 def map_trials(
@@ -277,7 +298,10 @@ def map_trials(
     not yet started are cancelled and the exception is re-raised naming the trial (its
     ``name`` attribute, else its repr). A :class:`CeamclError` becomes a :class:`TrialError`
     (one clean line on the command line); any other exception is re-raised as it is, with a
-    note naming the trial, so its traceback is kept.
+    note naming the trial, so its traceback is kept. An executor with a ``stalled()`` method
+    (a Dask scheduler's, whose workers may all leave: :class:`~ceamcl.experiments.dask_workers.
+    SchedulerExecutor`) is asked every :data:`WATCH_S` while no trial completes; the
+    :class:`CeamclError` it raises ends the wait (the trials left are cancelled).
     """
     report = None if quiet else progress
     total = len(items)
@@ -285,8 +309,9 @@ def map_trials(
     if report is not None:
         report(label, 0, total)
     futures: dict[Future[R], int] = {executor.submit(fn, item): i for i, item in enumerate(items)}
+    stalled: Callable[[], None] | None = getattr(executor, "stalled", None)
     try:
-        for done, future in enumerate(as_completed(futures), start=1):
+        for done, future in enumerate(_as_completed(futures, stalled), start=1):
             i = futures[future]
             exc = future.exception()
             if exc is not None:
