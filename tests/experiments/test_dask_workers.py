@@ -65,9 +65,16 @@ def test_workers_hold_the_commands_budget_and_every_kernel_before_the_first_tria
     """Before: a worker kept its own budget and compiled the kernels inside its first trial
     (whose mean step was 11.7 ms against 2.0-2.5 ms for the others)."""
     asked = 3 * 1024**3 + 12345
-    with budget.use(budget.Budget(asked)), open_executor(scheduler) as ex:
+    seen: list[tuple[str, int, int]] = []
+    with (
+        budget.use(budget.Budget(asked)),
+        open_executor(scheduler, progress=lambda *a: seen.append(a)) as ex,
+    ):
         assert ex.submit(_memory_budget).result(timeout=60) == asked
         assert ex.submit(_kernels_without_their_signatures).result(timeout=60) == []
+    # the bar the command shows while the workers load the kernels
+    assert seen[0] == (dask_workers.WARM_UP_LABEL, 0, 1)
+    assert seen[-1] == (dask_workers.WARM_UP_LABEL, 1, 1)
 
 
 def test_a_schedulers_workers_give_the_same_numbers_as_this_process(scheduler: str) -> None:

@@ -82,7 +82,8 @@ def run_trials(
     route file's map may be large: :func:`~ceamcl.experiments.executors.filter_bytes`)."""
     courses = {id(t.course): t.course for t in trials}.values()
     each = max((filter_bytes(c.grid()) for c in courses), default=0)
-    with open_executor(settings.executor, settings.workers, each) as ex:
+    report = None if quiet else progress
+    with open_executor(settings.executor, settings.workers, each, report) as ex:
         return map_trials(ex, run_trial, trials, label=label, progress=progress, quiet=quiet)
 
 

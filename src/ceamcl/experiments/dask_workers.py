@@ -139,11 +139,18 @@ def _warm_up() -> int:
     return warm_up().compiled
 
 
-def prepare(client: Client, where: str) -> dict[str, int]:
+#: The progress bar's label while the workers load the kernels.
+WARM_UP_LABEL = "kernels on the Dask workers"
+
+
+def prepare(
+    client: Client, where: str, progress: Callable[[str, int, int], None] | None = None
+) -> dict[str, int]:
     """Make the workers of the scheduler at ``where`` (``HOST:PORT``) ready for trials (the
     module docstring); the count of kernels each worker compiled, by address. Raises
     :class:`ConfigError` where no worker comes within :data:`WORKER_WAIT_S` or a worker's
-    software differs from this command's."""
+    software differs from this command's. ``progress(label, done, total)`` counts the workers
+    that have loaded the kernels (up to 25 s each where their cache is empty)."""
     try:
         client.wait_for_workers(1, timeout=WORKER_WAIT_S)
     except TimeoutError:
@@ -182,8 +189,18 @@ def prepare(client: Client, where: str) -> dict[str, int]:
         )
         for address in found
     }
+    pending = list(futures.values())
+    deadline = time.monotonic() + WARM_UP_WAIT_S
     try:
-        wait(list(futures.values()), timeout=WARM_UP_WAIT_S)
+        while pending:
+            if progress is not None:
+                progress(WARM_UP_LABEL, len(futures) - len(pending), len(futures))
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise TimeoutError
+            pending = list(wait(pending, timeout=left, return_when="FIRST_COMPLETED").not_done)
+        if progress is not None:
+            progress(WARM_UP_LABEL, len(futures), len(futures))
     except TimeoutError:
         late = sorted(address for address, future in futures.items() if not future.done())
         raise ConfigError(

@@ -187,12 +187,17 @@ def check_executor(spec: str, workers: int | None = None, worker_bytes: int = 0)
 
 @contextmanager
 def open_executor(
-    spec: str = "local", workers: int | None = None, worker_bytes: int = 0
+    spec: str = "local",
+    workers: int | None = None,
+    worker_bytes: int = 0,
+    progress: ProgressCallback | None = None,
 ) -> Iterator[Executor]:
     """An executor for ``spec`` (see the module docstring), shut down on exit. ``worker_bytes``:
     what each worker's trials build beyond the interpreter; the local workers' count is bounded
     so that together they fit the memory budget (:func:`worker_count`). Each takes the
     command's budget for its own checks, so a trial's numbers do not depend on the count.
+    ``progress``: how far a scheduler's own workers are with loading the kernels
+    (``dask://HOST:PORT``, :func:`~ceamcl.experiments.dask_workers.prepare`).
 
     Raises :class:`ConfigError` for an unknown spec, a bad worker count or a missing Dask.
     """
@@ -249,7 +254,7 @@ def open_executor(
             from ceamcl.experiments import dask_workers
 
             where = f"{host}:{port}"
-            dask_workers.prepare(client, where)
+            dask_workers.prepare(client, where, progress)
             yield dask_workers.SchedulerExecutor(client, where)
         finally:
             client.close()
@@ -357,5 +362,6 @@ class Batch:
     ) -> list[R]:
         """:func:`map_trials` on a freshly opened executor whose workers each need
         ``worker_bytes`` for these trials (:func:`open_executor`)."""
-        with open_executor(self.executor, self.workers, worker_bytes) as ex:
+        report = None if self.quiet else self.progress
+        with open_executor(self.executor, self.workers, worker_bytes, report) as ex:
             return map_trials(ex, fn, items, label=label, progress=self.progress, quiet=self.quiet)

@@ -392,7 +392,8 @@ def run_state(
     skipped: list[tuple[str, str]] = []
     if real_logs:
         log_trials, skipped = real_log_trials(settings.algorithms, settings.seed, data_dir)
-    with open_executor(settings.executor, settings.workers) as ex:
+    report = None if quiet else progress
+    with open_executor(settings.executor, settings.workers, progress=report) as ex:
         runs = map_trials(
             ex, run_state_trial, trials, label="state trials", progress=progress, quiet=quiet
         )

@@ -290,7 +290,7 @@ def run_tuning(
         return inner
 
     rows = dict(finished)
-    with open_executor(settings.executor, settings.workers) as ex:
+    with open_executor(settings.executor, settings.workers, progress=report) as ex:
         for n, c in enumerate(todo):
             items = [(0, t) for t in tuning_trials(settings, [c])]
             outcomes = map_trials(
