@@ -222,3 +222,12 @@ def test_a_run_whose_workers_all_left_ends_with_an_error(
                 executors.map_trials(ex, abs, [-1, -2], label="trials", quiet=True)
     finally:
         cluster.close()  # type: ignore[attr-defined]
+
+
+def test_a_lost_scheduler_is_named_while_trials_run() -> None:
+    """Before: the trials' futures were cancelled and the command ended with a bare
+    CancelledError traceback (the scheduler stopped mid-run)."""
+    client = SimpleNamespace(status="connecting", get_executor=lambda: None)
+    ex = dask_workers.SchedulerExecutor(client, "10.0.0.7:8786")  # type: ignore[arg-type]
+    with pytest.raises(ConfigError, match=r"lost the Dask scheduler at 10.0.0.7:8786 while"):
+        ex.stalled()

@@ -8,6 +8,7 @@ import math
 import operator
 import subprocess
 import sys
+from concurrent.futures import Future
 from pathlib import Path
 
 import pytest
@@ -217,3 +218,20 @@ def test_a_worker_runs_its_kernels_on_one_thread(spec: str) -> None:
         pytest.importorskip("distributed")
     with open_executor(spec, 1) as ex:
         assert ex.submit(_kernel_threads).result(timeout=120) == 1
+
+
+class _Cancelling(SerialExecutor):
+    """An executor that ends every trial before it runs, as Dask's does when it loses its
+    scheduler."""
+
+    def submit(self, fn, /, *args, **kwargs):  # type: ignore[no-untyped-def]
+        future: Future[object] = Future()
+        future.cancel()
+        future.set_running_or_notify_cancel()
+        return future
+
+
+def test_a_trial_the_executor_cancelled_is_one_line_naming_it() -> None:
+    """Before: a bare CancelledError traceback (the Dask scheduler stopped mid-run)."""
+    with pytest.raises(TrialError, match=r"^trials: trial -2 was cancelled by the executor"):
+        map_trials(_Cancelling(), abs, [-2, -3], label="trials", quiet=True)

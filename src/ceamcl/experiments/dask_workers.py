@@ -232,13 +232,17 @@ class SchedulerExecutor(Executor):
 
     def stalled(self) -> None:
         """Raises :class:`ConfigError` once the scheduler has had no worker for
-        :attr:`wait_s` (or cannot be asked); does nothing otherwise."""
+        :attr:`wait_s`, or when it is lost; does nothing otherwise."""
+        lost = (
+            f"executor: lost the Dask scheduler at {self.where} while trials ran (stopped, or "
+            "the network between them failed); the trials it held are gone"
+        )
+        if self._client.status != "running":  # it reconnects, or gave up
+            raise ConfigError(lost)
         try:
             workers = len(self._client.nthreads())
         except Exception as exc:  # the scheduler left or the connection broke
-            raise ConfigError(
-                f"executor: lost the Dask scheduler at {self.where} while trials ran ({exc})"
-            ) from None
+            raise ConfigError(f"{lost} ({exc})") from None
         now = time.monotonic()
         if workers:
             self._empty_since = None

@@ -318,6 +318,13 @@ def map_trials(
     try:
         for done, future in enumerate(_as_completed(futures, stalled), start=1):
             i = futures[future]
+            if future.cancelled():  # not by us: the executor ended it (Dask: scheduler lost)
+                if stalled is not None:
+                    stalled()
+                raise TrialError(
+                    f"{label}: trial {_describe(items[i])} was cancelled by the executor "
+                    "before it finished"
+                )
             exc = future.exception()
             if exc is not None:
                 name = _describe(items[i])
