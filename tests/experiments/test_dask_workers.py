@@ -5,10 +5,13 @@ here as a Dask LocalCluster, whose address the executor reaches as it would a re
 from __future__ import annotations
 
 import os
+import socket
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -231,3 +234,55 @@ def test_a_lost_scheduler_is_named_while_trials_run() -> None:
     ex = dask_workers.SchedulerExecutor(client, "10.0.0.7:8786")  # type: ignore[arg-type]
     with pytest.raises(ConfigError, match=r"lost the Dask scheduler at 10.0.0.7:8786 while"):
         ex.stalled()
+
+
+@contextmanager
+def _service(greeting: bytes | None) -> Iterator[int]:
+    """A TCP service on this machine that sends ``greeting`` to whoever connects (``None``:
+    says nothing, as an HTTP server waits for a request); its port."""
+    server = socket.create_server(("127.0.0.1", 0))
+    done = threading.Event()
+
+    def serve() -> None:
+        server.settimeout(0.1)
+        while not done.is_set():
+            try:
+                conn, _ = server.accept()
+            except TimeoutError:
+                continue
+            with conn:
+                if greeting is not None:
+                    conn.sendall(greeting)
+                done.wait(5)
+
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    try:
+        yield server.getsockname()[1]
+    finally:
+        done.set()
+        thread.join(timeout=10)
+        server.close()
+
+
+def test_a_service_that_does_not_greet_is_not_taken_for_a_scheduler() -> None:
+    """Before: pointed at an HTTP port (the dashboard's 8787 for the scheduler's 8786), the
+    command waited for good."""
+    with _service(None) as port:
+        with pytest.raises(ConfigError, match=r"nothing at 127.0.0.1:\d+ answered as a Dask"):
+            dask_workers.probe("127.0.0.1", port, wait_s=0.5)
+
+
+def test_a_service_that_greets_otherwise_is_refused_before_dask_reads_it() -> None:
+    """Before: Dask took its first bytes for a message's length and tried to allocate 3 EiB."""
+    with _service(b"HTTP/1.1 400 Bad Request\r\n") as port:
+        with pytest.raises(ConfigError, match=r"answered, but not as a Dask scheduler"):
+            dask_workers.probe("127.0.0.1", port, wait_s=5)
+    with _service(b"") as port:
+        with pytest.raises(ConfigError, match=r"closed the connection|answered as a Dask"):
+            dask_workers.probe("127.0.0.1", port, wait_s=0.5)
+
+
+def test_a_scheduler_greets_as_the_probe_expects(scheduler: str) -> None:
+    host, _, port = scheduler.removeprefix("dask://").rpartition(":")
+    dask_workers.probe(host, int(port), wait_s=10)

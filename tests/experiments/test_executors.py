@@ -49,7 +49,9 @@ def test_failing_trial_with_project_error_becomes_trial_error() -> None:
         map_trials(ex, unknown_sensor, ["sonar"], label="sensors", quiet=True)
 
 
-@pytest.mark.parametrize("spec", ["threads", "dask://nohost", "dask://host:port", ""])
+@pytest.mark.parametrize(
+    "spec", ["threads", "dask://nohost", "dask://host:port", "dask://h:99999", "dask://h:0", ""]
+)
 def test_unknown_spec_is_a_config_error(spec: str) -> None:
     with pytest.raises(ConfigError, match="executor"), open_executor(spec):
         pass

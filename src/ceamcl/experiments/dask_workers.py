@@ -28,6 +28,8 @@ from __future__ import annotations
 import asyncio
 import hashlib
 import platform
+import socket
+import struct
 import time
 from collections.abc import Callable, Iterable
 from concurrent.futures import Executor, Future
@@ -51,6 +53,12 @@ R = TypeVar("R")
 #: How long :func:`prepare` waits for the scheduler to have a worker before it gives up, and
 #: how long a run waits when every worker has left (:class:`SchedulerExecutor`).
 WORKER_WAIT_S = 30.0
+
+#: How long the command waits for the Dask scheduler to greet it (:func:`probe`).
+GREETING_WAIT_S = 10.0
+
+#: A scheduler's greeting (its comm's handshake) is a few hundred bytes.
+GREETING_MAX_BYTES = 1 << 20
 
 #: How long a worker may take to load (and compile) the kernels: 18 s on 2 cores when none is
 #: cached; a worker that leaves meanwhile would hold the command for good.
@@ -141,6 +149,46 @@ def _warm_up() -> int:
 
 #: The progress bar's label while the workers load the kernels.
 WARM_UP_LABEL = "kernels on the Dask workers"
+
+
+def probe(host: str, port: int, wait_s: float | None = None) -> None:
+    """Checks, within a bounded time, that a Dask scheduler answers at ``host:port`` before
+    Dask's client connects, which does not bound it: measured (distributed 2026.8), the
+    client waited for good at an HTTP server's port (the scheduler's dashboard, 8787, is the
+    usual slip for its 8786) and, at a service that answered with other bytes, tried to
+    allocate 3 EiB for what it took for a message's length. A scheduler speaks first: its
+    handshake, a frame whose first 8 bytes give its length (little-endian), a few hundred.
+    Raises :class:`ConfigError` naming the address and what was found."""
+    wait = GREETING_WAIT_S if wait_s is None else float(wait_s)
+    where = f"{host}:{port}"
+    head = b""
+    try:
+        with socket.create_connection((host, port), timeout=wait) as sock:
+            sock.settimeout(wait)
+            while len(head) < 8:
+                chunk = sock.recv(8 - len(head))
+                if not chunk:
+                    break
+                head += chunk
+    except TimeoutError:
+        raise ConfigError(
+            f"executor: nothing at {where} answered as a Dask scheduler within {wait:.0f} s "
+            "(a scheduler speaks first; is it the dashboard's port? a scheduler listens on "
+            "8786 unless told otherwise)"
+        ) from None
+    except OSError as exc:
+        raise ConfigError(f"executor: cannot reach the Dask scheduler at {where}: {exc}") from None
+    if len(head) < 8:
+        raise ConfigError(
+            f"executor: {where} closed the connection without answering as a Dask scheduler"
+        )
+    (size,) = struct.unpack("<Q", head)
+    if not 0 < size <= GREETING_MAX_BYTES:
+        raise ConfigError(
+            f"executor: {where} answered, but not as a Dask scheduler (its first message "
+            f"claims {size} bytes; a scheduler's greeting is a few hundred): is it the "
+            "scheduler's address?"
+        )
 
 
 def prepare(

@@ -157,9 +157,10 @@ def _end_workers(pool: ProcessPoolExecutor) -> None:
 def _scheduler(spec: str) -> tuple[str, str]:
     """``(host, port)`` of a ``dask://HOST:PORT`` spec; a :class:`ConfigError` otherwise."""
     host, sep, port = spec[len("dask://") :].rpartition(":")
-    if not sep or not host or not port.isdigit():
+    if not (sep and host and port.isascii() and port.isdigit() and 0 < int(port) < 65536):
         raise ConfigError(
-            f"executor: expected dask://HOST:PORT (e.g. dask://10.0.0.5:8786), got {spec!r}"
+            "executor: expected dask://HOST:PORT with PORT in 1-65535 (e.g. "
+            f"dask://10.0.0.5:8786), got {spec!r}"
         )
     return host, port
 
@@ -244,6 +245,9 @@ def open_executor(
                 cluster.close()
             return
         host, port = _scheduler(spec)
+        from ceamcl.experiments import dask_workers
+
+        dask_workers.probe(host, int(port))
         try:
             client = distributed.Client(f"tcp://{host}:{port}", timeout="10s")
         except OSError as exc:
@@ -251,8 +255,6 @@ def open_executor(
                 f"executor: cannot reach the Dask scheduler at {host}:{port}: {exc}"
             ) from None
         try:
-            from ceamcl.experiments import dask_workers
-
             where = f"{host}:{port}"
             dask_workers.prepare(client, where, progress)
             yield dask_workers.SchedulerExecutor(client, where)
