@@ -11,6 +11,7 @@ import sys
 import threading
 import time
 from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from pathlib import Path
 from types import SimpleNamespace
@@ -119,32 +120,33 @@ def test_a_scheduler_without_workers_is_an_error_after_a_bounded_wait(
         cluster.close()  # type: ignore[attr-defined]
 
 
-def _join(address: str) -> subprocess.Popen[str]:
-    """A worker started as a user starts one, joining the scheduler at ``address``."""
+def _join(address: str, log: Path) -> subprocess.Popen[bytes]:
+    """A worker started as a user starts one, joining the scheduler at ``address``; its log
+    goes to ``log``."""
     dask = Path(sys.executable).with_name("dask")
     # the repository on its path, as the spawned workers have it: trials sent from here
     # refer to this module's functions
     root = str(Path(__file__).resolve().parents[2])
     path = os.pathsep.join(p for p in (root, os.environ.get("PYTHONPATH")) if p)
     env = {**os.environ, "NUMBA_NUM_THREADS": "1", "PYTHONPATH": path}
-    return subprocess.Popen(
-        [str(dask), "worker", address, "--nthreads", "1", "--no-dashboard"],
-        env=env,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    with log.open("wb") as out:
+        return subprocess.Popen(
+            [str(dask), "worker", address, "--nthreads", "1", "--no-dashboard"],
+            env=env,
+            stdout=subprocess.DEVNULL,
+            stderr=out,
+        )
 
 
-def _end(process: subprocess.Popen[str]) -> str:
-    """Ends a worker started by :func:`_join`; its log."""
+def _end(process: subprocess.Popen[bytes]) -> None:
+    """Ends a worker started by :func:`_join`."""
     if process.poll() is None:
         process.terminate()
     try:
-        return process.communicate(timeout=30)[1]
+        process.wait(timeout=30)
     except subprocess.TimeoutExpired:
         process.kill()
-        return process.communicate(timeout=10)[1]
+        process.wait(timeout=10)
 
 
 def _answer() -> int:
@@ -161,7 +163,9 @@ def test_the_refusal_names_the_worker_and_what_differs() -> None:
     assert dask_workers.TrialWorker(123, dask_workers.software()).refusal(worker) is None
 
 
-def test_a_worker_joining_with_other_software_closes_before_it_runs_a_trial() -> None:
+def test_a_worker_joining_with_other_software_closes_before_it_runs_a_trial(
+    tmp_path: Path,
+) -> None:
     """Before: Dask caught the plugin's refusal at the worker's start and the worker ran the
     trial anyway."""
     cluster, spec = _start(0)
@@ -174,27 +178,26 @@ def test_a_worker_joining_with_other_software_closes_before_it_runs_a_trial() ->
                 dask_workers.TrialWorker(2 * 1024**3, other), name=dask_workers.PLUGIN_NAME
             )
             future = client.submit(_answer, pure=False)
-            process = _join(address)
+            process = _join(address, tmp_path / "worker.log")
             assert process.wait(timeout=60) == 0  # it closed itself, with its nanny
             assert not future.done()
             assert client.nthreads() == {}
             future.cancel()
-        log = _end(process)
-        assert "runs other software than the command" in log
+        assert "runs other software than the command" in (tmp_path / "worker.log").read_text()
     finally:
         if process is not None:
             _end(process)
         cluster.close()  # type: ignore[attr-defined]
 
 
-def test_a_worker_joining_later_loads_the_kernels_before_its_first_trial() -> None:
+def test_a_worker_joining_later_loads_the_kernels_before_its_first_trial(tmp_path: Path) -> None:
     cluster, spec = _start(1)
     address = "tcp://" + spec.removeprefix("dask://")
     process = None
     try:
         with open_executor(spec), distributed.Client(address, timeout="10s") as client:
             first = set(client.nthreads())
-            process = _join(address)
+            process = _join(address, tmp_path / "worker.log")
             client.wait_for_workers(2, timeout=60)
             (late,) = set(client.nthreads()) - first
             missing = client.submit(
@@ -221,8 +224,12 @@ def test_a_run_whose_workers_all_left_ends_with_an_error(
             deadline = time.monotonic() + 60
             while ex._client.nthreads() and time.monotonic() < deadline:
                 time.sleep(0.1)
-            with pytest.raises(ConfigError, match=r"every worker .* left while trials ran"):
-                executors.map_trials(ex, abs, [-1, -2], label="trials", quiet=True)
+            with ThreadPoolExecutor(1) as thread:  # so that a wait for good fails the test
+                run = thread.submit(
+                    executors.map_trials, ex, abs, [-1, -2], label="trials", quiet=True
+                )
+                with pytest.raises(ConfigError, match=r"every worker .* left while trials ran"):
+                    run.result(timeout=60)
     finally:
         cluster.close()  # type: ignore[attr-defined]
 
@@ -239,7 +246,7 @@ def test_a_lost_scheduler_is_named_while_trials_run() -> None:
 @contextmanager
 def _service(greeting: bytes | None) -> Iterator[int]:
     """A TCP service on this machine that sends ``greeting`` to whoever connects (``None``:
-    says nothing, as an HTTP server waits for a request); its port."""
+    says nothing, as an HTTP server waits for a request; ``b""``: hangs up); its port."""
     server = socket.create_server(("127.0.0.1", 0))
     done = threading.Event()
 
@@ -253,7 +260,8 @@ def _service(greeting: bytes | None) -> Iterator[int]:
             with conn:
                 if greeting is not None:
                     conn.sendall(greeting)
-                done.wait(5)
+                if greeting != b"":
+                    done.wait(5)  # b"": hangs up at once
 
     thread = threading.Thread(target=serve, daemon=True)
     thread.start()
@@ -279,10 +287,59 @@ def test_a_service_that_greets_otherwise_is_refused_before_dask_reads_it() -> No
         with pytest.raises(ConfigError, match=r"answered, but not as a Dask scheduler"):
             dask_workers.probe("127.0.0.1", port, wait_s=5)
     with _service(b"") as port:
-        with pytest.raises(ConfigError, match=r"closed the connection|answered as a Dask"):
-            dask_workers.probe("127.0.0.1", port, wait_s=0.5)
+        with pytest.raises(ConfigError, match=r"closed the connection without answering"):
+            dask_workers.probe("127.0.0.1", port, wait_s=5)
 
 
 def test_a_scheduler_greets_as_the_probe_expects(scheduler: str) -> None:
     host, _, port = scheduler.removeprefix("dask://").rpartition(":")
     dask_workers.probe(host, int(port), wait_s=10)
+
+
+def _plugins(dask_scheduler: object) -> list[str]:
+    return sorted(dask_scheduler.worker_plugins)  # type: ignore[attr-defined]
+
+
+def test_the_command_leaves_no_plugin_and_removes_one_left_before(tmp_path: Path) -> None:
+    """Before: the plugin stayed on the scheduler after the command, and closed every worker
+    started later with other code, the next command's own included ("has no workers")."""
+    cluster, spec = _start(0)
+    address = "tcp://" + spec.removeprefix("dask://")
+    process = None
+
+    def command() -> tuple[int, bool]:
+        with open_executor(spec) as ex:
+            return ex.submit(_answer).result(timeout=60), dask_workers.PLUGIN_NAME in (
+                client.run_on_scheduler(_plugins)
+            )
+
+    try:
+        with distributed.Client(address, timeout="10s") as client:
+            stale = {**dask_workers.software(), "ceamcl sources": "an earlier checkout"}
+            client.register_plugin(
+                dask_workers.TrialWorker(2 * 1024**3, stale), name=dask_workers.PLUGIN_NAME
+            )
+            with ThreadPoolExecutor(1) as thread:
+                run = thread.submit(command)  # waits for a worker
+                deadline = time.monotonic() + 30
+                while dask_workers.PLUGIN_NAME in client.run_on_scheduler(_plugins):
+                    assert time.monotonic() < deadline, "the plugin left before is still there"
+                    time.sleep(0.1)
+                process = _join(address, tmp_path / "worker.log")  # this checkout's worker
+                assert run.result(timeout=120) == (42, True)
+            assert process.poll() is None
+            assert dask_workers.PLUGIN_NAME not in client.run_on_scheduler(_plugins)
+    finally:
+        if process is not None:
+            _end(process)
+        cluster.close()  # type: ignore[attr-defined]
+
+
+def test_an_ipv6_address_is_probed_without_its_brackets() -> None:
+    server = socket.create_server(("::1", 0), family=socket.AF_INET6)
+    try:
+        port = server.getsockname()[1]
+        with pytest.raises(ConfigError, match=r"nothing at \[::1\]:\d+ answered"):
+            dask_workers.probe("[::1]", port, wait_s=0.5)
+    finally:
+        server.close()

@@ -235,5 +235,5 @@ class _Cancelling(SerialExecutor):
 
 def test_a_trial_the_executor_cancelled_is_one_line_naming_it() -> None:
     """Before: a bare CancelledError traceback (the Dask scheduler stopped mid-run)."""
-    with pytest.raises(TrialError, match=r"^trials: trial -2 was cancelled by the executor"):
+    with pytest.raises(TrialError, match=r"^trials: trial -[23] was cancelled by the executor"):
         map_trials(_Cancelling(), abs, [-2, -3], label="trials", quiet=True)

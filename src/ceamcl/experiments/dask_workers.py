@@ -13,6 +13,11 @@ this machine, the worker's Numba cache empty as on a fresh machine):
   (an editable install keeps its version while its code changes) gave other numbers silently;
 - and (2026-12-02) once every worker had left, the command waited for good.
 
+A review of the first version (2026-12-02) found its plugin left on the scheduler after the
+command (it closed every worker started later with other code), IPv6 addresses refused, a
+frozen scheduler waited on for good and a lost one reported with a traceback: mended here
+(:func:`release`, :func:`close`, :func:`probe`, :class:`SchedulerExecutor`).
+
 :func:`prepare` waits a bounded time for a worker, refuses workers whose software differs from
 the command's (naming them and what differs), gives every worker the command's memory budget
 (as the local executors do, so a trial's checks do not depend on where it ran) through a
@@ -27,11 +32,13 @@ from __future__ import annotations
 
 import asyncio
 import hashlib
+import logging
 import platform
 import socket
 import struct
+import threading
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from concurrent.futures import Executor, Future
 from functools import cache
 from pathlib import Path
@@ -56,6 +63,9 @@ WORKER_WAIT_S = 30.0
 
 #: How long the command waits for the Dask scheduler to greet it (:func:`probe`).
 GREETING_WAIT_S = 10.0
+
+#: How long a running command waits for the scheduler to say how many workers it has.
+ANSWER_WAIT_S = 10.0
 
 #: A scheduler's greeting (its comm's handshake) is a few hundred bytes.
 GREETING_MAX_BYTES = 1 << 20
@@ -102,22 +112,21 @@ def differences(theirs: dict[str, str], ours: dict[str, str]) -> list[str]:
 class TrialWorker(WorkerPlugin):
     """On every worker of the scheduler, now and joining later: the command's memory budget;
     a worker whose software is not the command's is closed (with its nanny) before it takes a
-    trial; a worker that joins after :func:`prepare` loads the kernels before its first trial
-    (the workers present then, ``prepared``, load them in :func:`prepare`, which bounds the
-    wait).
+    trial; every worker has its kernels loaded before its first trial (:func:`prepare`
+    registers this plugin once the workers present have loaded them, within its bound, so
+    here only a worker that joins later has anything to load).
 
     Dask catches a plugin's failure at a worker's start and lets the worker run (measured
     with distributed 2026.8: a late worker with another NumPy took and ran a task), so raising
-    is not enough: the worker closes itself."""
+    is not enough: the worker closes itself. The scheduler keeps the plugin for the workers
+    to come until it is unregistered (:func:`release`): left there after the command, it
+    closed every worker started later with other code, the next command's too."""
 
     idempotent = False  # a later command's plugin, with its budget, replaces an earlier one
 
-    def __init__(
-        self, memory_bytes: int, expected: dict[str, str], prepared: Iterable[str] = ()
-    ) -> None:
+    def __init__(self, memory_bytes: int, expected: dict[str, str]) -> None:
         self.memory_bytes = int(memory_bytes)
         self.expected = dict(expected)
-        self.prepared = frozenset(prepared)
 
     def refusal(self, worker: Worker) -> str | None:
         """Why ``worker`` may not run the command's trials, or ``None``."""
@@ -136,10 +145,44 @@ class TrialWorker(WorkerPlugin):
             worker.loop.add_callback(worker.close, nanny=True, reason="ceamcl-other-software")
             raise ConfigError(why)
         budget.install(budget.Budget(self.memory_bytes))
-        if worker.address not in self.prepared:
-            # a late worker: the scheduler may already have sent it trials, which it reads
-            # only once this returns; a thread keeps its event loop (and comms) going
-            await asyncio.to_thread(warm_up)
+        # loaded already (prepare's task) or, on a worker that joined later, loaded now:
+        # the scheduler may have sent it trials, which it reads only once this returns; a
+        # thread keeps its event loop (and comms) going
+        await asyncio.to_thread(warm_up)
+
+
+def release(client: Client, wait_s: float | None = None) -> None:
+    """Unregisters this command's :class:`TrialWorker` from the scheduler (and its workers),
+    where it is there, waiting at most ``wait_s`` (:data:`ANSWER_WAIT_S`) for a scheduler that
+    does not answer; what fails is ignored (the scheduler may be gone)."""
+
+    def unregister() -> None:
+        try:
+            client.unregister_worker_plugin(PLUGIN_NAME)
+        except Exception:  # not registered, or the scheduler is gone
+            pass
+
+    thread = threading.Thread(target=unregister, name="ceamcl-release", daemon=True)
+    thread.start()
+    thread.join(ANSWER_WAIT_S if wait_s is None else wait_s)
+
+
+def close(client: Client, lost: bool = False) -> None:
+    """Ends the command's connection: its plugin unregistered (:func:`release`) while the
+    scheduler answers; where it was ``lost`` (or the client says so), Dask's log of the
+    reconnection it then cancels (a 30-line ``CancelledError`` traceback on stderr) is kept
+    quiet, as the command has said what happened in one line."""
+    if not lost and client.status == "running":
+        release(client)
+        client.close()
+        return
+    log = logging.getLogger("distributed.client")
+    level = log.level
+    log.setLevel(logging.CRITICAL + 1)
+    try:
+        client.close(timeout=ANSWER_WAIT_S)
+    finally:
+        log.setLevel(level)
 
 
 def _warm_up() -> int:
@@ -161,11 +204,16 @@ def probe(host: str, port: int, wait_s: float | None = None) -> None:
     Raises :class:`ConfigError` naming the address and what was found."""
     wait = GREETING_WAIT_S if wait_s is None else float(wait_s)
     where = f"{host}:{port}"
+    name = host[1:-1] if host.startswith("[") and host.endswith("]") else host  # IPv6
+    deadline = time.monotonic() + wait
     head = b""
     try:
-        with socket.create_connection((host, port), timeout=wait) as sock:
-            sock.settimeout(wait)
+        with socket.create_connection((name, port), timeout=wait) as sock:
             while len(head) < 8:
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    raise TimeoutError
+                sock.settimeout(left)
                 chunk = sock.recv(8 - len(head))
                 if not chunk:
                     break
@@ -199,6 +247,7 @@ def prepare(
     :class:`ConfigError` where no worker comes within :data:`WORKER_WAIT_S` or a worker's
     software differs from this command's. ``progress(label, done, total)`` counts the workers
     that have loaded the kernels (up to 25 s each where their cache is empty)."""
+    release(client)  # one an earlier command left (killed before it could remove it)
     try:
         client.wait_for_workers(1, timeout=WORKER_WAIT_S)
     except TimeoutError:
@@ -225,9 +274,6 @@ def prepare(
             f"software than this command ({lines}); a trial's numbers would depend on the "
             "worker that ran it: install the same ceamcl and libraries on every worker"
         )
-    client.register_plugin(
-        TrialWorker(budget.current().memory_bytes, ours, prepared=found), name=PLUGIN_NAME
-    )
     futures: dict[str, Any] = {
         address: client.submit(
             _warm_up,
@@ -255,7 +301,12 @@ def prepare(
             f"executor: the Dask workers {', '.join(late)} at {where} did not load ceamcl's "
             f"kernels within {WARM_UP_WAIT_S:.0f} s (did they leave the scheduler?)"
         ) from None
-    return {address: int(future.result()) for address, future in futures.items()}
+    compiled = {address: int(future.result()) for address, future in futures.items()}
+    try:
+        client.register_plugin(TrialWorker(budget.current().memory_bytes, ours), name=PLUGIN_NAME)
+    except ConfigError:
+        pass  # a worker that joined meanwhile with other software refused it, and closes
+    return compiled
 
 
 class SchedulerExecutor(Executor):
@@ -271,6 +322,8 @@ class SchedulerExecutor(Executor):
         self.where = where
         self.wait_s = WORKER_WAIT_S if wait_s is None else float(wait_s)
         self._empty_since: float | None = None
+        #: the scheduler was lost (or stopped answering) while trials ran
+        self.lost = False
 
     def submit(self, fn: Callable[..., R], /, *args: Any, **kwargs: Any) -> Future[R]:
         return self._inner.submit(fn, *args, **kwargs)
@@ -285,12 +338,16 @@ class SchedulerExecutor(Executor):
             f"executor: lost the Dask scheduler at {self.where} while trials ran (stopped, or "
             "the network between them failed); the trials it held are gone"
         )
+        self.lost = True  # until it answers
         if self._client.status != "running":  # it reconnects, or gave up
             raise ConfigError(lost)
         try:
-            workers = len(self._client.nthreads())
+            workers = len(self._client.nthreads(callback_timeout=ANSWER_WAIT_S))
+        except TimeoutError:
+            raise ConfigError(f"{lost} (it did not answer within {ANSWER_WAIT_S:.0f} s)") from None
         except Exception as exc:  # the scheduler left or the connection broke
             raise ConfigError(f"{lost} ({exc})") from None
+        self.lost = False
         now = time.monotonic()
         if workers:
             self._empty_since = None

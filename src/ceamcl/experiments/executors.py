@@ -33,7 +33,7 @@ import multiprocessing
 import os
 import signal
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import FIRST_COMPLETED, Executor, Future, ProcessPoolExecutor, wait
+from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -254,12 +254,14 @@ def open_executor(
             raise ConfigError(
                 f"executor: cannot reach the Dask scheduler at {host}:{port}: {exc}"
             ) from None
+        remote: dask_workers.SchedulerExecutor | None = None
         try:
             where = f"{host}:{port}"
             dask_workers.prepare(client, where, progress)
-            yield dask_workers.SchedulerExecutor(client, where)
+            remote = dask_workers.SchedulerExecutor(client, where)
+            yield remote
         finally:
-            client.close()
+            dask_workers.close(client, lost=remote is not None and remote.lost)
         return
 
 
@@ -275,16 +277,18 @@ def _as_completed(
     futures: Sequence[Future[R]] | dict[Future[R], int], stalled: Callable[[], None] | None
 ) -> Iterator[Future[R]]:
     """The futures as they complete, as :func:`concurrent.futures.as_completed`; with
-    ``stalled``, that check runs every :data:`WATCH_S` while none completes (it raises to end
-    the wait)."""
+    ``stalled``, that check also runs every :data:`WATCH_S` (it raises to end the wait)."""
+    if stalled is None:
+        yield from as_completed(futures)
+        return
     pending = set(futures)
     while pending:
-        finished, pending = wait(
-            pending, timeout=None if stalled is None else WATCH_S, return_when=FIRST_COMPLETED
-        )
-        if not finished and stalled is not None:
+        try:
+            for future in as_completed(pending, timeout=WATCH_S):
+                pending.discard(future)
+                yield future
+        except TimeoutError:
             stalled()
-        yield from finished
 
 
 def map_trials(
@@ -307,7 +311,7 @@ def map_trials(
     (one clean line on the command line); any other exception is re-raised as it is, with a
     note naming the trial, so its traceback is kept. An executor with a ``stalled()`` method
     (a Dask scheduler's, whose workers may all leave: :class:`~ceamcl.experiments.dask_workers.
-    SchedulerExecutor`) is asked every :data:`WATCH_S` while no trial completes; the
+    SchedulerExecutor`) is also asked every :data:`WATCH_S` whether they can still run; the
     :class:`CeamclError` it raises ends the wait (the trials left are cancelled).
     """
     report = None if quiet else progress
