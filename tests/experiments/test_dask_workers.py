@@ -10,11 +10,12 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from pathlib import Path
 from types import SimpleNamespace
+from typing import TypeVar
 
 import numpy as np
 import pytest
@@ -25,6 +26,8 @@ from ceamcl.errors import ConfigError
 from ceamcl.experiments import executors
 from ceamcl.experiments.executors import open_executor
 from tests.experiments.test_experiments import _numbers, small_table1
+
+T = TypeVar("T")
 
 distributed = pytest.importorskip("distributed")
 dask_workers = pytest.importorskip("ceamcl.experiments.dask_workers")
@@ -175,7 +178,8 @@ def test_a_worker_joining_with_other_software_closes_before_it_runs_a_trial(
     try:
         with distributed.Client(address, timeout="10s") as client:
             client.register_plugin(
-                dask_workers.TrialWorker(2 * 1024**3, other), name=dask_workers.PLUGIN_NAME
+                dask_workers.TrialWorker(2 * 1024**3, other),
+                name=f"{dask_workers.PLUGIN_PREFIX}:a-test",
             )
             future = client.submit(_answer, pure=False)
             process = _join(address, tmp_path / "worker.log")
@@ -224,12 +228,11 @@ def test_a_run_whose_workers_all_left_ends_with_an_error(
             deadline = time.monotonic() + 60
             while ex._client.nthreads() and time.monotonic() < deadline:
                 time.sleep(0.1)
-            with ThreadPoolExecutor(1) as thread:  # so that a wait for good fails the test
-                run = thread.submit(
-                    executors.map_trials, ex, abs, [-1, -2], label="trials", quiet=True
+            with pytest.raises(ConfigError, match=r"every worker .* left while trials ran"):
+                _within(
+                    lambda: executors.map_trials(ex, abs, [-1, -2], label="trials", quiet=True),
+                    60,
                 )
-                with pytest.raises(ConfigError, match=r"every worker .* left while trials ran"):
-                    run.result(timeout=60)
     finally:
         cluster.close()  # type: ignore[attr-defined]
 
@@ -297,7 +300,17 @@ def test_a_scheduler_greets_as_the_probe_expects(scheduler: str) -> None:
 
 
 def _plugins(dask_scheduler: object) -> list[str]:
-    return sorted(dask_scheduler.worker_plugins)  # type: ignore[attr-defined]
+    return sorted(
+        name
+        for name in dask_scheduler.worker_plugins  # type: ignore[attr-defined]
+        if name.startswith(dask_workers.PLUGIN_PREFIX)
+    )
+
+
+def _within(what: Callable[[], T], seconds: float) -> T:
+    """``what()`` in a daemon thread, so that a wait for good fails the test instead of
+    holding it."""
+    return dask_workers._within(what, seconds)
 
 
 def test_the_command_leaves_no_plugin_and_removes_one_left_before(tmp_path: Path) -> None:
@@ -306,40 +319,103 @@ def test_the_command_leaves_no_plugin_and_removes_one_left_before(tmp_path: Path
     cluster, spec = _start(0)
     address = "tcp://" + spec.removeprefix("dask://")
     process = None
+    left = f"{dask_workers.PLUGIN_PREFIX}:Client-of-a-killed-command"
 
-    def command() -> tuple[int, bool]:
+    def command() -> tuple[int, list[str]]:
         with open_executor(spec) as ex:
-            return ex.submit(_answer).result(timeout=60), dask_workers.PLUGIN_NAME in (
-                client.run_on_scheduler(_plugins)
-            )
+            return ex.submit(_answer).result(timeout=60), client.run_on_scheduler(_plugins)
 
     try:
         with distributed.Client(address, timeout="10s") as client:
             stale = {**dask_workers.software(), "ceamcl sources": "an earlier checkout"}
-            client.register_plugin(
-                dask_workers.TrialWorker(2 * 1024**3, stale), name=dask_workers.PLUGIN_NAME
-            )
+            client.register_plugin(dask_workers.TrialWorker(2 * 1024**3, stale), name=left)
             with ThreadPoolExecutor(1) as thread:
                 run = thread.submit(command)  # waits for a worker
                 deadline = time.monotonic() + 30
-                while dask_workers.PLUGIN_NAME in client.run_on_scheduler(_plugins):
+                while left in client.run_on_scheduler(_plugins):
                     assert time.monotonic() < deadline, "the plugin left before is still there"
                     time.sleep(0.1)
                 process = _join(address, tmp_path / "worker.log")  # this checkout's worker
-                assert run.result(timeout=120) == (42, True)
+                answer, during = run.result(timeout=120)
+            assert answer == 42
+            assert len(during) == 1 and during != [left]  # the command's own
             assert process.poll() is None
-            assert dask_workers.PLUGIN_NAME not in client.run_on_scheduler(_plugins)
+            assert client.run_on_scheduler(_plugins) == []
     finally:
         if process is not None:
             _end(process)
         cluster.close()  # type: ignore[attr-defined]
 
 
+def test_a_second_command_on_a_busy_scheduler_is_refused_and_the_first_goes_on(
+    scheduler: str,
+) -> None:
+    """Before: the second command replaced the first's plugin (its budget on the first's
+    workers) and, ending, removed it: the first's later workers went unchecked."""
+    with open_executor(scheduler) as first:
+        with pytest.raises(ConfigError, match=r"another ceamcl command .* is running trials"):
+            with open_executor(scheduler):
+                pass
+        assert _within(lambda: first.submit(_answer).result(timeout=60), 90) == 42
+        with distributed.Client("tcp://" + scheduler.removeprefix("dask://")) as client:
+            assert len(client.run_on_scheduler(_plugins)) == 1
+
+
 def test_an_ipv6_address_is_probed_without_its_brackets() -> None:
-    server = socket.create_server(("::1", 0), family=socket.AF_INET6)
+    try:
+        server = socket.create_server(("::1", 0), family=socket.AF_INET6)
+    except OSError as exc:
+        pytest.skip(f"no IPv6 loopback on this machine ({exc})")
     try:
         port = server.getsockname()[1]
         with pytest.raises(ConfigError, match=r"nothing at \[::1\]:\d+ answered"):
             dask_workers.probe("[::1]", port, wait_s=0.5)
     finally:
         server.close()
+
+
+def test_a_frozen_scheduler_ends_the_run_and_closes_without_waiting_on_it() -> None:
+    """Before: `client.nthreads()` waited for good on a scheduler stopped with SIGSTOP."""
+    calls: list[str] = []
+
+    def frozen(callback_timeout: float) -> dict[str, int]:
+        calls.append(f"nthreads within {callback_timeout}")
+        raise TimeoutError
+
+    client = SimpleNamespace(
+        status="running",
+        get_executor=lambda: None,
+        nthreads=frozen,
+        close=lambda timeout=None: calls.append(f"close within {timeout}"),
+        run_on_scheduler=lambda *a: calls.append("asked the scheduler"),
+    )
+    ex = dask_workers.SchedulerExecutor(client, "10.0.0.7:8786")  # type: ignore[arg-type]
+    with pytest.raises(ConfigError, match=r"lost the Dask scheduler .* did not answer within"):
+        ex.stalled()
+    assert ex.lost
+    dask_workers.close(client, lost=ex.lost)  # type: ignore[arg-type]
+    assert calls == [
+        f"nthreads within {dask_workers.ANSWER_WAIT_S}",
+        f"close within {dask_workers.ANSWER_WAIT_S}",
+    ]
+
+
+def test_trials_completing_while_the_executor_is_watched_come_back_once_each(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.setattr(executors, "WATCH_S", 0.01)
+    watched: list[int] = []
+
+    class Watched(ThreadPoolExecutor):
+        def stalled(self) -> None:
+            watched.append(1)
+
+    with Watched(2) as ex:
+        got = executors.map_trials(ex, _slowly, list(range(40)), label="trials", quiet=True)
+    assert got == [2 * i for i in range(40)]
+    assert watched  # asked while trials were still running
+
+
+def _slowly(i: int) -> int:
+    time.sleep(0.005)
+    return 2 * i

@@ -31,6 +31,7 @@ its start). :class:`SchedulerExecutor` ends a run whose workers have all left af
 from __future__ import annotations
 
 import asyncio
+import functools
 import hashlib
 import logging
 import platform
@@ -38,7 +39,7 @@ import socket
 import struct
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from concurrent.futures import Executor, Future
 from functools import cache
 from pathlib import Path
@@ -74,8 +75,9 @@ GREETING_MAX_BYTES = 1 << 20
 #: cached; a worker that leaves meanwhile would hold the command for good.
 WARM_UP_WAIT_S = 300.0
 
-#: The worker plugin's name: registering it again (the next command) replaces it.
-PLUGIN_NAME = "ceamcl-trials"
+#: The start of the worker plugin's name; the rest is the command's Dask client id, so a
+#: command's plugin is told from one a killed command left (whose client is gone).
+PLUGIN_PREFIX = "ceamcl-trials"
 
 
 @cache
@@ -151,20 +153,57 @@ class TrialWorker(WorkerPlugin):
         await asyncio.to_thread(warm_up)
 
 
-def release(client: Client, wait_s: float | None = None) -> None:
-    """Unregisters this command's :class:`TrialWorker` from the scheduler (and its workers),
-    where it is there, waiting at most ``wait_s`` (:data:`ANSWER_WAIT_S`) for a scheduler that
-    does not answer; what fails is ignored (the scheduler may be gone)."""
+def plugin_name(client: Client) -> str:
+    """The name of ``client``'s command's :class:`TrialWorker` on the scheduler."""
+    return f"{PLUGIN_PREFIX}:{client.id}"
 
-    def unregister() -> None:
+
+def _ceamcl_plugins(dask_scheduler: Any) -> dict[str, bool]:
+    """On the scheduler: the ceamcl plugins it holds, each with whether its command's client
+    is still connected."""
+    return {
+        name: name.partition(":")[2] in dask_scheduler.clients
+        for name in dask_scheduler.worker_plugins
+        if name.startswith(PLUGIN_PREFIX)
+    }
+
+
+def _within(what: Callable[[], R], wait_s: float) -> R:
+    """``what()`` in a daemon thread, waited for at most ``wait_s``: its result or its
+    exception, or :class:`TimeoutError` (the thread is then left to end on its own: Dask's
+    calls to a frozen scheduler take no timeout of their own)."""
+    box: list[Any] = []
+
+    def run() -> None:
         try:
-            client.unregister_worker_plugin(PLUGIN_NAME)
-        except Exception:  # not registered, or the scheduler is gone
-            pass
+            box.append((True, what()))
+        except BaseException as exc:  # handed to the caller
+            box.append((False, exc))
 
-    thread = threading.Thread(target=unregister, name="ceamcl-release", daemon=True)
+    thread = threading.Thread(target=run, name="ceamcl-dask-call", daemon=True)
     thread.start()
-    thread.join(ANSWER_WAIT_S if wait_s is None else wait_s)
+    thread.join(wait_s)
+    if not box:
+        raise TimeoutError
+    ok, value = box[0]
+    if not ok:
+        raise value
+    return value
+
+
+def release(client: Client, names: Iterable[str], wait_s: float | None = None) -> None:
+    """Unregisters those of the plugins ``names`` the scheduler holds, from it and its
+    workers, waiting at most ``wait_s`` (:data:`ANSWER_WAIT_S`) for each call; what fails is
+    ignored (the scheduler may be gone or frozen). Their budget stays installed on the workers
+    (a worker plugin's teardown cannot tell what the worker had before); the next command
+    installs its own."""
+    wait = ANSWER_WAIT_S if wait_s is None else wait_s
+    try:
+        held = _within(lambda: client.run_on_scheduler(_ceamcl_plugins), wait)
+        for name in [n for n in names if n in held]:
+            _within(functools.partial(client.unregister_worker_plugin, name), wait)
+    except Exception:  # the scheduler is gone or frozen, or the plugin went meanwhile
+        pass
 
 
 def close(client: Client, lost: bool = False) -> None:
@@ -173,7 +212,7 @@ def close(client: Client, lost: bool = False) -> None:
     reconnection it then cancels (a 30-line ``CancelledError`` traceback on stderr) is kept
     quiet, as the command has said what happened in one line."""
     if not lost and client.status == "running":
-        release(client)
+        release(client, [plugin_name(client)])
         client.close()
         return
     log = logging.getLogger("distributed.client")
@@ -247,22 +286,30 @@ def prepare(
     :class:`ConfigError` where no worker comes within :data:`WORKER_WAIT_S` or a worker's
     software differs from this command's. ``progress(label, done, total)`` counts the workers
     that have loaded the kernels (up to 25 s each where their cache is empty)."""
-    release(client)  # one an earlier command left (killed before it could remove it)
+    ours = software()
+    try:
+        plugins: dict[str, bool] = client.run_on_scheduler(_ceamcl_plugins)
+    except Exception as exc:  # the scheduler cannot import this module: no or another ceamcl
+        raise ConfigError(
+            f"executor: the Dask scheduler at {where} cannot import ceamcl's code ({exc}); "
+            "it unpickles every trial it hands out, so it needs ceamcl installed as its "
+            "workers do"
+        ) from None
+    running = sorted(name.partition(":")[2] for name, live in plugins.items() if live)
+    if running:
+        raise ConfigError(
+            f"executor: another ceamcl command ({', '.join(running)}) is running trials on the "
+            f"Dask scheduler at {where}; its workers hold that command's memory budget and "
+            "checks, so run one command at a time on a scheduler (or start another one)"
+        )
+    # plugins that killed commands left: they would check later workers against their code
+    release(client, [name for name, live in plugins.items() if not live])
     try:
         client.wait_for_workers(1, timeout=WORKER_WAIT_S)
     except TimeoutError:
         raise ConfigError(
             f"executor: the Dask scheduler at {where} has no workers (waited "
             f"{WORKER_WAIT_S:.0f} s); start them with `dask worker tcp://{where}`"
-        ) from None
-    ours = software()
-    try:
-        client.run_on_scheduler(software)
-    except Exception as exc:  # the scheduler cannot import this module: no or another ceamcl
-        raise ConfigError(
-            f"executor: the Dask scheduler at {where} cannot import ceamcl's code ({exc}); "
-            "it unpickles every trial it hands out, so it needs ceamcl installed as its "
-            "workers do"
         ) from None
     found: dict[str, dict[str, str]] = client.run(software)
     differ = {address: differences(theirs, ours) for address, theirs in found.items()}
@@ -302,10 +349,19 @@ def prepare(
             f"kernels within {WARM_UP_WAIT_S:.0f} s (did they leave the scheduler?)"
         ) from None
     compiled = {address: int(future.result()) for address, future in futures.items()}
+    plugin = TrialWorker(budget.current().memory_bytes, ours)
     try:
-        client.register_plugin(TrialWorker(budget.current().memory_bytes, ours), name=PLUGIN_NAME)
-    except ConfigError:
-        pass  # a worker that joined meanwhile with other software refused it, and closes
+        _within(lambda: client.register_plugin(plugin, name=plugin_name(client)), WARM_UP_WAIT_S)
+    except TimeoutError:
+        raise ConfigError(
+            f"executor: the Dask workers at {where} did not all take ceamcl's worker plugin "
+            f"within {WARM_UP_WAIT_S:.0f} s (a worker frozen, or one that joined meanwhile "
+            "still loading the kernels)"
+        ) from None
+    except (ConfigError, OSError):
+        # the scheduler stores the plugin before it hands it to the workers: a worker that
+        # joined meanwhile with other software refused it (and closes), or one left meanwhile
+        pass
     return compiled
 
 
