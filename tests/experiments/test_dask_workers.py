@@ -10,12 +10,11 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from pathlib import Path
 from types import SimpleNamespace
-from typing import TypeVar
 
 import numpy as np
 import pytest
@@ -26,8 +25,6 @@ from ceamcl.errors import ConfigError
 from ceamcl.experiments import executors
 from ceamcl.experiments.executors import open_executor
 from tests.experiments.test_experiments import _numbers, small_table1
-
-T = TypeVar("T")
 
 distributed = pytest.importorskip("distributed")
 dask_workers = pytest.importorskip("ceamcl.experiments.dask_workers")
@@ -229,7 +226,7 @@ def test_a_run_whose_workers_all_left_ends_with_an_error(
             while ex._client.nthreads() and time.monotonic() < deadline:
                 time.sleep(0.1)
             with pytest.raises(ConfigError, match=r"every worker .* left while trials ran"):
-                _within(
+                dask_workers._within(  # a wait for good fails the test instead of holding it
                     lambda: executors.map_trials(ex, abs, [-1, -2], label="trials", quiet=True),
                     60,
                 )
@@ -307,12 +304,6 @@ def _plugins(dask_scheduler: object) -> list[str]:
     )
 
 
-def _within(what: Callable[[], T], seconds: float) -> T:
-    """``what()`` in a daemon thread, so that a wait for good fails the test instead of
-    holding it."""
-    return dask_workers._within(what, seconds)
-
-
 def test_the_command_leaves_no_plugin_and_removes_one_left_before(tmp_path: Path) -> None:
     """Before: the plugin stayed on the scheduler after the command, and closed every worker
     started later with other code, the next command's own included ("has no workers")."""
@@ -329,7 +320,8 @@ def test_the_command_leaves_no_plugin_and_removes_one_left_before(tmp_path: Path
         with distributed.Client(address, timeout="10s") as client:
             stale = {**dask_workers.software(), "ceamcl sources": "an earlier checkout"}
             client.register_plugin(dask_workers.TrialWorker(2 * 1024**3, stale), name=left)
-            with ThreadPoolExecutor(1) as thread:
+            thread = ThreadPoolExecutor(1)
+            try:
                 run = thread.submit(command)  # waits for a worker
                 deadline = time.monotonic() + 30
                 while left in client.run_on_scheduler(_plugins):
@@ -337,6 +329,8 @@ def test_the_command_leaves_no_plugin_and_removes_one_left_before(tmp_path: Path
                     time.sleep(0.1)
                 process = _join(address, tmp_path / "worker.log")  # this checkout's worker
                 answer, during = run.result(timeout=120)
+            finally:
+                thread.shutdown(wait=False)  # a command that hangs fails the test
             assert answer == 42
             assert len(during) == 1 and during != [left]  # the command's own
             assert process.poll() is None
@@ -356,7 +350,7 @@ def test_a_second_command_on_a_busy_scheduler_is_refused_and_the_first_goes_on(
         with pytest.raises(ConfigError, match=r"another ceamcl command .* is running trials"):
             with open_executor(scheduler):
                 pass
-        assert _within(lambda: first.submit(_answer).result(timeout=60), 90) == 42
+        assert first.submit(_answer).result(timeout=60) == 42
         with distributed.Client("tcp://" + scheduler.removeprefix("dask://")) as client:
             assert len(client.run_on_scheduler(_plugins)) == 1
 

@@ -13,10 +13,8 @@ this machine, the worker's Numba cache empty as on a fresh machine):
   (an editable install keeps its version while its code changes) gave other numbers silently;
 - and (2026-12-02) once every worker had left, the command waited for good.
 
-A review of the first version (2026-12-02) found its plugin left on the scheduler after the
-command (it closed every worker started later with other code), IPv6 addresses refused, a
-frozen scheduler waited on for good and a lost one reported with a traceback: mended here
-(:func:`release`, :func:`close`, :func:`probe`, :class:`SchedulerExecutor`).
+docs/experiments.md lists what else was measured and mended (the address probed before Dask
+connects, a lost or frozen scheduler, the plugin of a killed command, one command at a time).
 
 :func:`prepare` waits a bounded time for a worker, refuses workers whose software differs from
 the command's (naming them and what differs), gives every worker the command's memory budget
@@ -75,6 +73,9 @@ GREETING_MAX_BYTES = 1 << 20
 #: cached; a worker that leaves meanwhile would hold the command for good.
 WARM_UP_WAIT_S = 300.0
 
+#: The progress bar's label while the workers load the kernels.
+WARM_UP_LABEL = "kernels on the Dask workers"
+
 #: The start of the worker plugin's name; the rest is the command's Dask client id, so a
 #: command's plugin is told from one a killed command left (whose client is gone).
 PLUGIN_PREFIX = "ceamcl-trials"
@@ -124,7 +125,8 @@ class TrialWorker(WorkerPlugin):
     to come until it is unregistered (:func:`release`): left there after the command, it
     closed every worker started later with other code, the next command's too."""
 
-    idempotent = False  # a later command's plugin, with its budget, replaces an earlier one
+    # each command registers its own (plugin_name), so nothing is registered twice
+    idempotent = False
 
     def __init__(self, memory_bytes: int, expected: dict[str, str]) -> None:
         self.memory_bytes = int(memory_bytes)
@@ -227,10 +229,6 @@ def close(client: Client, lost: bool = False) -> None:
 def _warm_up() -> int:
     """On a worker: every kernel loaded or compiled; how many were compiled."""
     return warm_up().compiled
-
-
-#: The progress bar's label while the workers load the kernels.
-WARM_UP_LABEL = "kernels on the Dask workers"
 
 
 def probe(host: str, port: int, wait_s: float | None = None) -> None:

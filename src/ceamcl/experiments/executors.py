@@ -32,7 +32,7 @@ from __future__ import annotations
 import multiprocessing
 import os
 import signal
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
@@ -274,7 +274,7 @@ def _describe(item: object) -> str:
 
 
 def _as_completed(
-    futures: Sequence[Future[R]] | dict[Future[R], int], stalled: Callable[[], None] | None
+    futures: Iterable[Future[R]], stalled: Callable[[], None] | None
 ) -> Iterator[Future[R]]:
     """The futures as they complete, as :func:`concurrent.futures.as_completed`; with
     ``stalled``, that check also runs every :data:`WATCH_S` (it raises to end the wait)."""
