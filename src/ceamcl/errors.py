@@ -70,3 +70,8 @@ def check_rng(rng: object, name: str = "rng") -> None:
 
 class InputWarning(UserWarning):
     """Input that is accepted but probably not what was meant (the CLI prints one line)."""
+
+
+class RunWarning(UserWarning):
+    """Something a run met that its user should hear of while it goes on (a Dask worker that
+    froze); the CLI prints one line."""

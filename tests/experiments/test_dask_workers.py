@@ -5,6 +5,7 @@ here as a Dask LocalCluster, whose address the executor reaches as it would a re
 from __future__ import annotations
 
 import os
+import signal
 import socket
 import subprocess
 import sys
@@ -21,7 +22,7 @@ import pytest
 
 import ceamcl
 from ceamcl import budget
-from ceamcl.errors import ConfigError
+from ceamcl.errors import ConfigError, RunWarning
 from ceamcl.experiments import executors
 from ceamcl.experiments.executors import open_executor
 from tests.experiments.test_experiments import _numbers, small_table1
@@ -368,30 +369,123 @@ def test_an_ipv6_address_is_probed_without_its_brackets() -> None:
         server.close()
 
 
-def test_a_frozen_scheduler_ends_the_run_and_closes_without_waiting_on_it() -> None:
+def test_a_frozen_scheduler_ends_the_run_and_closes_without_waiting_on_it(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     """Before: `client.nthreads()` waited for good on a scheduler stopped with SIGSTOP."""
+    monkeypatch.setattr(dask_workers, "ANSWER_WAIT_S", 0.2)
     calls: list[str] = []
+    thawed = threading.Event()
 
-    def frozen(callback_timeout: float) -> dict[str, int]:
-        calls.append(f"nthreads within {callback_timeout}")
-        raise TimeoutError
+    def frozen(n_workers: int) -> dict[str, object]:
+        calls.append("asked for its workers")
+        thawed.wait(30)  # as Dask's call to a frozen scheduler: it takes no timeout
+        return {"workers": {}}
 
     client = SimpleNamespace(
         status="running",
         get_executor=lambda: None,
-        nthreads=frozen,
+        scheduler_info=frozen,
         close=lambda timeout=None: calls.append(f"close within {timeout}"),
         run_on_scheduler=lambda *a: calls.append("asked the scheduler"),
     )
     ex = dask_workers.SchedulerExecutor(client, "10.0.0.7:8786")  # type: ignore[arg-type]
-    with pytest.raises(ConfigError, match=r"lost the Dask scheduler .* did not answer within"):
-        ex.stalled()
-    assert ex.lost
-    dask_workers.close(client, lost=ex.lost)  # type: ignore[arg-type]
-    assert calls == [
-        f"nthreads within {dask_workers.ANSWER_WAIT_S}",
-        f"close within {dask_workers.ANSWER_WAIT_S}",
-    ]
+    try:
+        with pytest.raises(
+            ConfigError, match=r"lost the Dask scheduler .* did not answer within 0 s"
+        ):
+            ex.stalled()
+        assert ex.lost
+        dask_workers.close(client, lost=ex.lost)  # type: ignore[arg-type]
+        assert calls == ["asked for its workers", "close within 0.2"]
+    finally:
+        thawed.set()
+
+
+@contextmanager
+def _frozen(address: str, worker: str) -> Iterator[None]:
+    """The process of the Dask worker ``worker`` (of the scheduler at ``address``) stopped with
+    SIGSTOP for the block, and let go on at its end whatever happens in it."""
+    with distributed.Client(address, timeout="10s") as client:
+        pid = client.run(os.getpid, workers=[worker])[worker]
+    os.kill(pid, signal.SIGSTOP)
+    try:
+        yield
+    finally:
+        os.kill(pid, signal.SIGCONT)
+
+
+def _raises_on_the_worker() -> None:
+    raise ModuleNotFoundError("No module named 'ceamcl'")
+
+
+def test_workers_are_asked_each_within_a_bounded_time(scheduler: str) -> None:
+    """Before: one `client.run` to every worker, which waits for good on a frozen one."""
+    address = "tcp://" + scheduler.removeprefix("dask://")
+    with distributed.Client(address, timeout="10s") as client:
+        (worker,) = client.nthreads()
+        answers, failed, silent = dask_workers.ask_workers(client, _answer, [worker], 10)
+        assert (answers, failed, silent) == ({worker: 42}, {}, [])
+        answers, failed, silent = dask_workers.ask_workers(
+            client, _raises_on_the_worker, [worker], 10
+        )
+        assert answers == {} and silent == []
+        assert isinstance(failed[worker], ModuleNotFoundError)
+        with _frozen(address, worker):
+            start = time.monotonic()
+            answers, failed, silent = dask_workers.ask_workers(client, _answer, [worker], 1.0)
+            assert time.monotonic() - start < 10
+        assert (answers, failed, silent) == ({}, {}, [worker])
+
+
+def test_a_frozen_worker_is_named_before_the_first_trial(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Before: the command sat at its first line (7 min measured, then killed) on a scheduler
+    one of whose workers was stopped with SIGSTOP."""
+    monkeypatch.setattr(dask_workers, "CHECK_WAIT_S", 1.0)
+    cluster, spec = _start(2)
+    address = "tcp://" + spec.removeprefix("dask://")
+    try:
+        with distributed.Client(address, timeout="10s") as client:
+            client.wait_for_workers(2, timeout=60)
+            frozen, _ = sorted(client.nthreads())
+        with _frozen(address, frozen):
+            with pytest.raises(ConfigError) as caught:
+                dask_workers._within(lambda: open_executor(spec).__enter__(), 60)
+        assert f"1 of the 2 Dask workers at {spec.removeprefix('dask://')} did not answer" in str(
+            caught.value
+        )
+        assert f"{frozen}: no answer within 1 s" in str(caught.value)
+    finally:
+        cluster.close()  # type: ignore[attr-defined]
+
+
+def test_a_worker_that_freezes_while_trials_run_is_named_then_the_run_stops(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Before: a trial sent to a worker stopped with SIGSTOP held the command until the
+    scheduler's worker-ttl acted (586 s measured), or for good where it is off."""
+    monkeypatch.setattr(executors, "WATCH_S", 0.2)
+    cluster, spec = _start(1)
+    address = "tcp://" + spec.removeprefix("dask://")
+    try:
+        with open_executor(spec) as ex:
+            assert isinstance(ex, dask_workers.SchedulerExecutor)
+            ex.warn_s, ex.silent_s = 3.0, 6.0  # a live worker beats every 0.5 s
+            with distributed.Client(address, timeout="10s") as client:
+                (worker,) = client.nthreads()
+            with _frozen(address, worker):
+                with (
+                    pytest.warns(RunWarning, match=rf"{worker} .* no heartbeat for 3 s"),
+                    pytest.raises(ConfigError, match=rf"{worker} .* no heartbeat for 6 s"),
+                ):
+                    dask_workers._within(  # a wait for good fails the test instead
+                        lambda: executors.map_trials(ex, abs, [-1], label="trials", quiet=True),
+                        60,
+                    )
+    finally:
+        cluster.close()  # type: ignore[attr-defined]
 
 
 def test_trials_completing_while_the_executor_is_watched_come_back_once_each(

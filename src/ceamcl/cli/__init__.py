@@ -19,7 +19,7 @@ from rich.console import Console
 from ceamcl import __version__, budget
 from ceamcl.budget import Budget, default_memory_bytes, format_bytes, parse_bytes
 from ceamcl.cli import interrupt
-from ceamcl.errors import CeamclError, InputWarning
+from ceamcl.errors import CeamclError, InputWarning, RunWarning
 from ceamcl.io import created
 
 #: Subcommand modules, in the order ``ceamcl --help`` lists them.
@@ -112,7 +112,7 @@ def build_parser() -> argparse.ArgumentParser:
 def _show_warning(
     message: Warning | str, category: type[Warning], *_: object, **__: object
 ) -> None:
-    if issubclass(category, InputWarning):
+    if issubclass(category, InputWarning | RunWarning):
         print(f"ceamcl: warning: {message}", file=sys.stderr)
     else:
         _default_showwarning(message, category, *_, **__)  # type: ignore[arg-type]

@@ -11,7 +11,9 @@ this machine, the worker's Numba cache empty as on a fresh machine):
 - nothing checked that a worker ran the same code: a trial's numbers depend only on its seed
   for the same ``ceamcl``, NumPy, SciPy, Numba and Python, and a worker with another checkout
   (an editable install keeps its version while its code changes) gave other numbers silently;
-- and (2026-12-02) once every worker had left, the command waited for good.
+- and (2026-12-02) once every worker had left, the command waited for good; with a worker
+  stopped by SIGSTOP it sat at its first line (7 min, until killed), and a worker that froze
+  mid-run held it, saying nothing, until the scheduler's worker-ttl acted (or for good).
 
 docs/experiments.md lists what else was measured and mended (the address probed before Dask
 connects, a lost or frozen scheduler, the plugin of a killed command, one command at a time).
@@ -22,8 +24,10 @@ the command's (naming them and what differs), gives every worker the command's m
 worker plugin that also refuses, at its start, a worker that joins later with other software,
 and runs :func:`ceamcl.warmup.warm_up` on every worker before the first trial (compiling
 there what its cache lacks, in parallel on every worker; a worker that joins later does it at
-its start). :class:`SchedulerExecutor` ends a run whose workers have all left after
-:data:`WORKER_WAIT_S`.
+its start). Every worker is asked within a bounded time (:func:`ask_workers`); one that does
+not answer is named. :class:`SchedulerExecutor` ends a run whose workers have all left after
+:data:`WORKER_WAIT_S`, names a worker that stops beating, and ends the run if the scheduler
+keeps it.
 """
 
 from __future__ import annotations
@@ -37,6 +41,7 @@ import socket
 import struct
 import threading
 import time
+import warnings
 from collections.abc import Callable, Iterable
 from concurrent.futures import Executor, Future
 from functools import cache
@@ -51,7 +56,7 @@ from distributed.diagnostics.plugin import WorkerPlugin
 
 import ceamcl
 from ceamcl import budget
-from ceamcl.errors import ConfigError
+from ceamcl.errors import ConfigError, RunWarning
 from ceamcl.warmup import warm_up
 
 R = TypeVar("R")
@@ -68,6 +73,22 @@ ANSWER_WAIT_S = 10.0
 
 #: A scheduler's greeting (its comm's handshake) is a few hundred bytes.
 GREETING_MAX_BYTES = 1 << 20
+
+#: How long :func:`prepare` waits for every worker to say what software it runs (importing
+#: NumPy, SciPy, Numba and ceamcl, about 1 s in a new worker process): Dask's ``client.run``
+#: waits for good on a worker that does not answer (one stopped with SIGSTOP, measured
+#: 2026-12-02: the command sat at its first line for 7 min, until it was killed).
+CHECK_WAIT_S = 30.0
+
+#: A worker whose heartbeat has not reached the scheduler for :data:`SILENT_WARN_S` while
+#: trials run is frozen (stopped with SIGSTOP, swapping, cut off): the command says so
+#: (:meth:`SchedulerExecutor.stalled`; a busy worker still beats, every 0.5-6 s by the
+#: cluster's size, as Dask's event loop runs beside the trial). The scheduler restarts or drops
+#: it after its ``worker-ttl`` (5 min by default; measured 2026-12-02, a worker with a nanny
+#: restarted after 586 s) and its trials run elsewhere; where it keeps it (the ttl off) a trial
+#: sent there waits for good, so after :data:`SILENT_WAIT_S` the command stops.
+SILENT_WARN_S = 60.0
+SILENT_WAIT_S = 900.0
 
 #: How long a worker may take to load (and compile) the kernels: 18 s on 2 cores when none is
 #: cached; a worker that leaves meanwhile would hold the command for good.
@@ -193,6 +214,43 @@ def _within(what: Callable[[], R], wait_s: float) -> R:
     return value
 
 
+def ask_workers(
+    client: Client, fn: Callable[[], R], addresses: Iterable[str], wait_s: float
+) -> tuple[dict[str, R], dict[str, BaseException], list[str]]:
+    """``fn()`` run on each worker of ``addresses`` (Dask's ``client.run``), every one waited
+    for at most ``wait_s``, all at once: the answers, the errors the workers raised (one that
+    cannot import ceamcl), and the workers that did not answer in time, by address; one that
+    left meanwhile is in none of them."""
+    wanted = list(addresses)
+
+    async def one(address: str) -> tuple[str, Any]:
+        try:
+            call = client.run(fn, workers=[address], asynchronous=True)
+            answer = await asyncio.wait_for(call, wait_s)
+        except TimeoutError:
+            return address, None
+        except Exception as exc:  # raised on the worker, or the worker left meanwhile
+            return address, exc
+        if address not in answer:  # it left meanwhile: nothing to ask it
+            return address, ()
+        return address, (answer[address],)
+
+    async def every() -> list[tuple[str, Any]]:
+        return list(await asyncio.gather(*(one(address) for address in wanted)))
+
+    answers: dict[str, R] = {}
+    failed: dict[str, BaseException] = {}
+    silent: list[str] = []
+    for address, got in client.sync(every, callback_timeout=wait_s + ANSWER_WAIT_S):
+        if got is None:
+            silent.append(address)
+        elif isinstance(got, BaseException):
+            failed[address] = got
+        elif got:
+            answers[address] = got[0]
+    return answers, failed, sorted(silent)
+
+
 def release(client: Client, names: Iterable[str], wait_s: float | None = None) -> None:
     """Unregisters those of the plugins ``names`` the scheduler holds, from it and its
     workers, waiting at most ``wait_s`` (:data:`ANSWER_WAIT_S`) for each call; what fails is
@@ -286,7 +344,14 @@ def prepare(
     that have loaded the kernels (up to 25 s each where their cache is empty)."""
     ours = software()
     try:
-        plugins: dict[str, bool] = client.run_on_scheduler(_ceamcl_plugins)
+        plugins: dict[str, bool] = client.run_on_scheduler(
+            _ceamcl_plugins, callback_timeout=ANSWER_WAIT_S
+        )
+    except TimeoutError:
+        raise ConfigError(
+            f"executor: the Dask scheduler at {where} greeted the command but did not answer "
+            f"within {ANSWER_WAIT_S:.0f} s (frozen?)"
+        ) from None
     except Exception as exc:  # the scheduler cannot import this module: no or another ceamcl
         raise ConfigError(
             f"executor: the Dask scheduler at {where} cannot import ceamcl's code ({exc}); "
@@ -309,7 +374,42 @@ def prepare(
             f"executor: the Dask scheduler at {where} has no workers (waited "
             f"{WORKER_WAIT_S:.0f} s); start them with `dask worker tcp://{where}`"
         ) from None
-    found: dict[str, dict[str, str]] = client.run(software)
+    try:
+        addresses = list(client.nthreads(callback_timeout=ANSWER_WAIT_S))
+    except TimeoutError:
+        raise ConfigError(
+            f"executor: the Dask scheduler at {where} did not answer within "
+            f"{ANSWER_WAIT_S:.0f} s (frozen?)"
+        ) from None
+    found, failed, silent = ask_workers(client, software, addresses, CHECK_WAIT_S)
+    # the scheduler could not reach them (Dask's comm errors are OSErrors)
+    unreachable = {a: exc for a, exc in failed.items() if isinstance(exc, OSError)}
+    failed = {a: exc for a, exc in failed.items() if a not in unreachable}
+    if silent or unreachable:  # those that left meanwhile are not asked for trials
+        try:
+            still = set(client.nthreads(callback_timeout=ANSWER_WAIT_S))
+        except TimeoutError:
+            still = set(addresses)
+        silent = [a for a in silent if a in still]
+        unreachable = {a: exc for a, exc in unreachable.items() if a in still}
+    if silent or unreachable:
+        why = [f"{address}: no answer within {CHECK_WAIT_S:.0f} s" for address in silent]
+        why += [f"{a}: {type(exc).__name__}: {exc}" for a, exc in sorted(unreachable.items())]
+        raise ConfigError(
+            f"executor: {len(why)} of the {len(addresses)} Dask workers at {where} did not "
+            f"answer ({'; '.join(why)}): frozen (stopped, or swapping) or cut off from the "
+            "scheduler, which would send them trials until its worker-ttl restarts or drops "
+            "them (5 min by default, or never); end or restart them and run the command again"
+        )
+    if failed:
+        lines = "; ".join(
+            f"{address}: {type(exc).__name__}: {exc}" for address, exc in sorted(failed.items())
+        )
+        raise ConfigError(
+            f"executor: {len(failed)} of the {len(addresses)} Dask workers at {where} cannot "
+            f"run ceamcl's code ({lines}); install the same ceamcl and libraries on every "
+            "worker"
+        )
     differ = {address: differences(theirs, ours) for address, theirs in found.items()}
     differ = {address: d for address, d in differ.items() if d}
     if differ:
@@ -366,16 +466,32 @@ def prepare(
 class SchedulerExecutor(Executor):
     """The executor of a Dask scheduler's own workers (``client.get_executor()``), which
     :func:`~ceamcl.experiments.executors.map_trials` also asks whether its trials can still
-    run: when every worker has left, the scheduler keeps them waiting for good (measured
-    2026-12-02: the command sat at its last count after the only worker was stopped), so after
-    :data:`WORKER_WAIT_S` without a worker :meth:`stalled` raises."""
+    run. The scheduler keeps them waiting for good when every worker has left (measured
+    2026-12-02: the command sat at its last count after the only worker was stopped) and
+    sends them to a worker that froze (stopped with SIGSTOP, swapping, cut off), which it
+    never drops; so :meth:`stalled` raises after :data:`WORKER_WAIT_S` without a worker, or
+    once a worker has sent the scheduler no heartbeat for :data:`SILENT_WAIT_S`."""
 
-    def __init__(self, client: Client, where: str, wait_s: float | None = None) -> None:
+    def __init__(
+        self,
+        client: Client,
+        where: str,
+        wait_s: float | None = None,
+        silent_s: tuple[float, float] | None = None,
+    ) -> None:
         self._client = client
         self._inner = client.get_executor()
         self.where = where
         self.wait_s = WORKER_WAIT_S if wait_s is None else float(wait_s)
+        #: a silent worker is named after the first, the command stops after the second
+        self.warn_s, self.silent_s = (
+            (SILENT_WARN_S, SILENT_WAIT_S) if silent_s is None else silent_s
+        )
         self._empty_since: float | None = None
+        #: each worker's last heartbeat as the scheduler has it (its clock), and when this
+        #: command last saw it change (this command's clock)
+        self._beats: dict[str, tuple[float, float]] = {}
+        self._named: set[str] = set()  # the silent workers already named
         #: the scheduler was lost (or stopped answering) while trials ran
         self.lost = False
 
@@ -387,7 +503,8 @@ class SchedulerExecutor(Executor):
 
     def stalled(self) -> None:
         """Raises :class:`ConfigError` once the scheduler has had no worker for
-        :attr:`wait_s`, or when it is lost; does nothing otherwise."""
+        :attr:`wait_s`, once a worker has been silent for :attr:`silent_s`, or when the
+        scheduler is lost; does nothing otherwise."""
         lost = (
             f"executor: lost the Dask scheduler at {self.where} while trials ran (stopped, or "
             "the network between them failed); the trials it held are gone"
@@ -396,13 +513,16 @@ class SchedulerExecutor(Executor):
         if self._client.status != "running":  # it reconnects, or gave up
             raise ConfigError(lost)
         try:
-            workers = len(self._client.nthreads(callback_timeout=ANSWER_WAIT_S))
+            # Dask's scheduler_info takes no timeout of its own
+            info = _within(lambda: self._client.scheduler_info(n_workers=-1), ANSWER_WAIT_S)
         except TimeoutError:
             raise ConfigError(f"{lost} (it did not answer within {ANSWER_WAIT_S:.0f} s)") from None
         except Exception as exc:  # the scheduler left or the connection broke
             raise ConfigError(f"{lost} ({exc})") from None
         self.lost = False
         now = time.monotonic()
+        workers: dict[str, Any] = dict(info.get("workers") or {})
+        self._watch(workers, now)
         if workers:
             self._empty_since = None
             return
@@ -413,4 +533,41 @@ class SchedulerExecutor(Executor):
                 f"executor: every worker of the Dask scheduler at {self.where} left while "
                 f"trials ran and none came back within {self.wait_s:.0f} s; start them with "
                 f"`dask worker tcp://{self.where}` and run the command again"
+            )
+
+    def _watch(self, workers: dict[str, Any], now: float) -> None:
+        """Follows each worker's heartbeat (``last_seen``, compared with itself only: the
+        scheduler's clock may not be this machine's): names a worker silent for
+        :attr:`warn_s` once (a :class:`RunWarning`) and raises once one has been silent for
+        :attr:`silent_s`."""
+        beats: dict[str, tuple[float, float]] = {}
+        for address, worker in workers.items():
+            seen = float(worker.get("last_seen", float("nan")))
+            before = self._beats.get(address)
+            if before is None or seen != before[0] or not np.isfinite(seen):
+                before = (seen, now)  # new, beating, or a scheduler that does not say
+            beats[address] = before
+        self._beats = beats
+        silent = {a: now - since for a, (_, since) in beats.items() if now - since >= self.warn_s}
+        self._named &= set(silent)  # one that beats again is named again if it freezes
+        stopped = sorted(a for a, quiet in silent.items() if quiet >= self.silent_s)
+        if stopped:
+            raise ConfigError(
+                f"executor: the Dask worker{'s' if len(stopped) > 1 else ''} "
+                f"{', '.join(stopped)} at {self.where} sent the scheduler no heartbeat for "
+                f"{self.silent_s:.0f} s while trials ran and the scheduler kept "
+                f"{'them' if len(stopped) > 1 else 'it'} (frozen: stopped, swapping, or cut "
+                "off; its worker-ttl off?), so the trials sent there would wait for good; "
+                "end or restart it and run the command again"
+            )
+        for address in sorted(set(silent) - self._named):
+            self._named.add(address)
+            warnings.warn(
+                f"executor: the Dask worker {address} at {self.where} has sent the scheduler "
+                f"no heartbeat for {self.warn_s:.0f} s (frozen: stopped, swapping, or cut "
+                "off); the scheduler restarts or drops such a worker after its worker-ttl "
+                "(5 min by default) and runs its trials elsewhere; the command waits for that "
+                f"at most {self.silent_s / 60:.0f} min",
+                RunWarning,
+                stacklevel=2,
             )
