@@ -461,6 +461,21 @@ def test_a_frozen_worker_is_named_before_the_first_trial(
         cluster.close()  # type: ignore[attr-defined]
 
 
+def test_a_scheduler_that_stops_answering_while_the_workers_are_asked_is_named() -> None:
+    def frozen(*args: object, **kwargs: object) -> None:
+        raise TimeoutError  # as Dask's sync call past its callback_timeout
+
+    client = SimpleNamespace(
+        run_on_scheduler=lambda *a, **k: {},
+        wait_for_workers=lambda n, timeout: None,
+        nthreads=lambda callback_timeout: {"tcp://10.0.0.8:40000": 1},
+        run=lambda *a, **k: None,
+        sync=frozen,
+    )
+    with pytest.raises(ConfigError, match=r"scheduler at 10.0.0.7:8786 did not answer within"):
+        dask_workers.prepare(client, "10.0.0.7:8786")  # type: ignore[arg-type]
+
+
 def test_a_worker_that_freezes_while_trials_run_is_named_then_the_run_stops(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:

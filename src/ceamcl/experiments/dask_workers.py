@@ -381,7 +381,13 @@ def prepare(
             f"executor: the Dask scheduler at {where} did not answer within "
             f"{ANSWER_WAIT_S:.0f} s (frozen?)"
         ) from None
-    found, failed, silent = ask_workers(client, software, addresses, CHECK_WAIT_S)
+    try:
+        found, failed, silent = ask_workers(client, software, addresses, CHECK_WAIT_S)
+    except TimeoutError:  # the outer bound: the scheduler itself stopped answering
+        raise ConfigError(
+            f"executor: the Dask scheduler at {where} did not answer within "
+            f"{CHECK_WAIT_S + ANSWER_WAIT_S:.0f} s (frozen?)"
+        ) from None
     # the scheduler could not reach them (Dask's comm errors are OSErrors)
     unreachable = {a: exc for a, exc in failed.items() if isinstance(exc, OSError)}
     failed = {a: exc for a, exc in failed.items() if a not in unreachable}
