@@ -334,6 +334,13 @@ def probe(host: str, port: int, wait_s: float | None = None) -> None:
         )
 
 
+def _no_answer(where: str, wait_s: float) -> ConfigError:
+    """The error of a scheduler that greeted the command and then stopped answering."""
+    return ConfigError(
+        f"executor: the Dask scheduler at {where} did not answer within {wait_s:.0f} s (frozen?)"
+    )
+
+
 def prepare(
     client: Client, where: str, progress: Callable[[str, int, int], None] | None = None
 ) -> dict[str, int]:
@@ -348,10 +355,7 @@ def prepare(
             _ceamcl_plugins, callback_timeout=ANSWER_WAIT_S
         )
     except TimeoutError:
-        raise ConfigError(
-            f"executor: the Dask scheduler at {where} greeted the command but did not answer "
-            f"within {ANSWER_WAIT_S:.0f} s (frozen?)"
-        ) from None
+        raise _no_answer(where, ANSWER_WAIT_S) from None
     except Exception as exc:  # the scheduler cannot import this module: no or another ceamcl
         raise ConfigError(
             f"executor: the Dask scheduler at {where} cannot import ceamcl's code ({exc}); "
@@ -377,17 +381,11 @@ def prepare(
     try:
         addresses = list(client.nthreads(callback_timeout=ANSWER_WAIT_S))
     except TimeoutError:
-        raise ConfigError(
-            f"executor: the Dask scheduler at {where} did not answer within "
-            f"{ANSWER_WAIT_S:.0f} s (frozen?)"
-        ) from None
+        raise _no_answer(where, ANSWER_WAIT_S) from None
     try:
         found, failed, silent = ask_workers(client, software, addresses, CHECK_WAIT_S)
     except TimeoutError:  # the outer bound: the scheduler itself stopped answering
-        raise ConfigError(
-            f"executor: the Dask scheduler at {where} did not answer within "
-            f"{CHECK_WAIT_S + ANSWER_WAIT_S:.0f} s (frozen?)"
-        ) from None
+        raise _no_answer(where, CHECK_WAIT_S + ANSWER_WAIT_S) from None
     # the scheduler could not reach them (Dask's comm errors are OSErrors)
     unreachable = {a: exc for a, exc in failed.items() if isinstance(exc, OSError)}
     failed = {a: exc for a, exc in failed.items() if a not in unreachable}
@@ -478,21 +476,13 @@ class SchedulerExecutor(Executor):
     never drops; so :meth:`stalled` raises after :data:`WORKER_WAIT_S` without a worker, or
     once a worker has sent the scheduler no heartbeat for :data:`SILENT_WAIT_S`."""
 
-    def __init__(
-        self,
-        client: Client,
-        where: str,
-        wait_s: float | None = None,
-        silent_s: tuple[float, float] | None = None,
-    ) -> None:
+    def __init__(self, client: Client, where: str, wait_s: float | None = None) -> None:
         self._client = client
         self._inner = client.get_executor()
         self.where = where
         self.wait_s = WORKER_WAIT_S if wait_s is None else float(wait_s)
-        #: a silent worker is named after the first, the command stops after the second
-        self.warn_s, self.silent_s = (
-            (SILENT_WARN_S, SILENT_WAIT_S) if silent_s is None else silent_s
-        )
+        #: a worker silent this long is named, and this long ends the command
+        self.warn_s, self.silent_s = SILENT_WARN_S, SILENT_WAIT_S
         self._empty_since: float | None = None
         #: each worker's last heartbeat as the scheduler has it (its clock), and when this
         #: command last saw it change (this command's clock)
