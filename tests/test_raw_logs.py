@@ -523,14 +523,15 @@ def test_while_lost_in_fr079s_doubtful_room_ceamcl_reports_the_odometrys_pose(
 
 
 @pytest.mark.parametrize(
-    ("seed", "far", "keep", "back", "init", "stays"),
+    ("seed", "far", "keep", "back", "while_lost", "init", "stays"),
     [
-        (10, 0.63, 0.55, 0.55, {}, True),
-        (23, 0.63, 0.55, 0.55, FAR_PLACE_SCENARIO, True),
-        (23, 0.63, None, None, FAR_PLACE_SCENARIO, True),
-        (23, None, 0.55, None, FAR_PLACE_SCENARIO, True),
-        (23, None, None, 0.55, FAR_PLACE_SCENARIO, True),
-        (23, None, None, None, FAR_PLACE_SCENARIO, False),
+        (10, 0.63, 0.55, 0.55, True, {}, True),
+        (23, 0.63, 0.55, 0.55, True, FAR_PLACE_SCENARIO, True),
+        (23, 0.63, None, None, False, FAR_PLACE_SCENARIO, True),
+        (23, None, 0.55, None, False, FAR_PLACE_SCENARIO, True),
+        (23, None, None, 0.55, False, FAR_PLACE_SCENARIO, True),
+        (23, None, None, None, True, FAR_PLACE_SCENARIO, True),
+        (23, None, None, None, False, FAR_PLACE_SCENARIO, False),
     ],
 )
 def test_a_far_place_that_outlives_the_rest_does_not_take_fr079s_estimate(
@@ -538,6 +539,7 @@ def test_a_far_place_that_outlives_the_rest_does_not_take_fr079s_estimate(
     far: float | None,
     keep: float | None,
     back: float | None,
+    while_lost: bool,
     init: dict[str, Any],
     stays: bool,
 ) -> None:
@@ -567,8 +569,10 @@ def test_a_far_place_that_outlives_the_rest_does_not_take_fr079s_estimate(
     same run on its own: the species at the anchor's place no longer dies out, and the
     estimate stays within 1.48 m with either departure alone. Departure 38 (``anchor_returns``,
     2026-12-01: the anchor's place starts a species again when it out-fits a leader that does
-    not fit) covers it on its own as well (1.37 m); only with the three off does the far place
-    take it (26.1 m)."""
+    not fit) covers it on its own as well (1.37 m), and so does departure 39
+    (``coast_while_lost``, 2026-12-02: once the estimate coasts on the anchor it stays there
+    while the state says LOST; 1.33 m); only with the four off does the far place take it
+    (26.1 m)."""
     need(RAW, CORRECTED)
     scan, errors = _fr079_tracking_errors(
         seed,
@@ -577,6 +581,7 @@ def test_a_far_place_that_outlives_the_rest_does_not_take_fr079s_estimate(
         far_vouch_share=far,
         anchor_keep_fit=keep,
         anchor_returns=back,
+        coast_while_lost=while_lost,
         **init,
     )
     room = np.isfinite(errors) & (scan >= 1148) & (scan <= 1260)

@@ -534,18 +534,21 @@ def _anchor_on_the_paper_course(
     return course, log, f
 
 
-@pytest.mark.parametrize("coast", [True, False])
+@pytest.mark.parametrize(("coast", "while_lost"), [(True, True), (True, False), (False, True)])
 def test_while_lost_a_leader_that_left_the_drift_envelope_yields_to_the_odometry(
-    coast: bool,
+    coast: bool, while_lost: bool, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Departure 17: while the state says LOST, with or without a recovery, a leading species
     beyond the drift envelope of the last confident pose (three standard deviations of the
     odometry's drift since, at least 0.5 m) at two consecutive updates yields the estimate to
     that pose: a lone species sliding along a room the map holds poorly (here moved 1.5 m,
     well within departure 15's 4 m). At one update only (a doubtful scan while the odometry is
-    wrong and the species right), or within the envelope, the species is the estimate.
-    ``coast_when_lost=False``: the species throughout."""
+    wrong and the species right) the species is the estimate. Once the estimate coasts, it
+    stays the odometry's pose until the state leaves LOST, even where the species comes back
+    within the envelope (departure 39, ``coast_while_lost``; without it the species that is
+    back is the estimate at once). ``coast_when_lost=False``: the species throughout."""
     f, log, k = _lost_behind_an_obstacle(coast)
+    f.config = replace(f.config, coast_while_lost=while_lost)
     # departure 17 alone: the species below jumps where a real one slides (departure 18 would
     # judge the jump against the anchor)
     f.config = replace(f.config, anchor_hold_margin=None)
@@ -580,9 +583,20 @@ def test_while_lost_a_leader_that_left_the_drift_envelope_yields_to_the_odometry
         assert [h.pose.tolist() for h in f.hypotheses()] == [lead.mean.tolist()]
     else:
         assert leader_is_the_estimate()
-    # back within the envelope (0.2 m from the anchor): the species again
+    # back within the envelope (0.2 m from the anchor), the state still LOST: the species
+    # again without departure 39, the odometry's pose with it
     f.particle_set.poses[:, 0] -= 1.3
     f._refresh_stats()
+    next_update()
+    if coast:
+        assert f.state().state is State.LOST
+    if coast and while_lost:
+        assert np.array_equal(f.estimate().pose, anchor[0])
+    else:
+        assert leader_is_the_estimate()
+    # the species read the state LOCALISED again: the species is the estimate
+    read = replace(f._species_state(), state=State.LOCALISED)
+    monkeypatch.setattr(f, "_species_state", lambda hypotheses=None: read)
     next_update()
     assert leader_is_the_estimate()
 

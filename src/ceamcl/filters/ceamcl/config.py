@@ -201,6 +201,12 @@ class CEAMCLConfig:
             ``anchor_envelope_sd=None``: departure 15 as first adopted, coasting only after a
             recovery and beyond ``recovery_drift_m`` / ``recovery_drift_rad``, and every
             LOCALISED pose the map vouches for replaces the last.
+        coast_while_lost: once the estimate coasts on the last confident pose (with an
+            envelope), it stays there for as long as the state says LOST, even where the
+            leading species comes back within the envelope (docs/ceamcl.md, departure 39):
+            the envelope widens with the travel, and a species sliding 1-1.3 m off in a room
+            the map holds poorly otherwise took the estimate back and forth. ``False``: the
+            leader is the estimate again as soon as it stands within the envelope.
         estimate_continues_m: a leading species within this many metres (and
             ``recovery_drift_rad``) of the last update's estimate carried on by the odometry
             continues that estimate even under another id (docs/ceamcl.md, departure 25): the
@@ -365,6 +371,7 @@ class CEAMCLConfig:
     anchor_conflict_m: float = 2.0
     estimate_continues_m: float | None = 1.0
     coast_after_updates: int = 2
+    coast_while_lost: bool = True
     anchor_hold_margin: float | None = 3.0
     anchor_species: bool = True
     anchor_keep_fit: float | None = DEFAULT_THRESHOLDS.fit_min

@@ -204,6 +204,9 @@ class CEAMCL:
         #: consecutive updates (up to ``self.t``) at which the state said LOST with the leader
         #: beyond the drift envelope of the last confident pose (departure 17)
         self._far_lost: tuple[int, int] = (0, 0)
+        #: departure 39: the anchor as the estimate at update ``self.t`` where the coast goes
+        #: on while the state says LOST with the leader back within the envelope
+        self._coast: tuple[int, PoseEstimate | None] = (0, None)
         #: departure 18, this update: the anchor as the estimate, its place's share of the
         #: weight when it was held against a leader the species read LOCALISED (the state then
         #: says AMBIGUOUS), and the share of the scan the map explains at a leader held back
@@ -396,6 +399,7 @@ class CEAMCL:
         for a leader to continue."""
         self.confident.reset()
         self._far_lost = (0, 0)
+        self._coast = (0, None)
         self._held = _NOT_HELD
         self._estimate_from = _NO_ESTIMATE
 
@@ -1104,7 +1108,8 @@ class CEAMCL:
         leading species has left the last confident pose carried on by the odometry (the
         anchor), that pose (``coast_when_lost``). "Left": beyond the odometry's drift envelope
         of the anchor at ``coast_after_updates`` consecutive updates with the state LOST
-        (departure 17, ``anchor_envelope_sd``), a species sliding where the map holds little;
+        (departure 17, ``anchor_envelope_sd``), a species sliding where the map holds little,
+        and from then on while the state says LOST (departure 39, ``coast_while_lost``);
         without an envelope, after a recovery and beyond ``recovery_drift_m`` (or
         ``recovery_drift_rad``), another place the recovery proposed (departure 15)."""
         require_initialised(self, "estimate")
@@ -1117,7 +1122,7 @@ class CEAMCL:
                 # counted at the end of this update (_count_far_lost): no test repeated here
                 at, run = self._far_lost
                 left = (
-                    self._left_anchor(best)
+                    self._left_anchor(best) or self._coasting_while_lost()
                     if at == self.t and run >= cfg.coast_after_updates
                     else None
                 )
@@ -1147,6 +1152,13 @@ class CEAMCL:
         if not ok:
             return PoseEstimate(best.mean.copy(), covariance)
         return PoseEstimate(pose_mean(ps.poses[best.members], weights), covariance)
+
+    def _coasting_while_lost(self) -> PoseEstimate | None:
+        """Departure 39's anchor as this update's estimate: set by :meth:`_count_far_lost`
+        when the estimate coasted at the last update, the state still says LOST and the
+        leader is back within the envelope; else ``None``."""
+        at, est = self._coast
+        return est if at == self.t else None
 
     def _left_anchor(self, best: SpeciesStats) -> PoseEstimate | None:
         """The anchor as an estimate when the leading species ``best`` stands beyond its
@@ -1288,7 +1300,8 @@ class CEAMCL:
 
     def _count_far_lost(self) -> None:
         """At the end of an update: one more consecutive update at which the state says LOST
-        with the leader beyond the drift envelope of the anchor, or none (departure 17), and,
+        with the leader beyond the drift envelope of the anchor, or none (departure 17; once
+        that coasts, any leader while the state says LOST: departure 39), and,
         where that does not coast, whether the anchor holds against a leader that stands
         beyond it and was not the last update's estimate (departure 18; judged once an
         update); where the anchor's place fits as well and no species stands there, a species
@@ -1306,7 +1319,23 @@ class CEAMCL:
             else None
         )
         far = left is not None and self._species_state().state is State.LOST
-        run = self._far_lost[1] + 1 if far and self._far_lost[0] == self.t - 1 else int(far)
+        last_at, last_run = self._far_lost
+        if (  # departure 39: a coast goes on while the state says LOST
+            cfg.coast_when_lost
+            and cfg.coast_while_lost
+            and not far
+            and cfg.anchor_envelope_sd is not None
+            and last_at == self.t - 1
+            and last_run >= cfg.coast_after_updates
+            and best is not None
+            and self._species_state().state is State.LOST
+        ):
+            coasting = self.confident.coasting(cfg.recovery_drift_m)
+            if coasting is not None:
+                left = PoseEstimate(coasting[0], coasting[1])
+                far = True
+                self._coast = (self.t, left)
+        run = last_run + 1 if far and last_at == self.t - 1 else int(far)
         self._far_lost = (self.t, run)
         coasts = left is not None and run >= cfg.coast_after_updates  # what estimate() reports
         # the leader moved the estimate here itself (departure 12's look-around or a wrong
