@@ -593,6 +593,31 @@ def test_a_far_place_that_outlives_the_rest_does_not_take_fr079s_estimate(
         assert worst > 10.0
 
 
+@pytest.mark.parametrize("confirm", [True, False])
+def test_a_far_place_localised_for_one_update_does_not_take_fr079s_estimate(
+    confirm: bool,
+) -> None:
+    """Tracking fr079 raw at Nav2's pace, 200 samples (seed 19, a tuning seed of the tracking
+    protocol) through the doubtful room: the estimate coasts on the last confident pose while
+    the species are LOST, and at scan 1218 a recovery's place 26 m off, which the map explains
+    well enough to vouch for (departure 23), reads LOCALISED for one update, then LOST again.
+    With departure 40 (``far_confirm``) a far leader takes the estimate from a coasting anchor
+    only when it still reads LOCALISED at the next update: measured at most 0.98 m off in the
+    room. Without it the place takes the estimate for 7 scans, 26.1 m off (docs/ceamcl.md,
+    departure 40)."""
+    need(RAW, CORRECTED)
+    scan, errors = _fr079_tracking_errors(
+        19, 1300, samples=200, max_samples=200, far_confirm=confirm
+    )
+    room = np.isfinite(errors) & (scan >= 1148) & (scan <= 1260)
+    assert room.sum() > 80
+    far = int(np.count_nonzero(errors[room] > 5.0))
+    if confirm:
+        assert far == 0 and float(errors[room].max()) < 2.0
+    else:
+        assert far > 0
+
+
 def test_a_raw_runs_report_and_mcap_carry_the_truth_where_it_is_known(
     cut_logs: tuple[Path, Path], tmp_path: Path
 ) -> None:

@@ -207,6 +207,11 @@ class CEAMCLConfig:
             the envelope widens with the travel, and a species sliding 1-1.3 m off in a room
             the map holds poorly otherwise took the estimate back and forth. ``False``: the
             leader is the estimate again as soon as it stands within the envelope.
+        far_confirm: a leader beyond the envelope that reads LOCALISED for the first time
+            after the estimate coasted does not take the estimate at that update; it does at
+            the next if it still reads LOCALISED (docs/ceamcl.md, departure 40): the mirror of
+            ``coast_after_updates``. A recovery's place 26 m off that the map vouched for read
+            LOCALISED for one update in fr079's doubtful room and took the estimate.
         estimate_continues_m: a leading species within this many metres (and
             ``recovery_drift_rad``) of the last update's estimate carried on by the odometry
             continues that estimate even under another id (docs/ceamcl.md, departure 25): the
@@ -372,6 +377,7 @@ class CEAMCLConfig:
     estimate_continues_m: float | None = 1.0
     coast_after_updates: int = 2
     coast_while_lost: bool = True
+    far_confirm: bool = True
     anchor_hold_margin: float | None = 3.0
     anchor_species: bool = True
     anchor_keep_fit: float | None = DEFAULT_THRESHOLDS.fit_min

@@ -207,6 +207,9 @@ class CEAMCL:
         #: departure 39: the anchor as the estimate at update ``self.t`` where the coast goes
         #: on while the state says LOST with the leader back within the envelope
         self._coast: tuple[int, PoseEstimate | None] = (0, None)
+        #: departure 40: the update at which a far leader was held back because it read
+        #: LOCALISED for the first time after a coast
+        self._unconfirmed_at = -1
         #: departure 18, this update: the anchor as the estimate, its place's share of the
         #: weight when it was held against a leader the species read LOCALISED (the state then
         #: says AMBIGUOUS), and the share of the scan the map explains at a leader held back
@@ -400,6 +403,7 @@ class CEAMCL:
         self.confident.reset()
         self._far_lost = (0, 0)
         self._coast = (0, None)
+        self._unconfirmed_at = -1
         self._held = _NOT_HELD
         self._estimate_from = _NO_ESTIMATE
 
@@ -1304,7 +1308,8 @@ class CEAMCL:
         that coasts, any leader while the state says LOST: departure 39), and,
         where that does not coast, whether the anchor holds against a leader that stands
         beyond it and was not the last update's estimate (departure 18; judged once an
-        update); where the anchor's place fits as well and no species stands there, a species
+        update; and, the update after a coast, one that reads LOCALISED for the first time:
+        departure 40); where the anchor's place fits as well and no species stands there, a species
         starts there (departure 19)."""
         cfg = self.config
         if self._far_lost[0] == self.t:
@@ -1352,7 +1357,16 @@ class CEAMCL:
             # departure 23: nor does the leader take it where the map does not vouch for it
             doubted = localised and not fits and not coasts
             unvouched = self._far_share(best) if doubted else float("nan")
-            if not coasts and (fits or not localised or np.isfinite(unvouched)):
+            # departure 40: nor at the first update it reads LOCALISED after a coast
+            unconfirmed = (
+                doubted
+                and cfg.far_confirm
+                and last_at == self.t - 1
+                and last_run >= cfg.coast_after_updates
+            )
+            if unconfirmed:
+                self._unconfirmed_at = self.t
+            if not coasts and (fits or not localised or np.isfinite(unvouched) or unconfirmed):
                 held = left  # not LOCALISED: the far place is doubted too
                 if judged is not None and localised:
                     # two places fit: the anchor's and the leader's, at odds of this scan's
@@ -1509,6 +1523,12 @@ class CEAMCL:
                 f"place the robot is found at ({self.config.far_vouch_share:.0%}): the "
                 f"estimate stays at that pose ({share:.0%} of the weight by this scan's fit, "
                 f"the leader {1.0 - share:.0%})"
+            )
+        elif self._unconfirmed_at == self.t:
+            why = (
+                f"{far}, and the leader reads LOCALISED for the first time since the estimate "
+                f"coasted on that pose: the estimate stays there for this update ({share:.0%} "
+                f"of the weight by this scan's fit, the leader {1.0 - share:.0%})"
             )
         else:
             why = (
