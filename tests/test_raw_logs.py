@@ -570,9 +570,9 @@ def test_a_far_place_that_outlives_the_rest_does_not_take_fr079s_estimate(
     estimate stays within 1.48 m with either departure alone. Departure 38 (``anchor_returns``,
     2026-12-01: the anchor's place starts a species again when it out-fits a leader that does
     not fit) covers it on its own as well (1.37 m), and so does departure 39
-    (``coast_while_lost``, 2026-12-02: once the estimate coasts on the anchor it stays there
-    while the state says LOST; 1.33 m); only with the four off does the far place take it
-    (26.1 m)."""
+    (``coast_while_lost_m``, 2026-12-02: once the estimate coasts on the anchor it stays there
+    while the state says LOST, for up to 2 m of travel; 1.33 m); only with the four off does
+    the far place take it (26.1 m)."""
     need(RAW, CORRECTED)
     scan, errors = _fr079_tracking_errors(
         seed,
@@ -581,7 +581,7 @@ def test_a_far_place_that_outlives_the_rest_does_not_take_fr079s_estimate(
         far_vouch_share=far,
         anchor_keep_fit=keep,
         anchor_returns=back,
-        coast_while_lost=while_lost,
+        coast_while_lost_m=2.0 if while_lost else None,
         **init,
     )
     room = np.isfinite(errors) & (scan >= 1148) & (scan <= 1260)

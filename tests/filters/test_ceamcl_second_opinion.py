@@ -544,11 +544,12 @@ def test_while_lost_a_leader_that_left_the_drift_envelope_yields_to_the_odometry
     that pose: a lone species sliding along a room the map holds poorly (here moved 1.5 m,
     well within departure 15's 4 m). At one update only (a doubtful scan while the odometry is
     wrong and the species right) the species is the estimate. Once the estimate coasts, it
-    stays the odometry's pose until the state leaves LOST, even where the species comes back
-    within the envelope (departure 39, ``coast_while_lost``; without it the species that is
-    back is the estimate at once). ``coast_when_lost=False``: the species throughout."""
+    stays the odometry's pose while the state says LOST, even where the species comes back
+    within the envelope, for 2 m of travel after it came back (departure 39,
+    ``coast_while_lost_m``; without it the species that is back is the estimate at once).
+    ``coast_when_lost=False``: the species throughout."""
     f, log, k = _lost_behind_an_obstacle(coast)
-    f.config = replace(f.config, coast_while_lost=while_lost)
+    f.config = replace(f.config, coast_while_lost_m=2.0 if while_lost else None)
     # departure 17 alone: the species below jumps where a real one slides (departure 18 would
     # judge the jump against the anchor)
     f.config = replace(f.config, anchor_hold_margin=None)
@@ -592,8 +593,18 @@ def test_while_lost_a_leader_that_left_the_drift_envelope_yields_to_the_odometry
         assert f.state().state is State.LOST
     if coast and while_lost:
         assert np.array_equal(f.estimate().pose, anchor[0])
-    else:
-        assert leader_is_the_estimate()
+        # 1.5 m further on, still LOST: still the odometry's pose
+        carried = f.confident._anchor
+        assert carried is not None
+        carried.travel += 1.5
+        next_update()
+        assert f.state().state is State.LOST
+        assert not leader_is_the_estimate()
+        # 1 m more, 2.5 m since the species came back: the species, which follows the scans
+        carried.travel += 1.0
+        next_update()
+        assert f.state().state is State.LOST
+    assert leader_is_the_estimate()
     # the species read the state LOCALISED again: the species is the estimate
     read = replace(f._species_state(), state=State.LOCALISED)
     monkeypatch.setattr(f, "_species_state", lambda hypotheses=None: read)

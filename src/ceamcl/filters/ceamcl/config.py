@@ -201,12 +201,14 @@ class CEAMCLConfig:
             ``anchor_envelope_sd=None``: departure 15 as first adopted, coasting only after a
             recovery and beyond ``recovery_drift_m`` / ``recovery_drift_rad``, and every
             LOCALISED pose the map vouches for replaces the last.
-        coast_while_lost: once the estimate coasts on the last confident pose (with an
-            envelope), it stays there for as long as the state says LOST, even where the
-            leading species comes back within the envelope (docs/ceamcl.md, departure 39):
-            the envelope widens with the travel, and a species sliding 1-1.3 m off in a room
-            the map holds poorly otherwise took the estimate back and forth. ``False``: the
-            leader is the estimate again as soon as it stands within the envelope.
+        coast_while_lost_m: once the estimate coasts on the last confident pose (with an
+            envelope), it stays there while the state says LOST, even where the leading
+            species comes back within the envelope, for at most this many metres of travel
+            after it came back (docs/ceamcl.md, departure 39): the envelope widens with the
+            travel, and a species sliding 1-1.3 m off in a room the map holds poorly otherwise
+            took the estimate back and forth; beyond a few metres the odometry's drift costs
+            more than a species that follows the scans while it reads them poorly. ``None``:
+            the leader is the estimate again as soon as it stands within the envelope.
         far_confirm: a leader beyond the envelope that reads LOCALISED for the first time
             after the estimate coasted does not take the estimate at that update; it does at
             the next if it still reads LOCALISED (docs/ceamcl.md, departure 40): the mirror of
@@ -376,7 +378,7 @@ class CEAMCLConfig:
     anchor_conflict_m: float = 2.0
     estimate_continues_m: float | None = 1.0
     coast_after_updates: int = 2
-    coast_while_lost: bool = True
+    coast_while_lost_m: float | None = 2.0
     far_confirm: bool = True
     anchor_hold_margin: float | None = 3.0
     anchor_species: bool = True
@@ -470,6 +472,8 @@ class CEAMCLConfig:
             "estimate_continues_m": self.estimate_continues_m is None
             or (math.isfinite(self.estimate_continues_m) and self.estimate_continues_m >= 0),
             "coast_after_updates": self.coast_after_updates >= 1,
+            "coast_while_lost_m": self.coast_while_lost_m is None
+            or (math.isfinite(self.coast_while_lost_m) and self.coast_while_lost_m >= 0),
             "anchor_keep_fit": self.anchor_keep_fit is None or 0 < self.anchor_keep_fit <= 1,
             "anchor_returns": self.anchor_returns is None or 0 < self.anchor_returns <= 1,
             "anchor_hold_margin": self.anchor_hold_margin is None

@@ -207,6 +207,8 @@ class CEAMCL:
         #: departure 39: the anchor as the estimate at update ``self.t`` where the coast goes
         #: on while the state says LOST with the leader back within the envelope
         self._coast: tuple[int, PoseEstimate | None] = (0, None)
+        #: the anchor's travel (m) when the leader came back within the envelope (departure 39)
+        self._coast_from = 0.0
         #: departure 40: the update at which a far leader was held back because it read
         #: LOCALISED for the first time after a coast
         self._unconfirmed_at = -1
@@ -1113,7 +1115,8 @@ class CEAMCL:
         anchor), that pose (``coast_when_lost``). "Left": beyond the odometry's drift envelope
         of the anchor at ``coast_after_updates`` consecutive updates with the state LOST
         (departure 17, ``anchor_envelope_sd``), a species sliding where the map holds little,
-        and from then on while the state says LOST (departure 39, ``coast_while_lost``);
+        and from then on while the state says LOST, for a while (departure 39,
+        ``coast_while_lost_m``);
         without an envelope, after a recovery and beyond ``recovery_drift_m`` (or
         ``recovery_drift_rad``), another place the recovery proposed (departure 15)."""
         require_initialised(self, "estimate")
@@ -1325,9 +1328,9 @@ class CEAMCL:
         )
         far = left is not None and self._species_state().state is State.LOST
         last_at, last_run = self._far_lost
-        if (  # departure 39: a coast goes on while the state says LOST
+        if (  # departure 39: a coast goes on while the state says LOST, for a while
             cfg.coast_when_lost
-            and cfg.coast_while_lost
+            and cfg.coast_while_lost_m is not None
             and not far
             and cfg.anchor_envelope_sd is not None
             and last_at == self.t - 1
@@ -1336,10 +1339,15 @@ class CEAMCL:
             and self._species_state().state is State.LOST
         ):
             coasting = self.confident.coasting(cfg.recovery_drift_m)
-            if coasting is not None:
-                left = PoseEstimate(coasting[0], coasting[1])
-                far = True
-                self._coast = (self.t, left)
+            held_anchor = self.confident.anchor()
+            if coasting is not None and held_anchor is not None:
+                travel = held_anchor[1]
+                if self._coast[0] != self.t - 1:  # the leader is back within the envelope
+                    self._coast_from = travel
+                if travel - self._coast_from <= cfg.coast_while_lost_m:
+                    left = PoseEstimate(coasting[0], coasting[1])
+                    far = True
+                    self._coast = (self.t, left)
         run = last_run + 1 if far and last_at == self.t - 1 else int(far)
         self._far_lost = (self.t, run)
         coasts = left is not None and run >= cfg.coast_after_updates  # what estimate() reports
