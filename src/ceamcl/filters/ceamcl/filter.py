@@ -1328,13 +1328,14 @@ class CEAMCL:
         )
         far = left is not None and self._species_state().state is State.LOST
         last_at, last_run = self._far_lost
+        # the estimate coasted at the last update (departures 39 and 40 read it)
+        coasted = last_at == self.t - 1 and last_run >= cfg.coast_after_updates
         if (  # departure 39: a coast goes on while the state says LOST, for a while
             cfg.coast_when_lost
             and cfg.coast_while_lost_m is not None
             and not far
             and cfg.anchor_envelope_sd is not None
-            and last_at == self.t - 1
-            and last_run >= cfg.coast_after_updates
+            and coasted
             and best is not None
             and self._species_state().state is State.LOST
         ):
@@ -1366,12 +1367,7 @@ class CEAMCL:
             doubted = localised and not fits and not coasts
             unvouched = self._far_share(best) if doubted else float("nan")
             # departure 40: nor at the first update it reads LOCALISED after a coast
-            unconfirmed = (
-                doubted
-                and cfg.far_confirm
-                and last_at == self.t - 1
-                and last_run >= cfg.coast_after_updates
-            )
+            unconfirmed = doubted and cfg.far_confirm and coasted
             if unconfirmed:
                 self._unconfirmed_at = self.t
             if not coasts and (fits or not localised or np.isfinite(unvouched) or unconfirmed):
