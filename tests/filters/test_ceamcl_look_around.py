@@ -65,12 +65,15 @@ def reversing(look_around_m: float | None, seed: int) -> tuple[list[float], int,
 def test_a_reversing_robot_with_unsigned_odometry_stays_tracked(seed: int) -> None:
     errors, looks, state = reversing(CEAMCLConfig().look_around_m, seed)
     assert looks >= 1
-    assert max(errors) < 0.3  # measured 0.11-0.15 m (seeds 1-3)
+    # measured 0.11-0.15 m (seeds 1-3); 0.04-0.22 m since the field's end points are read
+    # half a cell farther (2026-12-02)
+    assert max(errors) < 0.3
     assert state == "LOCALISED"
     # the look-around is what keeps it: without it the species falls behind by 0.48 m an
-    # update until a recovery catches it (measured 0.67-3.28 m, the state LOST at the end)
-    without, _, _ = reversing(None, seed)
-    assert max(without) > 0.5
+    # update until a recovery catches it (measured 0.67-3.28 m, the state LOST at the end;
+    # 0.50-2.35 m since 2026-12-02), on the far side of the same 0.3 m
+    without, _, lost = reversing(None, seed)
+    assert max(without) > 0.3 and lost == "LOST"
 
 
 @pytest.mark.parametrize("seed", [1, 2])

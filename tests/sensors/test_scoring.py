@@ -68,7 +68,10 @@ def test_likelihood_field_ros_score_by_hand() -> None:
     pose = np.array([[0.0, 0.025, 0.0]])
     prepared = model.prepare(geom.scan([2.01, 3.0]))
     assert prepared.n_beams == 2
-    ends = pose[0, :2] + np.array([2.01, 3.0])[:, None] * np.column_stack(
+    # each range looked up half a cell farther (the field's end-point offset)
+    read = np.array([2.01, 3.0]) + model.end_point_offset_m
+    assert model.end_point_offset_m == pytest.approx(0.025)
+    ends = pose[0, :2] + read[:, None] * np.column_stack(
         [np.cos(prepared.bearings), np.sin(prepared.bearings)]
     )
     ix, iy = grid.world_to_cell(ends[:, 0], ends[:, 1])

@@ -224,6 +224,39 @@ def test_likelihood_field_matches_the_mixture_by_hand() -> None:
         assert got == pytest.approx(want, rel=1e-9, abs=1e-12), (r, got, want)
 
 
+@pytest.mark.parametrize(
+    ("offset", "centre"),
+    [(None, 0.0), (0.0, 0.025)],  # the default (half a 5 cm cell), and ROS amcl's lookup
+)
+def test_the_likelihood_field_centres_a_wall_reading_on_the_pose_that_made_it(
+    offset: float | None, centre: float
+) -> None:
+    """A beam ends on a wall's face, but the field measures to the occupied cell's centre,
+    half a cell behind it (docs/sensor-models.md). Read half a cell farther, the poses that
+    score best lie evenly about the pose that made the reading; as ROS amcl reads it, they lie
+    half a cell ahead of it."""
+    data = np.full((80, 80), FREE, dtype=np.int8)
+    data[:, 40] = OCCUPIED  # a wall one cell thick, its face at x = 2.0
+    grid = OccupancyGrid(data, 0.05, (0.0, -2.0, 0.0))
+    model = LikelihoodFieldModel(
+        grid, LikelihoodFieldConfig(max_beams=1, temper=1.0, end_point_offset_m=offset)
+    )
+    prepared = model.prepare(LaserGeometry.covering(0.0, 1, 8.0).scan([2.0]))
+    shifts = np.round(np.arange(-0.1, 0.1001, 0.001), 3)  # the pose moved along the beam
+    poses = np.column_stack([shifts + 1e-6, np.full_like(shifts, 0.025), np.zeros_like(shifts)])
+    scores = model.log_likelihood(poses, prepared)
+    best = shifts[scores >= scores.max() - 1e-12]
+    assert best.max() - best.min() == pytest.approx(0.049, abs=0.0011)  # one cell
+    assert (best.min() + best.max()) / 2 == pytest.approx(centre, abs=0.0011)
+
+
+def test_the_end_point_offset_is_checked() -> None:
+    with pytest.raises(ValueError, match="end_point_offset_m"):
+        LikelihoodFieldConfig(end_point_offset_m=-0.01)
+    with pytest.raises(ValueError, match="end_point_offset_m"):
+        LikelihoodFieldConfig(end_point_offset_m=math.nan)
+
+
 def scan_with(ranges: np.ndarray, base: LaserScan) -> LaserScan:
     return replace(base, ranges=np.asarray(ranges, dtype=np.float64))
 
