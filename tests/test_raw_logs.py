@@ -677,6 +677,30 @@ def test_a_far_place_localised_for_one_update_does_not_take_fr079s_estimate(
         assert far > 0
 
 
+@pytest.mark.parametrize("stride", [True, False])
+def test_at_every_scan_a_far_place_takes_the_estimate_only_over_a_stride(stride: bool) -> None:
+    """Tracking fr079 raw at every scan, 160 samples (seed 0, the CLI's every-scan protocol)
+    through the doubtful room: after the estimate coasted, a recovery's place 12.7 m off reads
+    LOCALISED at scan 1212, LOST at 1213 and LOCALISED again at 1214-1217. Departure 40 holds it
+    for one update, which at every scan is 3 cm of travel: without departure 41
+    (``far_confirm_m=far_confirm_rad=None``) it takes the estimate at 1214 for five scans,
+    12.7-13.0 m off. With it the place must read LOCALISED at every update over Nav2's stride
+    (0.25 m or 0.2 rad) while the estimate stays on the anchor, and never does: one scan more
+    than 1 m off in the room, at most 1.2 m (docs/ceamcl.md, departure 41)."""
+    need(RAW, CORRECTED)
+    off = {} if stride else {"far_confirm_m": None, "far_confirm_rad": None}
+    scan, errors = _fr079_tracking_errors(
+        0, 1300, samples=160, max_samples=160, every_scan=True, **off
+    )
+    room = np.isfinite(errors) & (scan >= 1148) & (scan <= 1260)
+    assert room.sum() > 80
+    far = int(np.count_nonzero(errors[room] > 5.0))
+    if stride:
+        assert far == 0 and float(errors[room].max()) < 2.0
+    else:
+        assert far > 0
+
+
 def test_a_raw_runs_report_and_mcap_carry_the_truth_where_it_is_known(
     cut_logs: tuple[Path, Path], tmp_path: Path
 ) -> None:

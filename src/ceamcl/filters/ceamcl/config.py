@@ -13,6 +13,7 @@ from ceamcl.filters.ceamcl.phases import CompetitionConfig, GrowthConfig, SplitM
 from ceamcl.filters.evolution import EvolutionConfig
 from ceamcl.filters.headings import HeadingPrior
 from ceamcl.filters.state import DEFAULT_THRESHOLDS
+from ceamcl.motion.odometry import STRIDE_M, STRIDE_RAD
 from ceamcl.sensors.beam_skip import BeamSkipConfig
 
 #: What the ``w`` of eqs. 9 and 16 is (``CEAMCLConfig.competition_fitness``).
@@ -214,6 +215,13 @@ class CEAMCLConfig:
             the next if it still reads LOCALISED (docs/ceamcl.md, departure 40): the mirror of
             ``coast_after_updates``. A recovery's place 26 m off that the map vouched for read
             LOCALISED for one update in fr079's doubtful room and took the estimate.
+        far_confirm_m, far_confirm_rad: with ``far_confirm``, the far leader is held back at
+            every update until the robot has travelled ``far_confirm_m`` or turned
+            ``far_confirm_rad`` since it first read LOCALISED, while it reads so at each
+            (docs/ceamcl.md, departure 41): Nav2's ``update_min_d`` and ``update_min_a``, so
+            that at Nav2's pace this is departure 40's next update, and at every scan the
+            same stretch of motion rather than the next scan, 3 cm on. ``None`` for both: the
+            next update, whatever the motion.
         estimate_continues_m: a leading species within this many metres (and
             ``recovery_drift_rad``) of the last update's estimate carried on by the odometry
             continues that estimate even under another id (docs/ceamcl.md, departure 25): the
@@ -380,6 +388,8 @@ class CEAMCLConfig:
     coast_after_updates: int = 2
     coast_while_lost_m: float | None = 2.0
     far_confirm: bool = True
+    far_confirm_m: float | None = STRIDE_M
+    far_confirm_rad: float | None = STRIDE_RAD
     anchor_hold_margin: float | None = 3.0
     anchor_species: bool = True
     anchor_keep_fit: float | None = DEFAULT_THRESHOLDS.fit_min

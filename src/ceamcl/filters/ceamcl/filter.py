@@ -212,6 +212,15 @@ class CEAMCL:
         #: departure 40: the update at which a far leader was held back because it read
         #: LOCALISED for the first time after a coast
         self._unconfirmed_at = -1
+        #: departure 41: the last update at which a far leader reading LOCALISED was held back
+        #: (departure 40), and the odometry's travel (m) and turning (rad) when it began to
+        #: read so at every update up to that one
+        self._streak: tuple[int, float, float] = (-1, 0.0, 0.0)
+        #: departure 41: the last update at which the estimate stayed on the anchor since a
+        #: far leader was first held back (-1: none)
+        self._confirm_window = -1
+        #: the odometry's travel (m) and turning (rad) since the filter started
+        self._moved = (0.0, 0.0)
         #: departure 18, this update: the anchor as the estimate, its place's share of the
         #: weight when it was held against a leader the species read LOCALISED (the state then
         #: says AMBIGUOUS), and the share of the scan the map explains at a leader held back
@@ -406,6 +415,8 @@ class CEAMCL:
         self._far_lost = (0, 0)
         self._coast = (0, None)
         self._unconfirmed_at = -1
+        self._streak = (-1, 0.0, 0.0)
+        self._confirm_window = -1
         self._held = _NOT_HELD
         self._estimate_from = _NO_ESTIMATE
 
@@ -503,6 +514,10 @@ class CEAMCL:
         members = resample_within_labels(ps, targets, self.rng)
         # 3. Prediction.
         propagate(ps, self.motion, increment, self.rng)
+        self._moved = (
+            self._moved[0] + abs(increment.trans),
+            self._moved[1] + sum(increment.turns),
+        )
         self.confident.carry(increment, self.config.recovery_anchor_m)
         at, source, last = self._estimate_from
         if last is not None:
@@ -1366,8 +1381,9 @@ class CEAMCL:
             # departure 23: nor does the leader take it where the map does not vouch for it
             doubted = localised and not fits and not coasts
             unvouched = self._far_share(best) if doubted else float("nan")
-            # departure 40: nor at the first update it reads LOCALISED after a coast
-            unconfirmed = doubted and cfg.far_confirm and coasted
+            # departure 40: nor at the first update it reads LOCALISED after a coast, and
+            # (departure 41) until it has read so over a stride of motion
+            unconfirmed = doubted and cfg.far_confirm and self._unconfirmed(coasted)
             if unconfirmed:
                 self._unconfirmed_at = self.t
             if not coasts and (fits or not localised or np.isfinite(unvouched) or unconfirmed):
@@ -1377,6 +1393,8 @@ class CEAMCL:
                     # fit with the leader's handicap
                     odds = judged[2] + self.log_prior.get(best.species_id, 0.0) - judged[1]
                     share = float(1.0 / (1.0 + np.exp(min(odds, 700.0))))
+            if (unconfirmed or self._confirm_window == self.t - 1) and (held is not None or coasts):
+                self._confirm_window = self.t  # the estimate stays on the anchor
             if judged is not None and fits and vacant:
                 # departure 19: the anchor's place competes, at the leader's weight less what
                 # it fits worse at this scan (never ahead on the leader's handicap: a robot
@@ -1396,6 +1414,30 @@ class CEAMCL:
             self._estimate_from = (self.t, best.species_id, best.mean.copy() if believed else None)
         else:
             self._estimate_from = (self.t, -1, None)
+
+    def _unconfirmed(self, coasted: bool) -> bool:
+        """Departures 40 and 41, for a far leader that reads LOCALISED at this update: whether
+        it is held back. Departure 40: at the first such update after the estimate coasted.
+        Departure 41: while the estimate has stayed on the anchor since (the window), until
+        the leader has read LOCALISED at every update over ``far_confirm_m`` of travel or
+        ``far_confirm_rad`` of turning (a read that is not LOCALISED starts the count again);
+        both ``None``: departure 40 alone, one update."""
+        cfg = self.config
+        if cfg.far_confirm_m is None and cfg.far_confirm_rad is None:
+            return coasted
+        if not (coasted or self._confirm_window == self.t - 1):
+            return False
+        at, travel, turn = self._streak
+        if at != self.t - 1:  # the first update of a streak
+            self._streak = (self.t, *self._moved)
+            return True
+        moved, turned = self._moved[0] - travel, self._moved[1] - turn
+        within = (cfg.far_confirm_m is None or moved < cfg.far_confirm_m) and (
+            cfg.far_confirm_rad is None or turned < cfg.far_confirm_rad
+        )
+        if within:
+            self._streak = (self.t, travel, turn)
+        return within or coasted
 
     def _keep_anchor_species(self) -> None:
         """Departure 36 (``anchor_keep_fit``), before eq. 9's sizes are applied: when the
