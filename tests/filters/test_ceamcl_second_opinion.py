@@ -1187,3 +1187,11 @@ def _free_pose_beside(course: Any, pose: np.ndarray, distance: float) -> np.ndar
         if bool(grid.is_free(p[0], p[1])):
             return p
     raise AssertionError("no free pose beside")
+
+
+@pytest.mark.parametrize("name", ["far_confirm_m", "far_confirm_rad"])
+def test_departure_41s_stride_is_checked(name: str) -> None:
+    for bad in (0.0, -0.25, float("nan")):
+        with pytest.raises(ValueError, match=name):
+            CEAMCLConfig(**{name: bad})
+    CEAMCLConfig(**{name: None})  # allowed (both None: departure 40 alone)

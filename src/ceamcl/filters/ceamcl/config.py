@@ -484,6 +484,10 @@ class CEAMCLConfig:
             "coast_after_updates": self.coast_after_updates >= 1,
             "coast_while_lost_m": self.coast_while_lost_m is None
             or (math.isfinite(self.coast_while_lost_m) and self.coast_while_lost_m >= 0),
+            "far_confirm_m": self.far_confirm_m is None
+            or (math.isfinite(self.far_confirm_m) and self.far_confirm_m > 0),
+            "far_confirm_rad": self.far_confirm_rad is None
+            or (math.isfinite(self.far_confirm_rad) and self.far_confirm_rad > 0),
             "anchor_keep_fit": self.anchor_keep_fit is None or 0 < self.anchor_keep_fit <= 1,
             "anchor_returns": self.anchor_returns is None or 0 < self.anchor_returns <= 1,
             "anchor_hold_margin": self.anchor_hold_margin is None
