@@ -56,7 +56,10 @@ _F1 = "float64[::1]"
 _F2 = "float64[:, ::1]"
 _I1 = "int64[::1]"
 _B2 = "boolean[:, ::1]"
-_LF = f"({_F2}, {_F1}, {_F1}, {_F1}, float64, float64, uint16[:, ::1], {_F1}, float64, float64)"
+_LF = (
+    f"({_F2}, {_F1}, {_F1}, {_F1}, float64, float64, uint16[:, ::1], {_F1}, float64, float64, "
+    "float64)"
+)
 _BEAMS = f"{_F2}, {_F1}, {_F1}, {_F1}, {_F1}, float64, float64, float64"
 _MIXTURE = "float64, float64, float64, boolean"
 _THROUGH = f"({_F2}, {_F1}, {_F1}, {_F1}, {_F1}, {_B2}, {_F2}, float64, float64, float64)"
