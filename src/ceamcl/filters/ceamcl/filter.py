@@ -1421,7 +1421,8 @@ class CEAMCL:
         Departure 41: while the estimate has stayed on the anchor since (the window), until
         the leader has read LOCALISED at every update over ``far_confirm_m`` of travel or
         ``far_confirm_rad`` of turning (a read that is not LOCALISED starts the count again);
-        both ``None``: departure 40 alone, one update."""
+        both ``None``: departure 40 alone, one update. Advances the count (``_streak``): call it
+        once an update."""
         cfg = self.config
         if cfg.far_confirm_m is None and cfg.far_confirm_rad is None:
             return coasted
@@ -1572,9 +1573,10 @@ class CEAMCL:
             )
         elif self._unconfirmed_at == self.t:
             why = (
-                f"{far}, and the leader reads LOCALISED for the first time since the estimate "
-                f"coasted on that pose: the estimate stays there for this update ({share:.0%} "
-                f"of the weight by this scan's fit, the leader {1.0 - share:.0%})"
+                f"{far}, and the leader has not read LOCALISED long enough since the estimate "
+                f"coasted on that pose (at two updates, over a stride of motion): the estimate "
+                f"stays there for now ({share:.0%} of the weight by this scan's fit, the "
+                f"leader {1.0 - share:.0%})"
             )
         else:
             why = (
