@@ -135,4 +135,69 @@ def test_a_step_backwards_widens_the_heading_search_no_more_than_a_step_forwards
     assert look_around_reach(cfg, back) == pytest.approx(
         look_around_reach(cfg, increment_between(here, ahead))
     )
-    assert look_around_reach(cfg, back)[1] < 3.0 * cfg.look_around_rad
+    assert look_around_reach(cfg, back)[1] < cfg.look_around_max_rad
+
+
+def _overturned(max_rad: float, seed: int) -> tuple[float, int, str]:
+    """small-office, tracked from the true pose at step 74 of the tour, where the robot turns
+    0.3 rad over 8 steps: the odometry reports the turn 0.6 rad too large, with an odometry
+    model of alpha 0.02 (a user who trusts their wheels), so no sample of the species lies
+    near the truth. Returns the heading error after the update, the look-arounds and the
+    state."""
+    log, world = _office()
+    truth = log.true_poses
+    config = replace(CEAMCLConfig(), look_around_max_rad=max_rad)
+    f = CEAMCL(
+        world,
+        OdometryMotionModel(OdometryNoise(0.02, 0.02, 0.02, 0.02)),
+        LikelihoodFieldModel(world),
+        config,
+        rng=np.random.default_rng(seed),
+    )
+    f.initialise_pose(truth[74], np.diag([0.03**2, 0.03**2, 0.02**2]))
+    f.step(STILL, log.scan(74))
+    true = increment_between(truth[74], truth[82])
+    reported = OdometryIncrement(true.rot1, true.trans, true.rot2 + 0.6)
+    record = f.step(reported, log.scan(82))
+    heading = f.estimate().pose[2] - truth[82][2]
+    looks = int(record.columns()["look_arounds"])
+    return float(abs(np.angle(np.exp(1j * heading)))), looks, f.state().state.name
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_turn_the_odometry_overstates_is_found_within_a_strides_reach(seed: int) -> None:
+    """Departure 42: when nothing within the first 0.3 rad fits clearly better, the
+    look-around searches the turns beyond, out to what its rule gives for Nav2's stride of
+    turning (0.5 rad). Measured: 0.01-0.04 rad off and LOCALISED (seeds 1-3); with the first
+    search alone (``look_around_max_rad`` at its 0.3 rad) 0.57 rad off and LOST."""
+    error, looks, state = _overturned(CEAMCLConfig().look_around_max_rad, seed)
+    assert looks == 1
+    assert error < 0.1
+    assert state == "LOCALISED"
+    near_only, looks, state = _overturned(3.0 * CEAMCLConfig().look_around_rad, seed)
+    assert near_only > 0.3 and looks == 0 and state == "LOST"
+
+
+def test_a_reach_a_fraction_of_a_step_past_the_first_search_adds_no_turn() -> None:
+    """A turn whose reach passes 0.3 rad by less than a step of the heading grid leaves the
+    wider search empty: nothing is scored twice, and nothing fails (a kidnap scan puts the
+    species in doubt, so both searches are asked)."""
+    log, world = _office()
+    truth = log.true_poses
+    cfg = CEAMCLConfig()
+    turn = OdometryIncrement(0.0, 0.0, 0.105)
+    _, spread = look_around_reach(cfg, turn)
+    assert 3.0 * cfg.look_around_rad < spread < 3.0 * cfg.look_around_rad + cfg.look_around_step_rad
+    f = _filter(world, cfg.look_around_m, 1)
+    f.initialise_pose(truth[150], np.diag([0.03**2, 0.03**2, 0.02**2]))
+    f.step(STILL, log.scan(150))
+    far = int(np.argmax(np.hypot(*(truth[:, :2] - truth[150, :2]).T) > 3.0))
+    record = f.step(turn, log.scan(far))
+    assert record.columns()["look_arounds"] == 0
+    assert f.state().state.name == "LOST"
+
+
+@pytest.mark.parametrize("bad", [0.05, 4.0, float("nan")])
+def test_the_look_arounds_turn_reach_is_checked(bad: float) -> None:
+    with pytest.raises(ValueError, match="look_around_max_rad"):
+        CEAMCLConfig(look_around_max_rad=bad)

@@ -310,8 +310,11 @@ class CEAMCLConfig:
         look_around_m: a lone species in doubt (above) also scores a grid of poses around
             its best pose, within this many metres plus ``look_around_gain`` times the
             odometry's translation since the last update (at most ``look_around_max_m``) and
-            ``look_around_rad`` plus the gain times its rotation (at most three times
-            ``look_around_rad``), ``look_around_step_m`` and ``look_around_step_rad`` apart;
+            ``look_around_rad`` plus the gain times its rotation, ``look_around_step_m`` and
+            ``look_around_step_rad`` apart: first the turns within three times
+            ``look_around_rad``, then, when nothing there is found, those beyond, out to
+            ``look_around_max_rad`` (by default what the rule gives for Nav2's stride of
+            turning, 0.2 rad: departure 42);
             when the best beats the species' best pose by ``look_around_margin`` (tempered
             log-likelihood, every beam) and, refined, fits (``confirm_fit_below``), the
             worst ``look_around_share`` of the samples are drawn again around it. ``None``:
@@ -405,6 +408,7 @@ class CEAMCLConfig:
     look_around_step_m: float = 0.1
     look_around_rad: float = 0.1
     look_around_step_rad: float = 0.05
+    look_around_max_rad: float = 0.1 + 2.0 * STRIDE_RAD  # departure 42: one stride's turn
     look_around_margin: float = 3.0
     look_around_share: float = 0.5
 
@@ -464,6 +468,7 @@ class CEAMCLConfig:
             "look_around_step_m": 0.01 <= self.look_around_step_m <= self.look_around_max_m,
             "look_around_rad": 0 <= self.look_around_rad <= np.pi / 3,
             "look_around_step_rad": 0.005 <= self.look_around_step_rad <= np.pi / 3,
+            "look_around_max_rad": self.look_around_rad <= self.look_around_max_rad <= np.pi,
             "look_around_margin": self.look_around_margin >= 0,
             "look_around_share": 0 < self.look_around_share <= 1,
             "recovery_ratio": 0 < self.recovery_ratio < 1,

@@ -691,8 +691,8 @@ class CEAMCL:
         around its best pose before the state calls the robot lost. Every pose of a grid
         (``look_around_step_m``, ``look_around_step_rad``) within ``look_around_m`` plus
         ``look_around_gain`` times the odometry's translation (at most ``look_around_max_m``)
-        and ``look_around_rad`` plus the gain times its rotation (at most three times
-        ``look_around_rad``) is scored on every beam of the scan. When the best of them
+        and ``look_around_rad`` plus the gain times its rotation (at most
+        ``look_around_max_rad``) is scored on every beam of the scan. When the best of them
         beats the species' best pose by ``look_around_margin`` in tempered log-likelihood
         (refined, also after both pay for their readings through the map's walls,
         ``see_through_margin_m``: departure 32) and fits as the state reads a lone species
@@ -715,16 +715,57 @@ class CEAMCL:
         top = int(idx[np.argmax(ps.loglik[idx])])
         centre = self._peaks.get(sid, ps.poses[top])
         radius, spread = look_around_reach(cfg, increment)
+        near = min(3.0 * cfg.look_around_rad, spread)  # the first search's turn
         offsets = _look_around_offsets(
-            radius, cfg.look_around_step_m, spread, cfg.look_around_step_rad
+            radius, cfg.look_around_step_m, near, cfg.look_around_step_rad
         )
+        found, evaluations, here = self._search_around(centre, offsets, full, None)
+        if found is None and spread > near:
+            # departure 42: nothing near fits clearly better; the turns beyond, out to the reach
+            wide = _look_around_offsets(
+                radius, cfg.look_around_step_m, spread, cfg.look_around_step_rad
+            )
+            wide = wide[np.abs(wide[:, 2]) > near + 0.5 * cfg.look_around_step_rad]
+            if wide.size:  # none when the reach adds less than a step of turn
+                found, more, _ = self._search_around(centre, wide, full, here)
+                evaluations += more
+        if found is None:
+            return evaluations
+        pose, fit, there = found
+        k = max(1, round(cfg.look_around_share * idx.size))
+        worst = idx[np.argsort(ps.loglik[idx], kind="stable")[:k]]
+        ps.poses[worst] = self._mutation_cloud(pose, k)
+        ps.loglik[idx] = sanitise_log_likelihood(self.sensor.log_likelihood(ps.poses[idx], there))
+        ps.fitness[idx] = fitness(ps.loglik[idx], there, self.sensor)
+        evaluations += int(idx.size)
+        self._prepared = there
+        self._peaks[sid] = pose.copy()
+        self._peak_fitness[sid] = fit
+        self.events.look_arounds += 1
+        return evaluations
+
+    def _search_around(
+        self,
+        centre: NDArray[np.float64],
+        offsets: NDArray[np.float64],
+        full: PreparedScan,
+        here: float | None,
+    ) -> tuple[tuple[NDArray[np.float64], float, PreparedScan] | None, int, float]:
+        """One grid of :meth:`_look_around`: the poses ``centre + offsets`` scored on every
+        beam; the best, refined on a grid a quarter as fine, is found when it beats the centre
+        (``here``, its tempered log-likelihood; ``None``: read from the grid, which holds the
+        centre) by ``look_around_margin``, also once both pay for their readings through
+        walls, and fits as the state reads a lone species. Returns the found pose with its
+        fitness and the beams it keeps (or ``None``), the evaluations, and ``here``."""
+        cfg = self.config
         cands = centre + offsets
         cands[:, 2] = angles.wrap(cands[:, 2])
         ll = sanitise_log_likelihood(self.sensor.log_likelihood(cands, full))
         evaluations = int(ll.size)
-        here = float(ll[np.flatnonzero(~offsets.any(axis=1))[0]])  # the grid holds the centre
+        if here is None:
+            here = float(ll[np.flatnonzero(~offsets.any(axis=1))[0]])
         if not ll.max() - here >= cfg.look_around_margin:
-            return evaluations
+            return None, evaluations, here
         # refine the best grid pose on a grid a quarter as fine, then ask that it fits
         coarse = cands[int(np.argmax(ll))]
         fine = coarse + _look_around_offsets(
@@ -741,7 +782,7 @@ class CEAMCL:
         # the readings they send through the map's walls, as the evidence weighs them
         lost = self._through_walls(np.vstack([found, centre]))
         if (float(lf.max()) + lost[0]) - (here + lost[1]) < cfg.look_around_margin:
-            return evaluations
+            return None, evaluations, here
         # the found pose's fitness as the state reads a lone species': without the short
         # readings it cannot explain (beam skipping)
         there = full
@@ -752,18 +793,8 @@ class CEAMCL:
         evaluations += 1
         bar = cfg.confirm_fit_below if cfg.confirm_fit_below is not None else 0.0
         if fit < bar:
-            return evaluations
-        k = max(1, round(cfg.look_around_share * idx.size))
-        worst = idx[np.argsort(ps.loglik[idx], kind="stable")[:k]]
-        ps.poses[worst] = self._mutation_cloud(found, k)
-        ps.loglik[idx] = sanitise_log_likelihood(self.sensor.log_likelihood(ps.poses[idx], there))
-        ps.fitness[idx] = fitness(ps.loglik[idx], there, self.sensor)
-        evaluations += int(idx.size)
-        self._prepared = there
-        self._peaks[sid] = found.copy()
-        self._peak_fitness[sid] = fit
-        self.events.look_arounds += 1
-        return evaluations
+            return None, evaluations, here
+        return (found, fit, there), evaluations, here
 
     def _through_walls(self, poses: NDArray[np.float64]) -> NDArray[np.float64]:
         """Per pose, what the last scan's readings through the map's walls cost it in tempered
@@ -1672,12 +1703,12 @@ HOLD_STEP_RAD = 0.05
 def look_around_reach(cfg: CEAMCLConfig, increment: OdometryIncrement) -> tuple[float, float]:
     """How far the look-around searches around a species' peak: ``look_around_m`` plus the gain
     times the step's travel (at most ``look_around_max_m``), and ``look_around_rad`` plus the
-    gain times its turn (at most three times ``look_around_rad``). The turn is the motion
+    gain times its turn (at most ``look_around_max_rad``). The turn is the motion
     model's (:attr:`OdometryIncrement.turns`): a step backwards, ``rot1`` = pi, is no turn."""
     assert cfg.look_around_m is not None
     radius = min(cfg.look_around_max_m, cfg.look_around_m + cfg.look_around_gain * increment.trans)
     turn = sum(increment.turns)
-    spread = min(3.0 * cfg.look_around_rad, cfg.look_around_rad + cfg.look_around_gain * turn)
+    spread = min(cfg.look_around_max_rad, cfg.look_around_rad + cfg.look_around_gain * turn)
     return radius, spread
 
 
