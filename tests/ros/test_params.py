@@ -177,8 +177,15 @@ def test_what_the_parameters_set_wins_over_a_presets_tuning() -> None:
     """A preset's tuned laser settings and particle count stand where the parameters leave
     them at Nav2's defaults; where the parameters set them, the user's values win (they were
     overwritten by the preset's, without a word)."""
+    from ceamcl.filters.registry import get
+
+    preset = get("mcl-tuned")
     tuned = _built({"algorithm": "mcl-tuned"})
-    assert (tuned.sensor.config.max_beams, tuned.config.n_particles) == (30, 5000)
+    assert (tuned.sensor.config.max_beams, tuned.sensor.config.temper) == (
+        preset.sensor_settings["max_beams"],
+        preset.sensor_settings["temper"],
+    )
+    assert tuned.config.n_particles == preset.default_config().n_particles == 5000
     chosen = _built({"algorithm": "mcl-tuned", "max_beams": 90, "laser_temper": 0.5})
     assert (chosen.sensor.config.max_beams, chosen.sensor.config.temper) == (90, 0.5)
     assert _built({"algorithm": "mcl-tuned", "max_particles": 1500}).config.n_particles == 1500

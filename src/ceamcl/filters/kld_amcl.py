@@ -625,9 +625,9 @@ TUNED_ALGORITHM = Algorithm(
     "kld-amcl-tuned",
     KLDAMCLConfig,
     KLDAMCL,
-    default_config=lambda: _with_particles(KLDAMCLConfig(init_test_poses=100_000), 5000),
+    default_config=lambda: _with_particles(KLDAMCLConfig(init_test_poses=1_000_000), 5000),
     with_particles=_with_particles,
-    sensor_settings={"max_beams": 60},
+    sensor_settings={"max_beams": 30},
     summary="KLD-AMCL with the tuning sweep's best max_particles, start and beams (docs/tuning.md)",
 )
 

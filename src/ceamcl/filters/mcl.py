@@ -255,7 +255,7 @@ TUNED_ALGORITHM = Algorithm(
         n_particles=5000, init_test_poses=1_000_000, init_headings=HeadingPrior()
     ),
     with_particles=lambda cfg, n: replace(cfg, n_particles=n),
-    sensor_settings={"max_beams": 30, "temper": 0.2},
+    sensor_settings={"max_beams": 60, "temper": 0.1},
     summary="MCL with the tuning sweep's best particles, start and sensor settings "
     "(docs/tuning.md)",
 )
