@@ -264,9 +264,11 @@ def run(args: argparse.Namespace, console: Console) -> int:
         console.print(plain_table(title, header, rows))
         if pace is not None:  # most scans only add their odometry: the median step is ~0 ms
             updates = ", ".join(
-                f"{row['algorithm']} {fmt(row['mean_update_ms'], 1, '-')} ms" for row in ev.table
+                f"{row['algorithm']} {fmt(row['mean_update_ms'], 1, '-')} / "
+                f"{fmt(row['median_update_ms'], 1, '-')} ms"
+                for row in ev.table
             )
-            console.print(f"mean update (the scans that updated the filter): {updates}")
+            console.print(f"update mean / median (the scans that updated the filter): {updates}")
         for note in registry.global_notes(row["algorithm"] for row in ev.table):
             console.print(note, highlight=False)
         console.print(f"results written to [bold]{escape(str(ev.out_dir))}[/]")

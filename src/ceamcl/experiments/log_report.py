@@ -45,6 +45,7 @@ _CSV_FIELDS = (
     "initialisation_ms",
     "updates",
     "mean_update_ms",
+    "median_update_ms",
     "likelihood_evaluations",
 )
 #: The columns of ``evaluate.md`` that measure global localisation (the rest: its cost).
@@ -136,9 +137,9 @@ def evaluation_markdown(
         "scans to converge | distance to converge [m] | position RMSE [m] | "
         "RMSE from first [m] | heading RMSE [rad] | mean particles | mean step [ms] | "
         "median step [ms] | "
-        "initialisation [ms] | updates per run | mean update [ms] | "
+        "initialisation [ms] | updates per run | mean update [ms] | median update [ms] | "
         "likelihood evaluations per run |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     digits = {
         "time_to_converge_s": 1,
@@ -153,6 +154,7 @@ def evaluation_markdown(
         "initialisation_ms": 0,
         "updates_per_run": 0,
         "mean_update_ms": 1,
+        "median_update_ms": 1,
         "likelihood_evaluations": 0,
     }
     for row in ev.table:
