@@ -137,12 +137,12 @@ def _trial(algorithm: str, steps_ms: list[float]) -> LogTrialResult:
         mean_step_ms=float(steps.mean()),
         initialisation_ms=900.0,
         updates=steps.size,
-        mean_update_ms=float(steps.mean()),
         likelihood_evaluations=nan,
         elapsed_s=np.zeros(0),
         position_errors=np.zeros(0),
         heading_errors=np.zeros(0),
         step_ms=steps,
+        update_ms=steps,
     )
 
 
@@ -154,6 +154,8 @@ def test_the_median_step_pools_every_scan_and_ignores_a_recovery_spike() -> None
     assert row["median_step_ms"] == 2.0  # the 8 scans pooled: 1, 1, 1, 2, 2, 2, 2, 2500
     assert row["mean_step_ms"] == np.mean([np.mean([1.0, 1.0, 2500.0, 1.0]), 2.0])
     assert row["mean_step_ms"] > 100 * row["median_step_ms"]
+    # every scan updated these filters: the updates pool the same way
+    assert row["median_update_ms"] == 2.0 and row["mean_update_ms"] == row["mean_step_ms"]
 
 
 def test_the_error_figure_keeps_every_window_to_its_end() -> None:

@@ -80,7 +80,6 @@ class LogTrialResult:
     mean_step_ms: float
     initialisation_ms: float
     updates: int
-    mean_update_ms: float
     #: poses scored against a scan over the run, the global initialisation included (NaN for
     #: a filter that does not count them: the Nav2 peer)
     likelihood_evaluations: float
@@ -89,13 +88,19 @@ class LogTrialResult:
     heading_errors: NDArray[np.float64] = field(repr=False)
     #: every scan's step time after the initialisation (a held-back scan costs 0)
     step_ms: NDArray[np.float64] = field(repr=False)
-    #: the time of each scan that updated the filter (the runner's ``update_ms``)
-    update_ms: NDArray[np.float64] = field(default_factory=lambda: np.empty(0), repr=False)
+    #: the time of each scan that updated the filter (the runner's ``update_ms``: ``[0.0]``
+    #: when none did)
+    update_ms: NDArray[np.float64] = field(repr=False)
 
     @property
     def median_step_ms(self) -> float:
         """The median over the run's scans (the initialisation, its own column, excluded)."""
         return float(np.median(self.step_ms)) if self.step_ms.size else math.nan
+
+    @property
+    def mean_update_ms(self) -> float:
+        """The mean over the scans that updated the filter."""
+        return float(self.update_ms.mean()) if self.update_ms.size else math.nan
 
     @property
     def median_update_ms(self) -> float:
@@ -144,7 +149,6 @@ def run_log_trial(trial: LogTrial) -> LogTrialResult:
         mean_step_ms=float(result.step_ms.mean()),
         initialisation_ms=float(result.diagnostics[0].step_ms),
         updates=result.updates,
-        mean_update_ms=float(result.update_ms.mean()),
         likelihood_evaluations=_evaluations(result),
         # the scans with truth only (all of a corrected log's; a raw log's matched scans)
         elapsed_s=(result.times - result.times[0])[known],
@@ -189,6 +193,12 @@ class Evaluation:
     sensor: str = DEFAULT_SENSOR
 
 
+def _pooled_median(times: Sequence[NDArray[np.float64]]) -> float:
+    """The median over the values of every run together (NaN when there are none)."""
+    pooled = np.concatenate(times) if times else np.empty(0)
+    return float(np.median(pooled)) if pooled.size else math.nan
+
+
 def aggregate(results: Sequence[LogTrialResult], algorithms: Sequence[str]) -> list[dict[str, Any]]:
     """Per algorithm: success rate, time/scans to converge, RMSEs, particles, step time."""
     rows = []
@@ -223,14 +233,9 @@ def aggregate(results: Sequence[LogTrialResult], algorithms: Sequence[str]) -> l
                 "mean_step_ms": mean([r.mean_step_ms for r in rs]),
                 # over every scan of every run: a recovery's long update moves the mean, not
                 # the median a robot meets at most scans
-                "median_step_ms": float(np.median(np.concatenate([r.step_ms for r in rs])))
-                if any(r.step_ms.size for r in rs)
-                else math.nan,
+                "median_step_ms": _pooled_median([r.step_ms for r in rs]),
                 "mean_update_ms": mean([r.mean_update_ms for r in rs]),
-                # over every update of every run, as the median step over every scan
-                "median_update_ms": float(np.median(np.concatenate([r.update_ms for r in rs])))
-                if any(r.update_ms.size for r in rs)
-                else math.nan,
+                "median_update_ms": _pooled_median([r.update_ms for r in rs]),
                 "updates_per_run": mean([float(r.updates) for r in rs]),
                 "initialisation_ms": mean([r.initialisation_ms for r in rs]),
                 "likelihood_evaluations": mean([r.likelihood_evaluations for r in rs]),
