@@ -183,6 +183,35 @@ def test_evaluate_log_cli_small(tmp_path: Path) -> None:
     assert (out / "errors.png").is_file() and (out / "success.png").is_file()
 
 
+def test_evaluate_log_compares_evaluations_where_both_localised(tmp_path: Path) -> None:
+    """Issue 17's "at equal success": evaluate.md compares the first algorithm's likelihood
+    evaluations with each other's over the windows both localised, as evaluate.csv has them."""
+    out = tmp_path / "ev"
+    argv = ["evaluate-log", str(log_path("intel")), "--starts", "3", "--scans", "8"]
+    argv += ["--hold", "3", "--algorithms", "mcl-tuned", "mcl", "--executor", "serial"]
+    assert main([*argv, "--out", str(out), "--quiet"]) == 0
+    with (out / "evaluate.csv").open() as fh:
+        runs = {(r["algorithm"], r["start_index"]): r for r in csv.DictReader(fh)}
+    both = [
+        s
+        for (a, s), r in runs.items()
+        if a == "mcl" and r["success"] == "True" and runs[("mcl-tuned", s)]["success"] == "True"
+    ]
+    text = (out / "evaluate.md").read_text()
+    assert "## Likelihood evaluations at equal success" in text
+    (line,) = [ln for ln in text.splitlines() if ln.startswith("| mcl-tuned / mcl |")]
+    cells = [c.strip() for c in line.split("|")[2:-1]]
+    assert int(cells[0]) == len(both)
+    if both:  # the pair's means, from the runs' own counts
+        mine = np.mean([float(runs[("mcl-tuned", s)]["likelihood_evaluations"]) for s in both])
+        theirs = np.mean([float(runs[("mcl", s)]["likelihood_evaluations"]) for s in both])
+        assert float(cells[1]) == pytest.approx(mine, abs=0.5)
+        assert float(cells[2]) == pytest.approx(theirs, abs=0.5)
+        assert float(cells[3]) == pytest.approx(mine / theirs, abs=5e-4)
+    else:
+        assert cells[3] == "-"
+
+
 @pytest.mark.skipif(not peers_available(), reason="Nav2 AMCL wheel not installed")
 def test_evaluate_log_says_nav2_amcl_is_not_comparable_in_global_localisation(
     tmp_path: Path,

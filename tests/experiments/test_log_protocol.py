@@ -11,7 +11,12 @@ import numpy as np
 import pytest
 
 from ceamcl.errors import ConfigError
-from ceamcl.experiments.evaluate_log import LogTrialResult, aggregate, confidently_wrong
+from ceamcl.experiments.evaluate_log import (
+    LogTrialResult,
+    aggregate,
+    confidently_wrong,
+    paired_evaluations,
+)
 from ceamcl.experiments.log_windows import start_windows
 from ceamcl.experiments.metrics import score_errors
 from ceamcl.io.recorded import RecordedLog
@@ -171,3 +176,47 @@ def test_the_error_figure_keeps_every_window_to_its_end() -> None:
     np.testing.assert_array_equal(err[0, :3], [3.0, 2.0, 1.0])
     assert np.isnan(err[0, 3:]).all()
     np.testing.assert_array_equal(err[1], [5.0, 5.0, 4.0, 4.0, 0.2, 0.2, 0.1])
+
+
+def test_evaluations_at_equal_success_count_only_the_windows_both_localised() -> None:
+    """Issue 17 compares evaluations "at equal success": over the windows where both
+    algorithms localised, not the means over every run, which count one's failures too."""
+    from dataclasses import replace
+
+    def run(algorithm: str, start: int, ok: bool, evaluations: float) -> LogTrialResult:
+        return replace(
+            _trial(algorithm, [1.0]),
+            start_index=start,
+            success=ok,
+            likelihood_evaluations=evaluations,
+        )
+
+    runs = [
+        run("ceamcl", 0, True, 100.0),
+        run("mcl-tuned", 0, True, 1000.0),
+        run("ceamcl", 1, True, 300.0),  # mcl-tuned failed here: not compared
+        run("mcl-tuned", 1, False, 5000.0),
+        run("ceamcl", 2, False, 900.0),  # ceamcl failed here: not compared
+        run("mcl-tuned", 2, True, 2000.0),
+        run("ceamcl", 3, True, 200.0),
+        run("mcl-tuned", 3, True, 1000.0),
+        run("nav2-amcl", 0, True, math.nan),  # no global localisation: never compared
+    ]
+    (row,) = paired_evaluations(runs, ["ceamcl", "mcl-tuned", "nav2-amcl"])
+    assert (row["algorithm"], row["against"], row["windows"]) == ("ceamcl", "mcl-tuned", 2)
+    assert row["evaluations"] == 150.0 and row["against_evaluations"] == 1000.0
+    assert row["ratio"] == 0.15
+    # over every run the means differ: the pairing is what changes the figure
+    means = {
+        r["algorithm"]: r["likelihood_evaluations"]
+        for r in aggregate(runs, ["ceamcl", "mcl-tuned"])
+    }
+    assert means["ceamcl"] / means["mcl-tuned"] != row["ratio"]
+    # the order names the reference; one algorithm alone compares with nothing
+    (back,) = paired_evaluations(runs, ["mcl-tuned", "ceamcl"])
+    assert back["ratio"] == 1000.0 / 150.0
+    assert paired_evaluations(runs, ["ceamcl"]) == []
+    assert paired_evaluations(runs, ["ceamcl", "nav2-amcl"]) == []
+    # no window both localised: a row that says so, without a ratio
+    (none,) = paired_evaluations(runs[4:6], ["ceamcl", "mcl-tuned"])
+    assert none["windows"] == 0 and math.isnan(none["ratio"])

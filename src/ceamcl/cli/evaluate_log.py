@@ -269,6 +269,13 @@ def run(args: argparse.Namespace, console: Console) -> int:
                 for row in ev.table
             )
             console.print(f"update mean / median (the scans that updated the filter): {updates}")
+        for row in ev.paired:  # issue 17's "at equal success"
+            console.print(
+                f"evaluations where both localised ({row['windows']} windows): "
+                f"{row['algorithm']} {fmt(row['evaluations'], 0, '-')}, {row['against']} "
+                f"{fmt(row['against_evaluations'], 0, '-')}, ratio {fmt(row['ratio'], 3, '-')}",
+                markup=False,
+            )
         for note in registry.global_notes(row["algorithm"] for row in ev.table):
             console.print(note, highlight=False)
         console.print(f"results written to [bold]{escape(str(ev.out_dir))}[/]")

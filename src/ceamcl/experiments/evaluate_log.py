@@ -31,7 +31,7 @@ from ceamcl.experiments.metrics import (
     score_errors,
     within,
 )
-from ceamcl.filters.registry import DEFAULT_SENSOR, check_sensor
+from ceamcl.filters.registry import DEFAULT_SENSOR, check_sensor, localises_globally
 from ceamcl.io.recorded import RecordedLog
 from ceamcl.io.results import ensure_output_dir
 from ceamcl.io.truth_check import TruthDoubt, doubtful_truth
@@ -191,6 +191,9 @@ class Evaluation:
     out_dir: Path | None
     update_policy: str = "every scan"
     sensor: str = DEFAULT_SENSOR
+    #: :func:`paired_evaluations`: the evaluations of the first algorithm beside each other's
+    #: over the windows both localised
+    paired: list[dict[str, Any]] = field(default_factory=list)
 
 
 def _pooled_median(times: Sequence[NDArray[np.float64]]) -> float:
@@ -239,6 +242,40 @@ def aggregate(results: Sequence[LogTrialResult], algorithms: Sequence[str]) -> l
                 "updates_per_run": mean([float(r.updates) for r in rs]),
                 "initialisation_ms": mean([r.initialisation_ms for r in rs]),
                 "likelihood_evaluations": mean([r.likelihood_evaluations for r in rs]),
+            }
+        )
+    return rows
+
+
+def paired_evaluations(
+    results: Sequence[LogTrialResult], algorithms: Sequence[str]
+) -> list[dict[str, Any]]:
+    """Likelihood evaluations at equal success: the first algorithm of ``algorithms`` that
+    localises globally beside each other one that does, over the windows where both localised
+    (issue 17's "at equal success"; the per-algorithm means of :func:`aggregate` also count
+    the windows one of them failed). A row per other algorithm: ``windows`` both localised,
+    each one's mean evaluations there and ``ratio`` (the first's over the other's; NaN where
+    a filter does not count its evaluations or no window qualifies)."""
+    scored = [a for a in dict.fromkeys(algorithms) if localises_globally(a)]
+    if len(scored) < 2:
+        return []
+    first, others = scored[0], scored[1:]
+    ok = {(r.algorithm, r.start_index): r for r in results if r.success}
+    rows = []
+    for other in others:
+        both = sorted(s for (a, s) in ok if a == first and (other, s) in ok)
+        mine = [ok[(first, s)].likelihood_evaluations for s in both]
+        theirs = [ok[(other, s)].likelihood_evaluations for s in both]
+        a = float(np.mean(mine)) if both else math.nan
+        b = float(np.mean(theirs)) if both else math.nan
+        rows.append(
+            {
+                "algorithm": first,
+                "against": other,
+                "windows": len(both),
+                "evaluations": a,
+                "against_evaluations": b,
+                "ratio": a / b if b > 0 else math.nan,
             }
         )
     return rows
@@ -335,6 +372,7 @@ def evaluate_log(
         out_dir,
         "every scan" if pace is None else pace.describe(),
         sensor,
+        paired_evaluations(results, algorithms),
     )
     if out_dir is not None:
         doubt = truth_doubt or doubtful_truth(log, grid)

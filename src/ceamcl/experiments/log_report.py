@@ -4,7 +4,7 @@ algorithm), ``errors.png`` and ``success.png``."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from ceamcl.experiments.common import fmt, write_csv, write_text
 from ceamcl.experiments.metrics import HEADING_TOL_RAD, HOLD_STEPS, POSITION_TOL_M
@@ -173,8 +173,36 @@ def evaluation_markdown(
         lines.append(
             f"| {algo} | {row['runs']} | {success} | {wrong} | " + " | ".join(cells) + " |"
         )
+    lines.extend(_paired_lines(ev.paired))
     for note in global_notes(row["algorithm"] for row in ev.table):
         lines.append(f"\n{note} (its measured figures are in `evaluate.csv`)")
     for algo, why in ev.skipped.items():
         lines.append(f"\n{algo} skipped: {why}")
     return "\n".join(lines) + "\n"
+
+
+def _paired_lines(paired: list[dict[str, Any]]) -> list[str]:
+    """The section of ``evaluate.md`` that compares likelihood evaluations at equal success
+    (:func:`~ceamcl.experiments.evaluate_log.paired_evaluations`), or nothing."""
+    if not paired:
+        return []
+    first = paired[0]["algorithm"]
+    lines = [
+        "",
+        "## Likelihood evaluations at equal success",
+        "",
+        f"Over the windows where both {first} and the other algorithm localised, the mean "
+        "likelihood evaluations a run of each (the global initialisation included) and "
+        f"{first}'s as a share of the other's. The table above averages over every run, the "
+        "failed ones too.",
+        "",
+        "| pair | windows both localised | evaluations a run, first | the other's | ratio |",
+        "|---|---:|---:|---:|---:|",
+    ]
+    for row in paired:
+        lines.append(
+            f"| {first} / {row['against']} | {row['windows']} | "
+            f"{fmt(row['evaluations'], 0, '-')} | {fmt(row['against_evaluations'], 0, '-')} | "
+            f"{fmt(row['ratio'], 3, '-')} |"
+        )
+    return lines
