@@ -637,3 +637,22 @@ def test_run_demo_defaults_to_the_algorithm_of_ceamcl_demo() -> None:
     args = build_parser().parse_args(["demo"])
     assert args.algorithm == DEFAULT_ALGORITHM == "ceamcl"
     assert inspect.signature(run_demo).parameters["algorithm"].default == args.algorithm
+
+
+def test_a_narrow_console_folds_the_names_of_a_table_instead_of_cutting_them() -> None:
+    """On a 100-column console evaluate-log's table cut "mcl-tuned" to "mcl-tu…": the row's
+    name is what a reader needs most, so the name column folds and keeps every letter."""
+    from rich.console import Console
+
+    from ceamcl.cli.common import plain_table
+
+    header = ("algorithm", *(f"figure {i} [unit]" for i in range(9)))
+    names = ("ceamcl", "mcl-tuned", "kld-amcl-tuned")
+    table = plain_table("t", header, [(n, *("123.456" for _ in range(9))) for n in names])
+    console = Console(width=100, record=True)
+    console.print(table)
+    lines = console.export_text().splitlines()
+    assert max(len(line) for line in lines) <= 100
+    # the first column of every line, joined row by row, spells the names whole
+    cells = [line.split("│")[1].strip() for line in lines if line.startswith("│")]
+    assert "".join(cells) == "".join(names)

@@ -285,7 +285,12 @@ def plain_table(
     first ``left`` columns are left-aligned, the others right-aligned."""
     table = Table(title=Text(title))
     for i, name in enumerate(header):
-        table.add_column(Text(name), justify="left" if i < left else "right")
+        # a name column folds on a narrow console (mcl-tuned over two lines, not "mcl-tu…")
+        table.add_column(
+            Text(name),
+            justify="left" if i < left else "right",
+            overflow="fold" if i < left else "ellipsis",
+        )
     for row in rows:
         table.add_row(*(Text(cell) for cell in row))
     return table
