@@ -116,6 +116,11 @@ class CEAMCLConfig:
             the step before, moved by the odometry, when it lies within ``evidence_warm_gate``
             mutation Sigmas of the best sample in every coordinate (docs/ceamcl.md, departure
             6).
+        evidence_climb_at_start: the climb also runs at the scan a global initialisation
+            or a recovery starts from, so the species' first evidence is how well each can
+            explain that scan, as at every later update, not how near its polished samples
+            happen to sit to its peak (docs/ceamcl.md, departure 43; ``False``: the first
+            evidence is the best sample's, as before 2026-12-03).
         viable_fit_margin, viable_size, viable_weight_min, viable_memory: while the filter is
             ambiguous (at least two species hold ``viable_weight_min`` of the weight each), a
             species whose fitness (its fittest individual's, or its climb's peak) is within
@@ -364,6 +369,7 @@ class CEAMCLConfig:
     evidence_shrink: float = 0.6
     evidence_warm_start: bool = True
     evidence_warm_gate: float = 3.0
+    evidence_climb_at_start: bool = True
     viable_fit_margin: float | None = 0.02
     viable_size: int = 6
     viable_weight_min: float = DEFAULT_THRESHOLDS.weight_min

@@ -113,6 +113,8 @@ from ceamcl.sensors.see_through import see_through_penalty
 #: A species' log-weight never falls below this (exp of it is still a positive number, so
 #: shares stay well defined; the competition has long ended such a species).
 LOG_WEIGHT_FLOOR = -700.0
+#: the motion a climb at the scan of a start carries the last peaks by: none (departure 43)
+_STANDING = OdometryIncrement(0.0, 0.0, 0.0)
 #: ``CEAMCL._held`` before any update has judged the anchor: nothing held.
 _NOT_HELD: tuple[int, None, None, float] = (0, None, None, float("nan"))
 _NO_ESTIMATE: tuple[int, int, None] = (-1, -1, None)
@@ -313,9 +315,15 @@ class CEAMCL:
         # "for each species i, let dN_0 / dt = 0": competition starts after the first step.
         sids = range(first, self._next_id)
         self.competition = Competition({sid: 0.0 for sid in sids})
-        # each species' evidence so far: the first scan's mean likelihood over its samples
+        # each species' evidence so far: how well it can explain the first scan, its best
+        # sample's likelihood raised by the climb every later update makes (departure 43)
         self.log_weight = {}
-        self._accumulate_evidence(label_groups(labels), memory=0.0)
+        members = label_groups(labels)
+        best_seen = None
+        if self.config.evidence_climb_at_start and prepared is not None and prepared.n_beams:
+            best_seen = loglik.copy()
+            self._evaluations += self._probe_peaks(members, best_seen, prepared, _STANDING)
+        self._accumulate_evidence(members, memory=0.0, best_seen=best_seen)
         self.log_prior = {}
         if kept is not None:
             old, evidence, old_priors = kept
