@@ -322,7 +322,10 @@ class CEAMCL:
         best_seen = None
         if self.config.evidence_climb_at_start and prepared is not None and prepared.n_beams:
             best_seen = loglik.copy()
+            held = self._peaks  # the climb records the new species' peaks only
             self._evaluations += self._probe_peaks(members, best_seen, prepared, _STANDING)
+            # a recovery's kept species keep theirs, from which their next climb starts
+            self._peaks = {**held, **self._peaks}
         self._accumulate_evidence(members, memory=0.0, best_seen=best_seen)
         self.log_prior = {}
         if kept is not None:
