@@ -10,7 +10,16 @@ scans leave it free, so the ellipse is a few centimetres long while the error al
 corridor is a decimetre. Measured over seeds 0-7 (2026-12-03): the truth inside the 2-sigma
 ellipse in 30 % of the steps (17-48 % a run; `mcl-tuned` with 5,000 particles 100 %, the Nav2
 wheel 97 %). That is a known limit, kept here as an expected failure so that the suite says
-when it changes. Seeds 0 and 1 run here (the first ones, not picked)."""
+when it changes.
+
+At Nav2's pace (an update every 0.25 m or 0.2 rad, the ROS node's default) the species, 120
+samples spread by the motion noise of a whole stride at each update, wanders 1-2 m along the
+corridor, and when the far wall comes into reach its readings are shorter than the species
+expects, end in free space, and so look like an unmapped obstacle in front of the laser: beam
+skipping (docs/ceamcl.md, "Beam skipping while tracking") leaves them out and the estimate
+stays 1.0-2.1 m off to the end in 5 of seeds 0-7 (0.03-0.09 m in all eight without beam
+skipping). Also kept as an expected failure. Seeds 0 and 1 run here (the first ones, not
+picked)."""
 
 from __future__ import annotations
 
@@ -19,6 +28,7 @@ import pytest
 
 from ceamcl.demo import seeded_generators
 from ceamcl.filters import make_filter
+from ceamcl.filters.policies import on_motion
 from ceamcl.maps.grid import OccupancyGrid
 from ceamcl.pose import inside_ellipse
 from ceamcl.runner import RunResult, run_filter
@@ -35,8 +45,7 @@ def corridor() -> OccupancyGrid:
     return OccupancyGrid(data, RES_M, (0.0, 0.0, 0.0), name="corridor")
 
 
-@pytest.fixture(scope="module")
-def runs() -> list[RunResult]:
+def _runs(at_nav2_pace: bool) -> list[RunResult]:
     grid = corridor()
     config = SimulationConfig()
     path = drive_waypoints([2.0, WIDTH_M / 2, 0.0], [np.array([37.0, WIDTH_M / 2])], config)
@@ -46,8 +55,14 @@ def runs() -> list[RunResult]:
         log = Simulator(grid, config).run(path, sim_rng)
         f = make_filter("ceamcl", grid, filter_rng)
         start = (log.true_poses[0], np.diag([0.01, 0.01, 0.005]))
-        out.append(run_filter(f, log, initial_pose=start))
+        pace = on_motion(0.25, 0.2) if at_nav2_pace else None
+        out.append(run_filter(f, log, initial_pose=start, update_when=pace))
     return out
+
+
+@pytest.fixture(scope="module")
+def runs() -> list[RunResult]:
+    return _runs(at_nav2_pace=False)
 
 
 def test_ceamcl_keeps_the_track_along_a_featureless_corridor(runs: list[RunResult]) -> None:
@@ -77,3 +92,17 @@ def test_ceamcl_ellipse_covers_the_truth_along_a_featureless_corridor(
     inside = np.concatenate(parts)
     print(f"truth inside the 2-sigma ellipse in {inside.mean():.1%} of {inside.size} steps")
     assert inside.mean() >= 0.85
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="at Nav2's pace the species wanders 1-2 m along the corridor and beam skipping takes "
+    "the far wall's readings for an unmapped obstacle: 1.0-2.1 m off at the end in 5 of seeds "
+    "0-7 (docs/ceamcl.md, 'A featureless corridor')",
+)
+def test_ceamcl_at_nav2s_pace_finds_the_far_end_of_a_featureless_corridor() -> None:
+    for r in _runs(at_nav2_pace=True):
+        assert r.truth is not None
+        error = float(np.hypot(*(r.estimates[-1, :2] - r.truth[-1, :2])))
+        print(f"error at the end: {error:.3f} m")
+        assert error < 0.1
