@@ -138,6 +138,11 @@ KERNELS: tuple[tuple[str, tuple[str, ...], tuple[str, ...]], ...] = (
         ("_crossover_select",),
         (f"({_F2}, {_F1}, {_I1}, {_I1}, {_F2}, {_F1}, {_F1}, boolean, {_F1}, boolean)",),
     ),
+    (
+        "ceamcl.filters.headings",
+        ("_facing_length_kernel",),
+        (f"({_F1}, " + ", ".join(["float64"] * 10) + ")",),
+    ),
     ("ceamcl.filters.ceamcl.species", ("_living_domains",), ("(float64[:, :, ::1],)",)),
     (
         "ceamcl.filters.ceamcl.species",

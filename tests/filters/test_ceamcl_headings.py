@@ -15,6 +15,8 @@ from ceamcl.filters.headings import (
     HeadingPrior,
     _map_normals,
     _map_normals_reference,
+    facing_length,
+    facing_length_reference,
     heading_density,
     map_normal_histogram,
     sample_headings,
@@ -69,6 +71,39 @@ def test_the_scans_normals_point_back_at_the_laser() -> None:
     assert ahead + left + right > 0.9
     assert min(ahead, left, right) > 0.15
     assert _mass_near(hist, 0.0) / total < 0.02
+
+
+def test_the_surfaces_facing_along_the_track_are_the_wall_ahead() -> None:
+    """Departure 44 counts the metres of surface that face along the robot's axis: in the box,
+    facing +x from x = 1 m, the wall ahead (3 m long, all in view) faces back at the laser and
+    the side walls face across; a corridor far longer than the laser's reach shows only side
+    walls."""
+    ranges = box_ranges(1.0, 0.0, beams=361)
+    scan = LaserScan(np.asarray(ranges), -np.pi / 2, np.pi / 360, 0.02, 30.0)
+    ahead = facing_length(scan, PRIOR, np.pi / 4)
+    assert 2.5 < ahead < 3.1  # the wall ahead, less a chord at its corners
+    # the same room with the laser's reach short of the wall ahead: side walls only
+    short = LaserScan(np.minimum(np.asarray(ranges), 1.9), -np.pi / 2, np.pi / 360, 0.02, 1.9)
+    assert facing_length(short, PRIOR, np.pi / 4) < 0.05
+    # nothing to face: a scan without end points
+    empty = LaserScan(np.full(361, 30.0), -np.pi / 2, np.pi / 360, 0.02, 30.0)
+    assert facing_length(empty, PRIOR, np.pi / 4) == 0.0
+
+
+def test_the_compiled_facing_length_equals_its_reference_on_simulated_and_noisy_scans() -> None:
+    sc = get_scenario("office")
+    log = sc.simulate(np.random.default_rng(3))
+    rng = np.random.default_rng(4)
+    for k in range(0, len(log), 25):
+        scan = log.scan(k)
+        ranges = scan.ranges.copy()
+        ranges[rng.random(ranges.size) < 0.05] = np.nan  # gaps and invalid readings too
+        ranges[rng.random(ranges.size) < 0.05] = np.inf
+        noisy = LaserScan(ranges, scan.angle_min, scan.angle_increment, scan.range_min, 8.0)
+        for s in (scan, noisy):
+            for half in (np.pi / 4, np.pi / 8):
+                got = facing_length(s, PRIOR, half)
+                assert got == pytest.approx(facing_length_reference(s, PRIOR, half), abs=1e-9)
 
 
 def test_the_density_peaks_at_the_true_heading_and_its_quarter_turns_in_a_box() -> None:

@@ -17,8 +17,10 @@ cells (cached per map) and one over the scan's beams.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 from scipy import ndimage
@@ -148,17 +150,19 @@ def _normals_histogram(
     return hist
 
 
-def scan_normal_histogram(scan: LaserScan, prior: HeadingPrior) -> NDArray[np.float64]:
-    """The directions (robot frame) of the surfaces a scan ends on, pointing back at the
-    laser, each end point weighted by the length of surface it stands for. A normal is taken
-    across a chord of about ``chord_m`` along consecutive end points no more than ``gap_m``
-    apart (so it does not bridge two objects); max-range, invalid and isolated readings give
-    none. Zeros where the scan gives no normal."""
+def scan_normals(
+    scan: LaserScan, prior: HeadingPrior
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The directions (robot frame, rad) of the surfaces a scan ends on, pointing back at the
+    laser, and the length of surface (m) each stands for. A normal is taken across a chord of
+    about ``chord_m`` along consecutive end points no more than ``gap_m`` apart (so it does not
+    bridge two objects); max-range, invalid and isolated readings give none."""
+    none = np.zeros(0)
     r = scan.ranges
     usable, is_max = classify_ranges(r, scan.range_min, scan.range_max)
     ok = usable & ~is_max  # hits (REP 117)
     if int(ok.sum()) < 3:
-        return np.zeros(prior.bins)
+        return none, none
     lx, ly, lyaw = scan.pose
     a = scan.angles[ok] + lyaw
     rr = r[ok]
@@ -175,7 +179,7 @@ def scan_normal_histogram(scan: LaserScan, prior: HeadingPrior) -> NDArray[np.fl
     j = np.minimum(j, n - 1)
     use = (run[j] == run) & (arc[j] - arc >= prior.chord_m * 0.999)
     if not use.any():
-        return np.zeros(prior.bins)
+        return none, none
     i = np.flatnonzero(use)
     j = j[use]
     dx = px[j] - px[i]
@@ -189,7 +193,105 @@ def scan_normal_histogram(scan: LaserScan, prior: HeadingPrior) -> NDArray[np.fl
     ny = np.where(flip, -ny, ny)
     # each end point stands for the surface between it and its successor
     weight = np.concatenate([np.where(joined, step, 0.0), [0.0]])[i]
-    return _histogram(np.arctan2(ny, nx), weight, prior)
+    return np.arctan2(ny, nx), weight
+
+
+def scan_normal_histogram(scan: LaserScan, prior: HeadingPrior) -> NDArray[np.float64]:
+    """:func:`scan_normals` as a histogram over ``prior.bins`` directions, each weighted by the
+    length of surface it stands for and smoothed by ``prior.smooth_rad``. Zeros where the scan
+    gives no normal."""
+    angles, weight = scan_normals(scan, prior)
+    if angles.size == 0:
+        return np.zeros(prior.bins)
+    return _histogram(angles, weight, prior)
+
+
+def facing_length(scan: LaserScan, prior: HeadingPrior, half_angle_rad: float) -> float:
+    """How many metres of the surfaces a scan ends on face along the robot's x axis: their
+    normals (:func:`scan_normals`) within ``half_angle_rad`` of straight ahead or straight
+    behind. Surfaces that face the direction of travel are the ones that tell how far along it
+    the robot is (CEAMCL's departure 44); a corridor's side walls face across it.
+
+    CEAMCL asks it at every update of a lone species, so it is one compiled pass
+    (:func:`_facing_length_kernel`, 0.01 ms for 360 beams against 0.07 ms in NumPy) with the
+    operations of :func:`facing_length_reference`, which it equals but where a normal lies
+    within rounding of ``half_angle_rad`` (the two libraries' cosines differ in the last bit)."""
+    lx, ly, lyaw = scan.pose
+    return float(
+        _facing_length_kernel(
+            np.ascontiguousarray(scan.ranges, dtype=np.float64),
+            float(scan.angle_min),
+            float(scan.angle_increment),
+            float(lx),
+            float(ly),
+            float(lyaw),
+            float(scan.range_min),
+            float(scan.range_max),
+            float(prior.chord_m),
+            float(prior.gap_m),
+            math.cos(half_angle_rad),
+        )
+    )
+
+
+def facing_length_reference(scan: LaserScan, prior: HeadingPrior, half_angle_rad: float) -> float:
+    """:func:`facing_length` in NumPy, from :func:`scan_normals` (the tests' reference)."""
+    angles, weight = scan_normals(scan, prior)
+    return float(weight[np.abs(np.cos(angles)) >= math.cos(half_angle_rad)].sum())
+
+
+@numba.njit(cache=True)
+def _facing_length_kernel(  # type: ignore[no-untyped-def]  # pragma: no cover
+    ranges, angle_min, angle_inc, lx, ly, lyaw, range_min, range_max, chord, gap, cos_half
+):
+    """:func:`facing_length_reference` in one pass: the hits' end points, their runs and arc
+    lengths, each end point's chord, its normal turned back at the laser, and the sum of the
+    surface lengths whose normal faces along the axis."""
+    m = ranges.size
+    px = np.empty(m)
+    py = np.empty(m)
+    n = 0
+    for b in range(m):
+        r = ranges[b]
+        if r >= range_min and r < range_max:  # a hit (REP 117): not NaN, not max-range
+            a = angle_min + angle_inc * b + lyaw
+            px[n] = lx + r * math.cos(a)
+            py[n] = ly + r * math.sin(a)
+            n += 1
+    if n < 3:
+        return 0.0
+    step = np.empty(n - 1)
+    joined = np.empty(n - 1, dtype=np.bool_)
+    run = np.empty(n, dtype=np.int64)
+    arc = np.empty(n)
+    run[0] = 0
+    arc[0] = 0.0
+    for k in range(n - 1):
+        step[k] = math.hypot(px[k + 1] - px[k], py[k + 1] - py[k])
+        joined[k] = step[k] <= gap
+        run[k + 1] = run[k] + (0 if joined[k] else 1)
+        arc[k + 1] = arc[k] + (step[k] if joined[k] else 0.0)
+    total = 0.0
+    j = 0
+    for i in range(n):
+        target = arc[i] + chord
+        while j < n and arc[j] < target:  # searchsorted(arc, target, side="left")
+            j += 1
+        jj = min(j, n - 1)
+        if run[jj] != run[i] or not arc[jj] - arc[i] >= chord * 0.999:
+            continue
+        weight = step[i] if i < n - 1 and joined[i] else 0.0
+        if weight == 0.0:
+            continue
+        nx = -(py[jj] - py[i])
+        ny = px[jj] - px[i]
+        mx = 0.5 * (px[i] + px[jj]) - lx
+        my = 0.5 * (py[i] + py[jj]) - ly
+        if nx * mx + ny * my > 0:
+            nx, ny = -nx, -ny
+        if abs(math.cos(math.atan2(ny, nx))) >= cos_half:
+            total += weight
+    return total
 
 
 def heading_density(
