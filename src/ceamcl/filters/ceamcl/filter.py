@@ -76,6 +76,7 @@ from ceamcl.filters.ceamcl.phases import (
 )
 from ceamcl.filters.ceamcl.records import CEAMCLRecord, Events, SpeciesRecord
 from ceamcl.filters.ceamcl.species import SpeciesStats
+from ceamcl.filters.headings import HeadingPrior, facing_length
 from ceamcl.filters.particles import (
     ParticleSet,
     check_increment,
@@ -223,6 +224,10 @@ class CEAMCL:
         self._confirm_window = -1
         #: the odometry's travel (m) and turning (rad) since the filter started
         self._moved = (0.0, 0.0)
+        #: departure 44: the odometry's travel (m) at the last update that weighed a lone
+        #: species (None: none yet, or several species lived since), and the travel counted
+        #: since a scan last showed surfaces facing along the track
+        self._track: tuple[float | None, float] = (None, 0.0)
         #: departure 18, this update: the anchor as the estimate, its place's share of the
         #: weight when it was held against a leader the species read LOCALISED (the state then
         #: says AMBIGUOUS), and the share of the scan the map explains at a leader held back
@@ -430,6 +435,7 @@ class CEAMCL:
         self._confirm_window = -1
         self._held = _NOT_HELD
         self._estimate_from = _NO_ESTIMATE
+        self._track = (None, 0.0)
 
     def initialise_pose(self, pose: ArrayLike, covariance: ArrayLike) -> None:
         """Pose tracking: one species of ``tracking_samples`` around a known pose."""
@@ -563,12 +569,17 @@ class CEAMCL:
         # neither the climb nor the wall check.
         compared = len(members) > 1
         if compared:
+            self._track = (None, 0.0)  # departure 44 counts a lone species' travel only
             self._evaluations += self._probe_peaks(members, best_seen, prepared, increment)
         else:
             self._peaks = {}  # no warm start for a lone species' climb
-            if self._fit_in_doubt(members):  # for the reported fitness only (docs/state.md)
+            along = self._track_reach(scan)  # departure 44, counted at every lone update
+            # for the reported fitness (docs/state.md), or a track the scans could not place
+            if self._fit_in_doubt(members) or along > 0.0:
                 self._evaluations += self._probe_peaks(members, best_seen, prepared, increment)
                 self._evaluations += self._look_around(members, full, increment)  # departure 12
+                if along > 0.0 and not self.events.look_arounds:
+                    self._evaluations += self._look_along(members, full, along)
         self._accumulate_evidence(
             members, self._memory_for(increment), best_seen, see_through=compared
         )
@@ -742,18 +753,75 @@ class CEAMCL:
                 evaluations += more
         if found is None:
             return evaluations
+        return evaluations + self._redraw_around(sid, idx, found)
+
+    def _redraw_around(
+        self,
+        sid: int,
+        idx: NDArray[np.intp],
+        found: tuple[NDArray[np.float64], float, PreparedScan],
+    ) -> int:
+        """What a look-around that found a pose does (departures 12 and 44): the worst
+        ``look_around_share`` of species ``sid``'s samples (``idx``) are drawn again around it
+        with the mutation's Sigma and the species is weighed again with the beams that pose
+        keeps. Returns the evaluations spent."""
+        ps = self.particle_set
         pose, fit, there = found
-        k = max(1, round(cfg.look_around_share * idx.size))
+        k = max(1, round(self.config.look_around_share * idx.size))
         worst = idx[np.argsort(ps.loglik[idx], kind="stable")[:k]]
         ps.poses[worst] = self._mutation_cloud(pose, k)
         ps.loglik[idx] = sanitise_log_likelihood(self.sensor.log_likelihood(ps.poses[idx], there))
         ps.fitness[idx] = fitness(ps.loglik[idx], there, self.sensor)
-        evaluations += int(idx.size)
         self._prepared = there
         self._peaks[sid] = pose.copy()
         self._peak_fitness[sid] = fit
         self.events.look_arounds += 1
-        return evaluations
+        return int(idx.size)
+
+    def _track_reach(self, scan: LaserScan | None) -> float:
+        """Departure 44 (docs/ceamcl.md): how far a lone species should look along its track
+        at this update (0: not at all). The odometry's travel is counted while fewer than
+        ``track_facing_m`` metres of the scan's surfaces face along the robot's axis (a
+        corridor's side walls face across it, so nothing in the scans says how far along the
+        robot is and the species may have drifted along it unnoticed); the travel up to a scan
+        that shows that many is not counted, the reach is then ``track_drift_gain`` times the
+        count (at most ``track_look_max_m``), and the count falls to ``track_drift_decay`` of
+        itself."""
+        cfg = self.config
+        gain = cfg.track_drift_gain
+        if gain is None or scan is None:
+            return 0.0
+        last, unseen = self._track
+        travel = self._moved[0]
+        if facing_length(scan, _SURFACES, _FACING_RAD) < cfg.track_facing_m:
+            # the travel up to this scan was not placed along the track
+            self._track = (travel, unseen if last is None else unseen + travel - last)
+            return 0.0
+        self._track = (travel, cfg.track_drift_decay * unseen)
+        reach = min(cfg.track_look_max_m, gain * unseen)
+        return reach if reach >= cfg.track_look_min_m else 0.0
+
+    def _look_along(
+        self, members: dict[int, NDArray[np.intp]], full: PreparedScan, reach: float
+    ) -> int:
+        """Departure 44: the lone species scores, on every beam, poses along its best pose's
+        heading within ``reach`` metres ahead and behind, ``look_around_step_m`` apart, each
+        also a step to either side and ``look_around_step_rad`` either way, and moves as
+        departure 12's look-around does when its test accepts one. Returns the evaluations
+        spent."""
+        cfg = self.config
+        ps = self.particle_set
+        ((sid, idx),) = members.items()
+        if idx.size == 0:
+            return 0
+        top = int(idx[np.argmax(ps.loglik[idx])])
+        centre = self._peaks.get(sid, ps.poses[top])
+        found, evaluations, _ = self._search_around(
+            centre, _along_offsets(centre[2], reach, cfg), full, None
+        )
+        if found is None:
+            return evaluations
+        return evaluations + self._redraw_around(sid, idx, found)
 
     def _search_around(
         self,
@@ -1721,6 +1789,29 @@ def look_around_reach(cfg: CEAMCLConfig, increment: OdometryIncrement) -> tuple[
     turn = sum(increment.turns)
     spread = min(cfg.look_around_max_rad, cfg.look_around_rad + cfg.look_around_gain * turn)
     return radius, spread
+
+
+#: departure 44: the surfaces of a scan (chords of 0.2 m, as the test poses' headings read them)
+#: and the angle within which their normals face along the robot's axis
+_SURFACES = HeadingPrior()
+_FACING_RAD = np.pi / 4
+
+
+def _along_offsets(heading: float, reach_m: float, cfg: CEAMCLConfig) -> NDArray[np.float64]:
+    """Offsets ``(dx, dy, dtheta)`` of :meth:`CEAMCL._look_along`: every ``look_around_step_m``
+    along ``heading`` within ``reach_m`` either way, each a step to either side and
+    ``look_around_step_rad`` either way (the zero offset included)."""
+    step, step_rad = cfg.look_around_step_m, cfg.look_around_step_rad
+    n = int(np.floor(reach_m / step + 1e-9))
+    along, side, turn = np.meshgrid(
+        np.arange(-n, n + 1) * step,
+        np.array([-step, 0.0, step]),
+        np.array([-step_rad, 0.0, step_rad]),
+        indexing="ij",
+    )
+    a, b = along.ravel(), side.ravel()
+    c, s = np.cos(heading), np.sin(heading)
+    return np.column_stack([a * c - b * s, a * s + b * c, turn.ravel()])
 
 
 def _look_around_offsets(
