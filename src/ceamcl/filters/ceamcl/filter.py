@@ -727,15 +727,10 @@ class CEAMCL:
         Veloso 2000) in the neighbourhood the odometry leaves in doubt. Returns the
         evaluations spent."""
         cfg = self.config
-        reach = cfg.look_around_m
-        if reach is None:
+        lone = self._lone_peak(members)
+        if cfg.look_around_m is None or lone is None:
             return 0
-        ps = self.particle_set
-        ((sid, idx),) = members.items()
-        if idx.size == 0:
-            return 0
-        top = int(idx[np.argmax(ps.loglik[idx])])
-        centre = self._peaks.get(sid, ps.poses[top])
+        sid, idx, centre = lone
         radius, spread = look_around_reach(cfg, increment)
         near = min(3.0 * cfg.look_around_rad, spread)  # the first search's turn
         offsets = _look_around_offsets(
@@ -754,6 +749,18 @@ class CEAMCL:
         if found is None:
             return evaluations
         return evaluations + self._redraw_around(sid, idx, found)
+
+    def _lone_peak(
+        self, members: dict[int, NDArray[np.intp]]
+    ) -> tuple[int, NDArray[np.intp], NDArray[np.float64]] | None:
+        """The lone species' id, its samples and where a look around it starts: its last peak,
+        or its fittest sample (departures 12 and 44); ``None`` when it has no samples."""
+        ((sid, idx),) = members.items()
+        if idx.size == 0:
+            return None
+        ps = self.particle_set
+        top = int(idx[np.argmax(ps.loglik[idx])])
+        return sid, idx, self._peaks.get(sid, ps.poses[top])
 
     def _redraw_around(
         self,
@@ -809,15 +816,12 @@ class CEAMCL:
         also a step to either side and ``look_around_step_rad`` either way, and moves as
         departure 12's look-around does when its test accepts one. Returns the evaluations
         spent."""
-        cfg = self.config
-        ps = self.particle_set
-        ((sid, idx),) = members.items()
-        if idx.size == 0:
+        lone = self._lone_peak(members)
+        if lone is None:
             return 0
-        top = int(idx[np.argmax(ps.loglik[idx])])
-        centre = self._peaks.get(sid, ps.poses[top])
+        sid, idx, centre = lone
         found, evaluations, _ = self._search_around(
-            centre, _along_offsets(centre[2], reach, cfg), full, None
+            centre, _along_offsets(centre[2], reach, self.config), full, None
         )
         if found is None:
             return evaluations
