@@ -326,11 +326,13 @@ class CEAMCLConfig:
             no look-around (the evidence climb alone).
 
     Not in the paper (a track the scans cannot place, docs/ceamcl.md departure 44):
-        track_drift_gain: a lone species counts the odometry's travel while fewer than
+        track_drift_sd: a lone species counts the odometry's travel while fewer than
             ``track_facing_m`` metres of the surfaces its scans end on face along the robot's
             axis (within 45 degrees of straight ahead or behind: a corridor's side walls face
             across it); when that many do again, it looks along its track (its heading)
-            within this gain times the travel so counted (at most ``track_look_max_m``), and
+            within this many standard deviations of the odometry's drift over the travel so
+            counted (departure 15's 0.06 m a metre, ``anchor.DRIFT_SD_M_PER_M``; at most
+            ``track_look_max_m``), and
             the count falls to ``track_drift_decay`` of itself at each such update. The look
             runs when its reach is at least ``track_look_min_m``: the evidence climb and
             departure 12's look-around, then poses ``look_around_step_m`` apart along the
@@ -429,7 +431,7 @@ class CEAMCLConfig:
     look_around_max_rad: float = 0.1 + 2.0 * STRIDE_RAD  # departure 42: one stride's turn
     look_around_margin: float = 3.0
     look_around_share: float = 0.5
-    track_drift_gain: float | None = 0.1
+    track_drift_sd: float | None = 2.0
     track_facing_m: float = 1.0
     track_look_min_m: float = 0.4
     track_look_max_m: float = 5.0
@@ -494,7 +496,7 @@ class CEAMCLConfig:
             "look_around_max_rad": self.look_around_rad <= self.look_around_max_rad <= np.pi,
             "look_around_margin": self.look_around_margin >= 0,
             "look_around_share": 0 < self.look_around_share <= 1,
-            "track_drift_gain": self.track_drift_gain is None or 0 < self.track_drift_gain <= 1,
+            "track_drift_sd": self.track_drift_sd is None or 0 < self.track_drift_sd <= 10,
             "track_facing_m": self.track_facing_m > 0,
             "track_look_min_m": 0 < self.track_look_min_m <= self.track_look_max_m,
             # bounds the look's grid: at most 2 x 10 m / look_around_step_m poses x 9

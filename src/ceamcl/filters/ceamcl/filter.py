@@ -54,7 +54,12 @@ from ceamcl.filters.base import (
     check_step_arguments,
     require_initialised,
 )
-from ceamcl.filters.ceamcl.anchor import CHAIN_M, ConfidentPose, DriftEnvelope
+from ceamcl.filters.ceamcl.anchor import (
+    CHAIN_M,
+    DRIFT_SD_M_PER_M,
+    ConfidentPose,
+    DriftEnvelope,
+)
 from ceamcl.filters.ceamcl.config import CEAMCLConfig
 from ceamcl.filters.ceamcl.initialisation import (
     InitialisationConfig,
@@ -791,12 +796,12 @@ class CEAMCL:
         ``track_facing_m`` metres of the scan's surfaces face along the robot's axis (a
         corridor's side walls face across it, so nothing in the scans says how far along the
         robot is and the species may have drifted along it unnoticed); the travel up to a scan
-        that shows that many is not counted, the reach is then ``track_drift_gain`` times the
-        count (at most ``track_look_max_m``), and the count falls to ``track_drift_decay`` of
-        itself."""
+        that shows that many is not counted, the reach is then ``track_drift_sd`` standard
+        deviations of the odometry's drift over the count (departure 15's drift a metre, at most
+        ``track_look_max_m``), and the count falls to ``track_drift_decay`` of itself."""
         cfg = self.config
-        gain = cfg.track_drift_gain
-        if gain is None or scan is None:
+        sd = cfg.track_drift_sd
+        if sd is None or scan is None:
             return 0.0
         last, unseen = self._track
         travel = self._moved[0]
@@ -805,7 +810,7 @@ class CEAMCL:
             self._track = (travel, unseen if last is None else unseen + travel - last)
             return 0.0
         self._track = (travel, cfg.track_drift_decay * unseen)
-        reach = min(cfg.track_look_max_m, gain * unseen)
+        reach = min(cfg.track_look_max_m, sd * DRIFT_SD_M_PER_M * unseen)
         return reach if reach >= cfg.track_look_min_m else 0.0
 
     def _look_along(
